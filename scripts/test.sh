@@ -1,0 +1,6 @@
+#!/usr/bin/env bash
+# Set up (idempotent, with the test extra and chromium) and run every test. Extra arguments go to pytest.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh --test
+exec .venv/bin/python -m pytest "$@"

@@ -1,0 +1,40 @@
+"""The Body: what the body stage hands to the simulation (see docs/ARCHITECTURE.md)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tryon.body.maps import PartMaps
+
+PART_NAMES = (
+    "head", "torso",
+    "upper_arm_l", "upper_arm_r", "forearm_l", "forearm_r",
+    "thigh_l", "thigh_r", "shin_l", "shin_r",
+)
+
+
+@dataclass(frozen=True)
+class Body:
+    """A built body. Metres, y up, feet on y = 0, facing +z, its left side towards +x.
+
+    vertices (n, 3) float64; faces (f, 3) int32, counter-clockwise seen from outside.
+    vertex_normals (n, 3), face_normals (f, 3): unit, outward.
+    face_part (f,) int16: index into ``parts``.
+    part_axes (P, 2, 3): each part's axis segment (start, end), metres.
+    maps: per-part OBBs and cylinder maps for collision.
+    requested / achieved: measurements in cm; levels: height (m) at which each girth was taken.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    vertex_normals: np.ndarray
+    face_normals: np.ndarray
+    face_part: np.ndarray
+    parts: tuple[str, ...]
+    part_axes: np.ndarray
+    maps: PartMaps
+    requested: dict
+    achieved: dict
+    levels: dict

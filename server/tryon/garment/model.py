@@ -1,0 +1,97 @@
+"""GarmentModel: the immutable, cached result of preparing a garment (SPEC section 3).
+
+Everything a try-on needs and nothing it has to recompute: the full mesh (for display), the coarse
+(simplified) mesh that is simulated, its springs with natural lengths and types, particle masses, and the
+barycentric re-attachment of the full mesh to the coarse one.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+STRUCTURAL, SHEAR, BENDING = 0, 1, 2
+SPRING_KINDS = ("structural", "shear", "bending")
+
+
+@dataclass(frozen=True)
+class GarmentMeta:
+    """Catalogue facts about a garment (no arrays)."""
+
+    id: str
+    name: str
+    category: str  # top | bottom | dress
+    size: str | None
+    units: str  # m | cm | mm | dm | in (what the source file was read as)
+    units_guessed: bool
+    simplification: float  # B = kept / original vertices
+    source_sha256: str
+    source_name: str
+    vertices: int
+    faces: int
+    coarse_vertices: int
+    coarse_faces: int
+    springs: dict = field(default_factory=dict)  # kind name -> count
+    notes: list = field(default_factory=list)  # what cleaning did, in words
+
+
+@dataclass(frozen=True)
+class GarmentModel:
+    """A prepared garment. Metres, y up. Indices int32, coordinates float64.
+
+    vertices (n, 3): full mesh; faces (f, 3): full mesh triangles.
+    coarse_index (k,): original vertex id of each coarse vertex (kept vertices are original ones).
+    coarse_faces (g, 3): triangles of the coarse mesh, indices into 0..k-1.
+    springs (s, 2): coarse vertex pairs; rest (s,): natural lengths (m); kind (s,) int8: 0/1/2 =
+        structural/shear/bending.
+    mass (k,): particle masses, kg (areal density x lumped triangle area).
+    attach_face (n,), attach_bary (n, 3), attach_offset (n,): each full vertex as a barycentric point
+        of a coarse face plus an offset (m) along that face's unit normal.
+    """
+
+    meta: GarmentMeta
+    vertices: np.ndarray
+    faces: np.ndarray
+    coarse_index: np.ndarray
+    coarse_faces: np.ndarray
+    springs: np.ndarray
+    rest: np.ndarray
+    kind: np.ndarray
+    mass: np.ndarray
+    attach_face: np.ndarray
+    attach_bary: np.ndarray
+    attach_offset: np.ndarray
+
+    ARRAYS = (
+        "vertices", "faces", "coarse_index", "coarse_faces", "springs", "rest", "kind", "mass",
+        "attach_face", "attach_bary", "attach_offset",
+    )
+
+    @property
+    def coarse_vertices(self) -> np.ndarray:
+        """(k, 3) rest positions of the coarse mesh."""
+        return self.vertices[self.coarse_index]
+
+    def expand(self, coarse_positions: np.ndarray) -> np.ndarray:
+        """Full-mesh positions (n, 3) from coarse positions (k, 3) via the re-attachment."""
+        tri = coarse_positions[self.coarse_faces[self.attach_face]]  # (n, 3, 3)
+        p = np.einsum("nj,njk->nk", self.attach_bary, tri)
+        nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(nrm, axis=1, keepdims=True)
+        nrm /= np.where(length > 0, length, 1.0)
+        return p + nrm * self.attach_offset[:, None]
+
+    def save(self, directory: Path) -> None:
+        """Write ``model.npz`` and ``meta.json`` into ``directory`` (which must exist)."""
+        np.savez(directory / "model.npz", **{k: getattr(self, k) for k in self.ARRAYS})
+        (directory / "meta.json").write_text(json.dumps(asdict(self.meta), indent=1))
+
+    @classmethod
+    def load(cls, directory: Path) -> "GarmentModel":
+        meta = GarmentMeta(**json.loads((directory / "meta.json").read_text()))
+        with np.load(directory / "model.npz") as z:
+            arrays = {k: z[k] for k in cls.ARRAYS}
+        return cls(meta=meta, **arrays)

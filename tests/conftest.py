@@ -1,0 +1,86 @@
+"""Shared fixtures: app factory with a temporary data dir, and a real ``tryon serve`` process."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+
+from tryon.config import Settings
+
+ROOT = Path(__file__).resolve().parents[1]
+ADMIN_TOKEN = "test-admin-token"
+
+
+def free_port() -> int:
+    with contextlib.closing(socket.socket()) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def settings(tmp_path: Path) -> Settings:
+    return Settings(data_dir=tmp_path / "data", admin_token=ADMIN_TOKEN)
+
+
+@contextlib.contextmanager
+def serve_process(data_dir: Path, env: dict | None = None, timeout_s: float = 60.0):
+    """Run ``tryon serve`` on a free port; yield its base URL; stop it afterwards."""
+    port = free_port()
+    full_env = {**os.environ, "TRYON_DATA_DIR": str(data_dir), "TRYON_ADMIN_TOKEN": ADMIN_TOKEN, **(env or {})}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tryon.cli", "serve", "--port", str(port), "--log-level", "warning"],
+        env=full_env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+    )
+    url = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + timeout_s
+        while True:
+            if proc.poll() is not None:
+                raise RuntimeError(f"tryon serve exited: {proc.stdout.read().decode(errors='replace')}")
+            try:
+                if httpx.get(f"{url}/api/health", timeout=1.0).status_code == 200:
+                    break
+            except httpx.HTTPError:
+                pass
+            if time.monotonic() > deadline:
+                raise RuntimeError("tryon serve did not answer /api/health in time")
+            time.sleep(0.1)
+        yield url
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+@pytest.fixture(scope="session")
+def live_server(tmp_path_factory) -> str:
+    """A real uvicorn server (``tryon serve``) shared by the session's end-to-end tests."""
+    with serve_process(tmp_path_factory.mktemp("live-data")) as url:
+        yield url
+
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+
+
+@pytest.fixture(scope="session")
+def browser():
+    """Debian's headless Chromium driven by Playwright."""
+    from playwright.sync_api import sync_playwright
+
+    if not Path(CHROMIUM).exists():
+        pytest.fail(f"{CHROMIUM} is missing: run `bash scripts/test.sh`, which installs it")
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield b
+        b.close()

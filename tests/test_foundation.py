@@ -1,0 +1,108 @@
+"""Issue 2: the app factory, a real `tryon serve` process, the page in a real browser, packaging."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import httpx
+import pytest
+from fastapi.testclient import TestClient
+
+from tryon import __version__
+from tryon.api.app import create_app
+from tryon.cli import build_parser
+from tryon.config import Settings
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_factory_uses_given_settings(settings: Settings):
+    app = create_app(settings)
+    assert app.state.settings is settings
+    assert settings.data_dir.is_dir()
+    with TestClient(app) as client:
+        r = client.get("/api/health")
+        assert r.status_code == 200
+        assert r.json()["status"] == "ok"
+        assert r.json()["version"] == __version__
+
+
+def test_settings_from_environment(monkeypatch, tmp_path):
+    monkeypatch.setenv("TRYON_DATA_DIR", str(tmp_path / "d"))
+    monkeypatch.setenv("TRYON_ADMIN_TOKEN", "s3cret")
+    s = Settings()
+    assert s.data_dir == tmp_path / "d"
+    assert s.admin_token == "s3cret"
+    monkeypatch.delenv("TRYON_ADMIN_TOKEN")
+    assert Settings().admin_token is None
+
+
+def test_page_and_three_served_by_app(settings: Settings):
+    with TestClient(create_app(settings)) as client:
+        page = client.get("/")
+        assert page.status_code == 200
+        assert "importmap" in page.text
+        three = client.get("/vendor/three/build/three.module.js")
+        assert three.status_code == 200
+        assert "REVISION" in three.text
+        assert client.get("/vendor/three/examples/jsm/controls/OrbitControls.js").status_code == 200
+
+
+def test_cli_serve_defaults():
+    args = build_parser().parse_args(["serve"])
+    assert (args.host, args.port) == ("127.0.0.1", 8000)
+
+
+@pytest.mark.e2e
+def test_real_server_health_page_and_three(live_server: str):
+    health = httpx.get(f"{live_server}/api/health", timeout=5)
+    assert health.json()["status"] == "ok"
+    page = httpx.get(f"{live_server}/", timeout=5)
+    assert page.status_code == 200 and "importmap" in page.text
+    imports = dict(re.findall(r'"(three[^"]*)":\s*"([^"]+)"', page.text))
+    module = httpx.get(live_server + imports["three"], timeout=5)
+    assert module.status_code == 200 and "REVISION" in module.text
+    addon = httpx.get(live_server + imports["three/addons/"] + "controls/OrbitControls.js", timeout=5)
+    assert addon.status_code == 200
+
+
+@pytest.mark.e2e
+def test_browser_renders_scene_without_errors(live_server: str, browser):
+    page = browser.new_page(viewport={"width": 800, "height": 600})
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(live_server + "/")
+    page.wait_for_selector("canvas")
+    page.wait_for_timeout(500)
+    # Read the canvas back: a rendered scene has more than one colour.
+    colours = page.evaluate(
+        """() => { const c = document.querySelector('canvas');
+                   const gl = c.getContext('webgl2') || c.getContext('webgl');
+                   const px = new Uint8Array(c.width * c.height * 4);
+                   gl.readPixels(0, 0, c.width, c.height, gl.RGBA, gl.UNSIGNED_BYTE, px);
+                   const seen = new Set();
+                   for (let i = 0; i < px.length; i += 4 * 97) seen.add(px[i] << 16 | px[i+1] << 8 | px[i+2]);
+                   return seen.size; }"""
+    )
+    page.close()
+    assert colours > 3, "canvas looks blank"
+    assert errors == []
+
+
+def test_dockerfile_copies_existing_files():
+    text = (ROOT / "Dockerfile").read_text().replace("\\\n", " ")  # join continued lines
+    assert re.search(r"^HEALTHCHECK .*api/health", text, re.M)
+    assert re.search(r"^USER (?!root)", text, re.M)
+    assert "EXPOSE 8000" in text
+    for line in re.findall(r"^COPY (?:--\S+ )*(.+)$", text, re.M):
+        *sources, _dest = line.split()
+        for src in sources:
+            assert (ROOT / src).exists(), f"Dockerfile copies {src}, which does not exist"
+
+
+def test_ci_runs_the_readme_test_command():
+    readme = (ROOT / "README.md").read_text()
+    assert "bash scripts/test.sh" in readme and "bash scripts/serve.sh" in readme
+    assert "scripts/test.sh" in (ROOT / ".ci" / "run").read_text()

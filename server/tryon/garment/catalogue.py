@@ -1,0 +1,303 @@
+"""The garment catalogue: an SQLite index plus a directory of prepared arrays per garment.
+
+Layout under ``data_dir``::
+
+    catalogue.sqlite            index: one row per catalogue entry (GarmentMeta + preparation params)
+    sources/<sha256>.<ext>      the uploaded file, kept so that other simplification degrees can be made
+    models/<key>/               model.npz + meta.json (GarmentModel.save); key = id for the entry itself,
+                                id-B<b> for a variant with another simplification degree
+    tmp/                        work directories; anything here is a leftover of a crash
+
+An entry's id is a short hash of the file's sha256 and the preprocessing parameters (units,
+simplification, density), so the same file with the same parameters is the same entry (idempotent).
+Writes are atomic: the model is prepared in ``tmp/``, moved into place with ``os.replace`` (atomic on one
+file system), and only then is the row inserted in a transaction. A crash leaves no row, and at worst a
+complete model directory without a row, which the next ingestion of that file adopts. Two ingestions at
+once (threads or processes) race only on the rename and the ``INSERT OR IGNORE``; both end with the same
+single entry.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import sqlite3
+import threading
+import time
+import uuid
+from collections import OrderedDict
+from dataclasses import asdict, replace
+from pathlib import Path
+
+from tryon.garment.ingest import GarmentError, file_extension, load_garment
+from tryon.garment.model import GarmentMeta, GarmentModel
+from tryon.garment.prepare import DEFAULT_DENSITY, DEFAULT_SIMPLIFICATION, prepare
+
+CATEGORIES = ("top", "bottom", "dress")
+# Prepared models kept in memory per process (a model of 5,000 vertices is ~1 MB).
+MODEL_CACHE_SIZE = 16
+# SQLite waits this long (s) for another writer's transaction before giving up.
+SQLITE_TIMEOUT_S = 30.0
+# Work directories older than this (s) are leftovers of a crashed ingestion and are removed.
+STALE_TMP_S = 3600.0
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS garments (
+    id TEXT PRIMARY KEY,
+    name TEXT NOT NULL,
+    category TEXT NOT NULL,
+    size TEXT,
+    units TEXT NOT NULL,
+    requested_units TEXT NOT NULL,
+    simplification REAL NOT NULL,
+    density REAL NOT NULL,
+    source_sha256 TEXT NOT NULL,
+    source_ext TEXT NOT NULL,
+    meta TEXT NOT NULL,
+    created REAL NOT NULL
+)
+"""
+
+
+def entry_id(sha256: str, units: str, simplification: float, density: float) -> str:
+    """12 hex digits naming (file content, preprocessing parameters)."""
+    key = f"{sha256}|units={units}|B={simplification:.4f}|density={density:.5f}"
+    return hashlib.sha256(key.encode()).hexdigest()[:12]
+
+
+class Catalogue:
+    """Garments prepared once and cached under ``data_dir`` (see the module docstring)."""
+
+    def __init__(self, data_dir: Path | str, cache_size: int = MODEL_CACHE_SIZE):
+        self.data_dir = Path(data_dir)
+        self.db_path = self.data_dir / "catalogue.sqlite"
+        self.sources = self.data_dir / "sources"
+        self.models = self.data_dir / "models"
+        self.tmp = self.data_dir / "tmp"
+        for d in (self.sources, self.models, self.tmp):
+            d.mkdir(parents=True, exist_ok=True)
+        self._cache: OrderedDict[str, GarmentModel] = OrderedDict()
+        self._cache_size = cache_size
+        self._lock = threading.Lock()
+        with self._connect() as db:
+            db.execute("PRAGMA journal_mode=WAL")
+            db.execute(_SCHEMA)
+        self._remove_stale_tmp()
+
+    # --- reading ----------------------------------------------------------------------------------
+
+    def list(self) -> list[GarmentMeta]:
+        """Every entry, oldest first."""
+        with self._connect() as db:
+            rows = db.execute("SELECT meta FROM garments ORDER BY created, id").fetchall()
+        return [GarmentMeta(**json.loads(r[0])) for r in rows]
+
+    def get(self, garment_id: str) -> GarmentMeta | None:
+        """The entry's meta, or None if there is no such id."""
+        with self._connect() as db:
+            row = db.execute("SELECT meta FROM garments WHERE id = ?", (garment_id,)).fetchone()
+        return GarmentMeta(**json.loads(row[0])) if row else None
+
+    def model(self, garment_id: str, simplification: float | None = None) -> GarmentModel:
+        """The prepared model (from memory, else disk). Another simplification degree than the entry's
+        is prepared once from the kept source file and cached on disk. KeyError if unknown."""
+        row = self._row(garment_id)
+        if row is None:
+            raise KeyError(garment_id)
+        stored_b = row["simplification"]
+        b = stored_b if simplification is None else float(simplification)
+        if not 0.0 < b <= 1.0:
+            raise ValueError(f"simplification must be in (0, 1], got {b}")
+        key = garment_id if abs(b - stored_b) < 1e-9 else f"{garment_id}-B{b:.4f}"
+        with self._lock:
+            if key in self._cache:
+                self._cache.move_to_end(key)
+                return self._cache[key]
+        directory = self.models / key
+        if not (directory / "meta.json").exists():
+            meta = GarmentMeta(**json.loads(row["meta"]))
+            source = self.sources / f"{row['source_sha256']}.{row['source_ext']}"
+            self._prepare_into(directory, source.read_bytes(), meta.source_name, row["requested_units"],
+                               replace(meta, simplification=b), row["density"])
+        model = GarmentModel.load(directory)
+        # name, category and size are the entry's (the uploader's words), not the prepared model's
+        model = replace(model, meta=replace(model.meta, id=garment_id, name=row["name"],
+                                            category=row["category"], size=row["size"]))
+        with self._lock:
+            self._cache[key] = model
+            self._cache.move_to_end(key)
+            while len(self._cache) > self._cache_size:
+                self._cache.popitem(last=False)
+        return model
+
+    # --- writing ----------------------------------------------------------------------------------
+
+    def ingest(self, source: Path | str | bytes, name: str | None = None, category: str = "top",
+               units: str = "auto", simplify: float = DEFAULT_SIMPLIFICATION, size: str | None = None,
+               filename: str | None = None, density: float = DEFAULT_DENSITY,
+               max_faces: int = 400_000) -> GarmentMeta:
+        """Prepare and add a garment (a path, or bytes with ``filename``); returns the entry. The same
+        file with the same parameters returns the existing entry without preparing again.
+        ``units``: m | cm | mm | dm | in | auto; ``simplify``: B in (0, 1]; ``density``: kg/m^2.
+        GarmentError (a reason for the user) if the file or a parameter is refused."""
+        return self.ingest_with_status(source, name, category, units, simplify, size, filename, density, max_faces)[0]
+
+    def ingest_with_status(self, source: Path | str | bytes, name: str | None = None, category: str = "top",
+                           units: str = "auto", simplify: float = DEFAULT_SIMPLIFICATION,
+                           size: str | None = None, filename: str | None = None,
+                           density: float = DEFAULT_DENSITY, max_faces: int = 400_000
+                           ) -> tuple[GarmentMeta, bool]:
+        """As ``ingest``, plus whether a new entry was made (False: it was already there)."""
+        if isinstance(source, (bytes, bytearray)):
+            data = bytes(source)
+            if filename is None:
+                raise GarmentError("a file name is needed to know the file type")
+        else:
+            path = Path(source)
+            data = path.read_bytes()
+            filename = filename or path.name
+        ext = file_extension(filename)
+        if category not in CATEGORIES:
+            raise GarmentError(f"category must be one of {', '.join(CATEGORIES)}, not {category!r}")
+        if not 0.0 < simplify <= 1.0:
+            raise GarmentError(f"simplify must be in (0, 1], got {simplify}")
+        if not density > 0.0:
+            raise GarmentError(f"density must be positive (kg/m^2), got {density}")
+        name = name or Path(filename).stem
+        sha = hashlib.sha256(data).hexdigest()
+        gid = entry_id(sha, units, simplify, density)
+        existing = self.get(gid)
+        if existing is not None:
+            return existing, False
+        directory = self.models / gid
+        if not (directory / "meta.json").exists():
+            self._store_source(sha, ext, data)
+            meta = GarmentMeta(
+                id=gid, name=name, category=category, size=size, units=units, units_guessed=False,
+                simplification=float(simplify), source_sha256=sha, source_name=filename, vertices=0,
+                faces=0, coarse_vertices=0, coarse_faces=0,
+            )
+            self._prepare_into(directory, data, filename, units, meta, density, max_faces)
+        meta = json.loads((directory / "meta.json").read_text())
+        # name/category/size are the uploader's words for this entry, not part of the prepared model
+        meta.update(name=name, category=category, size=size)
+        with self._connect() as db:
+            db.execute("BEGIN IMMEDIATE")
+            cur = db.execute(
+                "INSERT OR IGNORE INTO garments (id, name, category, size, units, requested_units, "
+                "simplification, density, source_sha256, source_ext, meta, created) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (gid, name, category, size, meta["units"], units, float(simplify), float(density), sha, ext,
+                 json.dumps(meta), time.time()),
+            )
+            created = cur.rowcount == 1
+        return self.get(gid), created
+
+    def delete(self, garment_id: str) -> bool:
+        """Remove an entry, its prepared models and (if no other entry uses it) its source file.
+        False if there was no such id."""
+        with self._connect() as db:
+            db.execute("BEGIN IMMEDIATE")
+            row = db.execute("SELECT source_sha256, source_ext FROM garments WHERE id = ?", (garment_id,)).fetchone()
+            if row is None:
+                return False
+            db.execute("DELETE FROM garments WHERE id = ?", (garment_id,))
+            others = db.execute("SELECT COUNT(*) FROM garments WHERE source_sha256 = ?", (row[0],)).fetchone()[0]
+        with self._lock:
+            for key in [k for k in self._cache if k.split("-B")[0] == garment_id]:
+                del self._cache[key]
+        for d in list(self.models.glob(f"{garment_id}*")):
+            if d.name == garment_id or d.name.startswith(f"{garment_id}-B"):
+                self._discard(d)
+        if others == 0:
+            (self.sources / f"{row[0]}.{row[1]}").unlink(missing_ok=True)
+        return True
+
+    # --- internals --------------------------------------------------------------------------------
+
+    def _connect(self) -> sqlite3.Connection:
+        db = sqlite3.connect(self.db_path, timeout=SQLITE_TIMEOUT_S, isolation_level=None)
+        db.row_factory = sqlite3.Row
+        return _Closing(db)
+
+    def _row(self, garment_id: str):
+        with self._connect() as db:
+            return db.execute("SELECT * FROM garments WHERE id = ?", (garment_id,)).fetchone()
+
+    def _work_dir(self) -> Path:
+        d = self.tmp / f"{os.getpid()}-{uuid.uuid4().hex}"
+        d.mkdir()
+        return d
+
+    def _store_source(self, sha: str, ext: str, data: bytes) -> None:
+        target = self.sources / f"{sha}.{ext}"
+        if target.exists():
+            return
+        work = self._work_dir()
+        try:
+            (work / "source").write_bytes(data)
+            os.replace(work / "source", target)
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
+
+    def _prepare_into(self, directory: Path, data: bytes, filename: str, units: str, meta: GarmentMeta,
+                      density: float, max_faces: int = 400_000) -> None:
+        """Prepare a model into a work dir and move it to ``directory`` atomically (first one wins)."""
+        mesh = load_garment(data, filename, units, max_faces)
+        model = prepare(
+            mesh, id=meta.id, name=meta.name, category=meta.category, size=meta.size,
+            source_sha256=meta.source_sha256, source_name=meta.source_name,
+            simplification=meta.simplification, density=density,
+        )
+        work = self._work_dir()
+        try:
+            model.save(work)
+            try:
+                os.replace(work, directory)
+            except OSError:
+                if not (directory / "meta.json").exists():  # not a lost race: a real failure
+                    raise
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
+
+    def _discard(self, directory: Path) -> None:
+        """Move a directory out of the way atomically, then delete it."""
+        trash = self.tmp / f"del-{uuid.uuid4().hex}"
+        try:
+            os.replace(directory, trash)
+        except OSError:
+            return
+        shutil.rmtree(trash, ignore_errors=True)
+
+    def _remove_stale_tmp(self) -> None:
+        now = time.time()
+        for d in self.tmp.iterdir():
+            try:
+                if now - d.stat().st_mtime > STALE_TMP_S:
+                    shutil.rmtree(d, ignore_errors=True) if d.is_dir() else d.unlink()
+            except OSError:
+                pass
+
+
+class _Closing:
+    """sqlite3 connection as a context manager that commits/rolls back and always closes."""
+
+    def __init__(self, db: sqlite3.Connection):
+        self.db = db
+
+    def __enter__(self) -> sqlite3.Connection:
+        return self.db
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        try:
+            if self.db.in_transaction:
+                self.db.execute("ROLLBACK" if exc_type else "COMMIT")
+        finally:
+            self.db.close()
+
+
+def meta_dict(meta: GarmentMeta) -> dict:
+    """The entry as a plain dict (for JSON)."""
+    return asdict(meta)

@@ -1,0 +1,273 @@
+"""Load any garment mesh file into a clean triangle mesh in metres, y up (SPEC section 3).
+
+``load_garment(data, filename, units, max_faces) -> CleanMesh``: read with trimesh, weld, split quads,
+drop degenerate/duplicate faces and specks, orient y up, convert to metres. Everything refused raises
+``GarmentError`` with a reason a user can act on.
+"""
+
+from __future__ import annotations
+
+import io
+import warnings
+from dataclasses import dataclass, field
+from pathlib import PurePosixPath, PureWindowsPath
+
+import numpy as np
+import scipy.sparse
+import scipy.sparse.csgraph
+import trimesh
+
+# Scale from a file unit to metres.
+UNIT_SCALE = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+UNITS = (*UNIT_SCALE, "auto")
+# Order in which "auto" prefers units when several give a wearable size (metric first; cm vs in is the
+# only pair whose ratio, 2.54, lets both land in the wearable range).
+AUTO_PREFERENCE = ("m", "cm", "mm", "dm", "in")
+# A worn garment is 0.2-1.6 m tall (a mini skirt to a floor-length dress) and at least 0.28 m wide
+# (it goes around an adult's hips or chest); at most 2.2 m wide (sleeves of a T-pose top).
+WEARABLE_HEIGHT_M = (0.2, 1.6)
+WEARABLE_WIDTH_M = (0.28, 2.2)
+# Declared units that make the garment shorter than 5 cm or taller than 5 m are surely wrong.
+SANE_SIZE_M = (0.05, 5.0)
+
+FORMATS = ("obj", "glb", "gltf", "ply", "stl", "off")
+REFUSED_FORMATS = {
+    "3ds": "3DS files are not supported (there is no maintained 3DS reader for Python): export the "
+    "garment as OBJ or GLB from your 3D tool",
+    "fbx": "FBX files are not supported: export the garment as OBJ or GLB",
+    "blend": "Blender files are not supported: export the garment as OBJ or GLB (File > Export)",
+    "dae": "COLLADA files are not supported: export the garment as OBJ or GLB",
+}
+
+# A component is kept if its area is at least this fraction of the largest component's area: drops
+# specks (buttons, stray triangles) but keeps a second garment piece (trousers next to a top).
+MIN_COMPONENT_AREA_FRACTION = 0.02
+# Faces whose area is below this fraction of the mean face area are degenerate (slivers with no area).
+DEGENERATE_AREA_FRACTION = 1e-6
+# A panel is flat when its thickness (smallest principal extent) is under 1% of its size.
+FLAT_PANEL_RATIO = 0.01
+
+
+class GarmentError(ValueError):
+    """A garment file was refused; ``str(error)`` is a reason a user can act on."""
+
+
+@dataclass
+class CleanMesh:
+    """A loaded, cleaned garment: ``vertices (n, 3)`` float64 metres y up, ``faces (f, 3)`` int32."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    units: str
+    units_guessed: bool
+    notes: list[str] = field(default_factory=list)
+
+
+def file_extension(filename: str) -> str:
+    """Lower-case extension of a bare file name; refuses paths and unknown formats."""
+    if not filename or filename != PurePosixPath(filename).name or filename != PureWindowsPath(filename).name:
+        raise GarmentError(f"file name {filename!r} must be a bare name without a directory part")
+    if filename in (".", "..") or "\x00" in filename:
+        raise GarmentError(f"file name {filename!r} is not a valid file name")
+    ext = PurePosixPath(filename).suffix.lower().lstrip(".")
+    if ext in REFUSED_FORMATS:
+        raise GarmentError(REFUSED_FORMATS[ext])
+    if ext not in FORMATS:
+        raise GarmentError(
+            f"unknown file type {('.' + ext) if ext else '(no extension)'!r}: use one of "
+            + ", ".join("." + f for f in FORMATS)
+        )
+    return ext
+
+
+def load_garment(data: bytes, filename: str, units: str = "auto", max_faces: int = 400_000) -> CleanMesh:
+    """Read ``data`` (the bytes of a file called ``filename``) into a clean mesh in metres, y up."""
+    ext = file_extension(filename)
+    if units not in UNITS:
+        raise GarmentError(f"units must be one of {', '.join(UNITS)}, not {units!r}")
+    if not data:
+        raise GarmentError("the file is empty")
+    notes: list[str] = []
+    vertices, faces = _read(data, ext, max_faces)
+    if ext == "obj" and (b"\nstitch " in data or b"\nseam " in data):
+        notes.append("ignored non-standard OBJ 'stitch'/'seam' lines")
+    vertices, faces = _clean(vertices, faces, notes)
+    _refuse_sewing_pattern(vertices, faces)
+    vertices, faces = _largest_components(vertices, faces, notes)
+    vertices = _orient_y_up(vertices, notes)
+    vertices, units, guessed = _to_metres(vertices, units, notes)
+    return CleanMesh(vertices=vertices, faces=faces, units=units, units_guessed=guessed, notes=notes)
+
+
+# --- reading --------------------------------------------------------------------------------------
+
+
+def _read(data: bytes, ext: str, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
+    """Parse with trimesh (no processing), weld UV/normal seams, return raw float64/int64 arrays."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            loaded = trimesh.load(io.BytesIO(data), file_type=ext, process=False)
+    except Exception as exc:  # trimesh raises many types for broken files
+        raise GarmentError(f"could not read the file as {ext.upper()}: it is truncated or not a mesh ({_short(exc)})") from exc
+    if isinstance(loaded, trimesh.Scene):
+        geoms = [g for g in loaded.dump(concatenate=False) if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
+        if not geoms:
+            raise GarmentError("the file has no triangle or quad faces (no mesh in the scene)")
+        mesh = trimesh.util.concatenate(geoms) if len(geoms) > 1 else geoms[0]
+    elif isinstance(loaded, trimesh.Trimesh):
+        mesh = loaded
+    elif isinstance(loaded, trimesh.PointCloud):
+        raise GarmentError("the file is a point cloud (vertices without faces): a garment needs faces")
+    else:
+        raise GarmentError(f"the file holds a {type(loaded).__name__}, not a surface mesh with faces")
+    faces = np.asarray(mesh.faces)
+    if faces.size == 0:
+        raise GarmentError("the file has no faces (a point cloud or empty mesh): a garment needs faces")
+    if len(faces) > max_faces:
+        raise GarmentError(f"the mesh has {len(faces):,} faces, more than the limit of {max_faces:,}")
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    if not np.isfinite(vertices).all():
+        raise GarmentError("the file has non-finite vertex coordinates (NaN or infinity)")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise GarmentError("the file has faces that refer to vertices that do not exist")
+    mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+    # trimesh keeps vertices apart at UV and normal seams unless told: weld by position only.
+    mesh.merge_vertices(merge_tex=True, merge_norm=True)
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def _short(exc: Exception) -> str:
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return text[:120]
+
+
+# --- cleaning -------------------------------------------------------------------------------------
+
+
+def _clean(vertices: np.ndarray, faces: np.ndarray, notes: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Drop degenerate and duplicate faces and unreferenced vertices."""
+    n_in = len(faces)
+    repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
+    tri = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    mean_area = area[~repeated].mean() if (~repeated).any() else 0.0
+    degenerate = repeated | (area <= DEGENERATE_AREA_FRACTION * mean_area)
+    faces = faces[~degenerate]
+    if degenerate.any():
+        notes.append(f"dropped {int(degenerate.sum())} degenerate faces")
+    if len(faces) == 0:
+        raise GarmentError("every face of the mesh is degenerate (zero area): nothing to simulate")
+    _, first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
+    if len(first) < len(faces):
+        notes.append(f"dropped {len(faces) - len(first)} duplicate faces")
+        faces = faces[np.sort(first)]
+    used = np.unique(faces)
+    if len(used) < len(vertices):
+        remap = np.full(len(vertices), -1, dtype=np.int64)
+        remap[used] = np.arange(len(used))
+        vertices, faces = vertices[used], remap[faces]
+    if len(faces) < n_in and not notes:
+        notes.append(f"dropped {n_in - len(faces)} faces")
+    return vertices, faces.astype(np.int32)
+
+
+def _components(n_vertices: int, faces: np.ndarray) -> tuple[int, np.ndarray]:
+    """Connected components over shared vertices: (count, label per face)."""
+    rows = np.concatenate([faces[:, 0], faces[:, 1]])
+    cols = np.concatenate([faces[:, 1], faces[:, 2]])
+    graph = scipy.sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_vertices, n_vertices))
+    count, vertex_label = scipy.sparse.csgraph.connected_components(graph, directed=False)
+    return count, vertex_label[faces[:, 0]]
+
+
+def _face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    tri = vertices[faces]
+    return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+
+
+def _refuse_sewing_pattern(vertices: np.ndarray, faces: np.ndarray) -> None:
+    """Refuse a file of flat, unsewn pattern panels: it is not a garment that can be worn yet."""
+    count, label = _components(len(vertices), faces)
+    if count < 2:
+        return
+    area = np.bincount(label, weights=_face_areas(vertices, faces), minlength=count)
+    big = np.flatnonzero(area >= MIN_COMPONENT_AREA_FRACTION * area.max())
+    if len(big) < 2:
+        return
+    flat_area = 0.0
+    for c in big:  # a handful of components, not a loop over faces
+        pts = vertices[np.unique(faces[label == c])]
+        spread = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
+        if spread[2] <= FLAT_PANEL_RATIO * spread[0]:
+            flat_area += area[c]
+    if flat_area >= 0.9 * area[big].sum():
+        raise GarmentError(
+            f"flat sewing pattern panels, not a sewn garment ({len(big)} flat pieces): sew the panels "
+            "into a 3D garment in a cloth tool and export that"
+        )
+
+
+def _largest_components(vertices: np.ndarray, faces: np.ndarray, notes: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Keep the pieces of real size (area >= 2% of the largest); drop specks."""
+    count, label = _components(len(vertices), faces)
+    if count == 1:
+        return vertices, faces
+    area = np.bincount(label, weights=_face_areas(vertices, faces), minlength=count)
+    keep = area >= MIN_COMPONENT_AREA_FRACTION * area.max()
+    kept = int(keep.sum())
+    if kept < count:
+        notes.append(f"dropped {count - kept} small loose pieces ({int((~keep[label]).sum())} faces)")
+    if kept > 1:
+        notes.append(f"kept {kept} separate pieces")
+    faces = faces[keep[label]]
+    used = np.unique(faces)
+    remap = np.full(len(vertices), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    return vertices[used], remap[faces].astype(np.int32)
+
+
+# --- orientation and units ------------------------------------------------------------------------
+
+
+def _orient_y_up(vertices: np.ndarray, notes: list[str]) -> np.ndarray:
+    """Rotate a clearly z-up garment to y up.
+
+    A garment is thin front to back: y up means depth (z) is the smallest extent. If instead y is the
+    smallest and z is clearly the tallest-looking axis (>= 1.5x y), the file is z up (Blender, 3ds Max):
+    rotate -90 degrees about x, (x, y, z) -> (x, z, -y), so that the front (-y in z-up tools) faces +z.
+    """
+    ext = np.ptp(vertices, axis=0)
+    if ext[1] < ext[2] and ext[1] <= ext[0] and ext[2] >= 1.5 * ext[1]:
+        notes.append("the file is z up: rotated to y up")
+        return np.column_stack([vertices[:, 0], vertices[:, 2], -vertices[:, 1]])
+    return vertices
+
+
+def _to_metres(vertices: np.ndarray, units: str, notes: list[str]) -> tuple[np.ndarray, str, bool]:
+    """Scale to metres by declared units, or guess them (``auto``) from the garment's size."""
+    ext = np.ptp(vertices, axis=0)
+    height, width = ext[1], ext[0]
+    if units != "auto":
+        scale = UNIT_SCALE[units]
+        size = max(ext) * scale
+        if not SANE_SIZE_M[0] <= size <= SANE_SIZE_M[1]:
+            raise GarmentError(
+                f"read as {units}, the garment would be {size:.3g} m across: check the units (or use auto)"
+            )
+        return vertices * scale, units, False
+    if max(ext) <= 0:
+        raise GarmentError("the mesh has no extent (all vertices at one point)")
+    for unit in AUTO_PREFERENCE:
+        s = UNIT_SCALE[unit]
+        if (WEARABLE_HEIGHT_M[0] <= height * s <= WEARABLE_HEIGHT_M[1]
+                and WEARABLE_WIDTH_M[0] <= width * s <= WEARABLE_WIDTH_M[1]):
+            notes.append(
+                f"units guessed as {unit}: then the garment is {height * s * 100:.0f} cm tall and "
+                f"{width * s * 100:.0f} cm wide"
+            )
+            return vertices * s, unit, True
+    raise GarmentError(
+        f"cannot guess the units: the garment is {height:.4g} x {width:.4g} (height x width) file units, "
+        "which is not a wearable size in m, cm, mm, dm or in; declare the units"
+    )

@@ -1,0 +1,449 @@
+"""The paper's triangle-collapse simplification with mark recovery (SPEC section 3, paper 2.2).
+
+``collapse_faces(faces, n_vertices, B, vertices=None) -> (kept (k,) int32, coarse_faces (g, 3) int32)``:
+repeatedly collapse an unmarked face onto its first vertex v0 (v1, v2 removed, every reference rewritten
+to v0, faces that vanish removed, faces that changed shape marked and skipped for the rest of the pass);
+when a pass has seen every face, the marks are cleared ("mark recovery", which spreads the kept vertices
+evenly); stop as soon as kept / original <= B. Kept vertices are original vertices.
+
+With ``vertices`` given, collapses that would spoil the garment are skipped (we go further than the
+paper here), and the next vertex of the face is tried as v0:
+- openings stay open: a boundary vertex is only removed into its neighbour along the same boundary
+  loop, and a loop keeps at least ``sqrt(B)`` of its vertices (a 1-D loop thinned like the 2-D surface);
+  vertices on non-manifold edges or pinched boundaries are never removed;
+- no flipped faces (a changed face's normal turns by less than ``MAX_TURN_DEG``), no slivers (quality
+  above ``MIN_QUALITY`` unless it was already worse), no duplicate faces and no edge with more than two
+  faces (the collapse must not fold or pinch the surface).
+
+``attach(vertices, parent, kept_faces) -> attach_face, attach_bary, attach_offset`` re-attaches every
+original vertex to its nearest coarse face (unclamped barycentric coordinates of its projection on the
+face's plane plus the signed distance along the unit normal, so that the rest mesh is reproduced).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse
+import scipy.sparse.csgraph
+from numba import njit
+
+# A collapse may turn a changed face's normal by at most this much (degrees): beyond it the coarse
+# surface folds (90 degrees would be a flip); 60 degrees keeps the sleeves and hem round.
+MAX_TURN_DEG = 60.0
+# Triangle quality 4 sqrt(3) area / sum of squared edges (1 equilateral, 0.87 a quad's half); a collapse
+# may not create a face worse than this unless the face was already worse.
+MIN_QUALITY = 0.12
+# Neighbourhood scratch size (faces around the three vertices of a collapse); a collapse touching more
+# is skipped (never happens on garment meshes, whose vertex valence is < 20).
+SCRATCH_FACES = 4096
+
+
+def collapse_faces(faces: np.ndarray, n_vertices: int, B: float, vertices: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Kept original vertex ids (k,) int32 (sorted) and coarse faces (g, 3) int32 indexing ``kept``."""
+    kept, coarse, _ = collapse_with_parents(faces, n_vertices, B, vertices)
+    return kept, coarse
+
+
+def collapse_with_parents(faces: np.ndarray, n_vertices: int, B: float, vertices: np.ndarray | None = None
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """As ``collapse_faces``, plus ``root (n,) int32``: the kept vertex each original vertex went to."""
+    if not 0.0 < B <= 1.0:
+        raise ValueError(f"simplification degree B must be in (0, 1], got {B}")
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    guard = vertices is not None
+    pos = np.ascontiguousarray(vertices, dtype=np.float64) if guard else np.zeros((n_vertices, 3))
+    vf_start, vf_list = _vertex_faces(faces, n_vertices)
+    fixed, bnext, bprev, loop_id, loop_count, loop_min = _boundary(faces, n_vertices, B, guard)
+    target = int(math.floor(B * n_vertices))
+    fv, alive, parent = _collapse_kernel(
+        faces, n_vertices, target, pos, guard, vf_start, vf_list, fixed, bnext, bprev, loop_id,
+        loop_count, loop_min, math.cos(math.radians(MAX_TURN_DEG)), MIN_QUALITY, SCRATCH_FACES,
+    )
+    coarse_orig = fv[alive]
+    kept = np.unique(coarse_orig).astype(np.int32)
+    remap = np.full(n_vertices, -1, dtype=np.int64)
+    remap[kept] = np.arange(len(kept))
+    root = _roots(parent)
+    return kept, remap[coarse_orig].astype(np.int32), root.astype(np.int32)
+
+
+def _vertex_faces(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """CSR vertex -> incident faces."""
+    flat = faces.reshape(-1)
+    order = np.argsort(flat, kind="stable")
+    start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(flat, minlength=n), out=start[1:])
+    return start, (order // 3).astype(np.int64)
+
+
+def _boundary(faces: np.ndarray, n: int, B: float, guard: bool):
+    """Boundary loops as linked lists (bnext/bprev, -1 elsewhere), loop ids and sizes, fixed vertices."""
+    fixed = np.zeros(n, dtype=np.bool_)
+    bnext = np.full(n, -1, dtype=np.int64)
+    bprev = np.full(n, -1, dtype=np.int64)
+    loop_id = np.full(n, -1, dtype=np.int64)
+    if not guard:
+        return fixed, bnext, bprev, loop_id, np.zeros(1, np.int64), np.zeros(1, np.int64)
+    ea = faces[:, [0, 1, 2]].reshape(-1)
+    eb = faces[:, [1, 2, 0]].reshape(-1)
+    key = np.minimum(ea, eb) * n + np.maximum(ea, eb)
+    _, inv, count = np.unique(key, return_inverse=True, return_counts=True)
+    per_half = count[inv]
+    nonmanifold = per_half > 2
+    fixed[ea[nonmanifold]] = True
+    fixed[eb[nonmanifold]] = True
+    bnd = per_half == 1
+    a, b = ea[bnd], eb[bnd]
+    out_deg = np.bincount(a, minlength=n)
+    in_deg = np.bincount(b, minlength=n)
+    pinched = (out_deg + in_deg > 0) & ((out_deg != 1) | (in_deg != 1))
+    fixed |= pinched
+    ok = ~pinched[a] & ~pinched[b]
+    bnext[a[ok]] = b[ok]
+    bprev[b[ok]] = a[ok]
+    if len(a):
+        g = scipy.sparse.coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
+        _, label = scipy.sparse.csgraph.connected_components(g, directed=False)
+        on = np.zeros(n, dtype=bool)
+        on[a] = True
+        on[b] = True
+        _, loop_of = np.unique(label[on], return_inverse=True)
+        loop_id[on] = loop_of
+        loop_count = np.bincount(loop_of).astype(np.int64)
+    else:
+        loop_count = np.zeros(1, np.int64)
+    loop_min = np.maximum(3, np.ceil(np.sqrt(B) * loop_count)).astype(np.int64)
+    return fixed, bnext, bprev, loop_id, loop_count, loop_min
+
+
+def _roots(parent: np.ndarray) -> np.ndarray:
+    root = parent.copy()
+    while True:
+        nxt = root[root]
+        if np.array_equal(nxt, root):
+            return root
+        root = nxt
+
+
+@njit(cache=True)
+def _tri_normal(p, a, b, c):
+    ux = p[b, 0] - p[a, 0]
+    uy = p[b, 1] - p[a, 1]
+    uz = p[b, 2] - p[a, 2]
+    wx = p[c, 0] - p[a, 0]
+    wy = p[c, 1] - p[a, 1]
+    wz = p[c, 2] - p[a, 2]
+    return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+
+
+@njit(cache=True)
+def _quality(p, a, b, c, nx, ny, nz):
+    area2 = math.sqrt(nx * nx + ny * ny + nz * nz)  # twice the area
+    s = 0.0
+    for i, j in ((a, b), (b, c), (c, a)):
+        dx = p[i, 0] - p[j, 0]
+        dy = p[i, 1] - p[j, 1]
+        dz = p[i, 2] - p[j, 2]
+        s += dx * dx + dy * dy + dz * dz
+    if s == 0.0:
+        return 0.0
+    return 2.0 * math.sqrt(3.0) * area2 / s
+
+
+@njit(cache=True)
+def _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, guard):
+    """May b and c (removed) go into a without closing or pinching an opening?"""
+    if not guard:
+        return True
+    if fixed[b] or fixed[c]:
+        return False
+    nb = 0
+    for r in (b, c):
+        if loop_id[r] >= 0:
+            nb += 1
+    if nb == 0:
+        return True
+    if loop_id[a] < 0:
+        return False
+    # Simulate the removals in order: each removed boundary vertex must be a's loop neighbour then.
+    an, ap = bnext[a], bprev[a]
+    removed = 0
+    for r in (b, c):
+        if loop_id[r] < 0:
+            continue
+        if loop_id[r] != loop_id[a] or bnext[r] < 0 or bprev[r] < 0:
+            return False
+        if an == r:
+            an = bnext[r]
+        elif ap == r:
+            ap = bprev[r]
+        else:
+            return False
+        removed += 1
+        if an == a or ap == a:
+            return False
+    return loop_count[loop_id[a]] - removed >= loop_min[loop_id[a]]
+
+
+@njit(cache=True)
+def _collapse_kernel(faces, n, target, pos, guard, vf_start, vf_list, fixed, bnext, bprev, loop_id,
+                     loop_count, loop_min, cos_turn, min_quality, scratch):
+    """Sequential collapse (each collapse depends on the previous ones: no parallelism)."""
+    nf = faces.shape[0]
+    fv = faces.copy()
+    alive = np.ones(nf, dtype=np.bool_)
+    mark = np.zeros(nf, dtype=np.int64)
+    parent = np.arange(n)
+    head = np.arange(n)  # member chains: head[root] .. nxt[] .. tail[root]
+    tail = np.arange(n)
+    nxt = np.full(n, -1, dtype=np.int64)
+    seen = np.zeros(nf, dtype=np.int64)
+    stamp = 0
+    buf = np.empty(scratch, dtype=np.int64)
+    new_f = np.empty((scratch, 3), dtype=np.int64)
+    other = np.empty(2 * scratch, dtype=np.int64)
+    kept = n
+    # Vertices with no face count as removed already (none after cleaning; be safe).
+    for v in range(n):
+        if vf_start[v + 1] == vf_start[v]:
+            kept -= 1
+    pass_id = 1
+    while kept > target:
+        collapsed = 0
+        for f in range(nf):
+            if kept <= target:
+                break
+            if not alive[f] or mark[f] == pass_id:
+                continue
+            for rot in range(3):
+                a = fv[f, rot]
+                b = fv[f, (rot + 1) % 3]
+                c = fv[f, (rot + 2) % 3]
+                if not _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, guard):
+                    continue
+                # Gather the alive faces around a, b, c (over every original vertex merged into them).
+                stamp += 1
+                m = 0
+                overflow = False
+                for r in (a, b, c):
+                    u = head[r]
+                    while u >= 0 and not overflow:
+                        for t in range(vf_start[u], vf_start[u + 1]):
+                            g = vf_list[t]
+                            if alive[g] and seen[g] != stamp:
+                                seen[g] = stamp
+                                if m >= scratch:
+                                    overflow = True
+                                    break
+                                buf[m] = g
+                                m += 1
+                        u = nxt[u]
+                if overflow:
+                    continue
+                ok = True
+                n_other = 0
+                for i in range(m):
+                    g = buf[i]
+                    for k in range(3):
+                        x = fv[g, k]
+                        new_f[i, k] = a if (x == b or x == c) else x
+                    p0, p1, p2 = new_f[i, 0], new_f[i, 1], new_f[i, 2]
+                    if p0 == p1 or p1 == p2 or p0 == p2:
+                        new_f[i, 0] = -1  # vanishes
+                        continue
+                    if guard:
+                        ox, oy, oz = _tri_normal(pos, fv[g, 0], fv[g, 1], fv[g, 2])
+                        nx_, ny_, nz_ = _tri_normal(pos, p0, p1, p2)
+                        lo = math.sqrt(ox * ox + oy * oy + oz * oz)
+                        ln = math.sqrt(nx_ * nx_ + ny_ * ny_ + nz_ * nz_)
+                        if ln == 0.0 or ox * nx_ + oy * ny_ + oz * nz_ < cos_turn * lo * ln:
+                            ok = False
+                            break
+                        qn = _quality(pos, p0, p1, p2, nx_, ny_, nz_)
+                        if qn < min_quality and qn < _quality(pos, fv[g, 0], fv[g, 1], fv[g, 2], ox, oy, oz):
+                            ok = False
+                            break
+                        # the two other vertices in cyclic order after a: directed edges a->x, y->a
+                        k0 = 0 if p0 == a else (1 if p1 == a else 2)
+                        other[n_other] = new_f[i, (k0 + 1) % 3]
+                        other[n_other + 1] = new_f[i, (k0 + 2) % 3]
+                        n_other += 2
+                if not ok:
+                    continue
+                if guard:
+                    # Manifold and consistently oriented around a: each edge a-x at most once as a->x
+                    # (even slot) and once as x->a (odd slot); no two faces on the same vertex pair.
+                    for i in range(n_other):
+                        for j in range(i + 1, n_other):
+                            if other[i] == other[j] and (i % 2) == (j % 2):
+                                ok = False
+                                break
+                        if not ok:
+                            break
+                    if ok:
+                        for i in range(0, n_other, 2):
+                            for j in range(i + 2, n_other, 2):
+                                if other[i] == other[j + 1] and other[i + 1] == other[j]:
+                                    ok = False  # duplicate face (a, x, y) and (a, y, x)
+                                    break
+                            if not ok:
+                                break
+                if not ok:
+                    continue
+                # Commit: b, c -> a.
+                for r in (b, c):
+                    parent[r] = a
+                    nxt[tail[a]] = head[r]
+                    tail[a] = tail[r]
+                    if guard and loop_id[r] >= 0:
+                        p_, q_ = bprev[r], bnext[r]
+                        bnext[p_] = q_
+                        bprev[q_] = p_
+                        loop_count[loop_id[r]] -= 1
+                        bnext[r] = -1
+                        bprev[r] = -1
+                for i in range(m):
+                    g = buf[i]
+                    if new_f[i, 0] < 0:
+                        alive[g] = False
+                    else:
+                        fv[g, 0] = new_f[i, 0]
+                        fv[g, 1] = new_f[i, 1]
+                        fv[g, 2] = new_f[i, 2]
+                        mark[g] = pass_id
+                kept -= 2
+                collapsed += 1
+                break
+        if collapsed == 0:
+            break  # every remaining collapse would spoil the mesh: B cannot be reached
+        pass_id += 1  # mark recovery: clear every mark and scan again
+    return fv, alive, parent
+
+
+# --- re-attachment --------------------------------------------------------------------------------
+
+
+def attach(vertices: np.ndarray, root: np.ndarray, kept: np.ndarray, coarse_faces: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each original vertex as a point of a coarse face: ``attach_face (n,) int32``,
+    ``attach_bary (n, 3)``, ``attach_offset (n,)`` (m along the face's unit normal)."""
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+    faces_orig = np.ascontiguousarray(kept[coarse_faces], dtype=np.int64)  # coarse faces in original ids
+    start, flist = _vertex_faces(faces_orig, len(vertices))
+    face, bary, offset = _attach_kernel(vertices, np.ascontiguousarray(root, dtype=np.int64), faces_orig, start, flist)
+    return face.astype(np.int32), bary, offset
+
+
+@njit(cache=True, fastmath=True)
+def _closest_sq(V, v, i, j, k):
+    """Squared distance from vertex v to triangle (i, j, k) of V (Ericson, Real-Time Collision
+    Detection 5.1.5), in scalars (no temporaries)."""
+    px, py, pz = V[v, 0], V[v, 1], V[v, 2]
+    ax, ay, az = V[i, 0], V[i, 1], V[i, 2]
+    abx, aby, abz = V[j, 0] - ax, V[j, 1] - ay, V[j, 2] - az
+    acx, acy, acz = V[k, 0] - ax, V[k, 1] - ay, V[k, 2] - az
+    apx, apy, apz = px - ax, py - ay, pz - az
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    if d1 <= 0.0 and d2 <= 0.0:
+        s, t = 0.0, 0.0
+    else:
+        bpx, bpy, bpz = apx - abx, apy - aby, apz - abz
+        d3 = abx * bpx + aby * bpy + abz * bpz
+        d4 = acx * bpx + acy * bpy + acz * bpz
+        if d3 >= 0.0 and d4 <= d3:
+            s, t = 1.0, 0.0
+        else:
+            vc = d1 * d4 - d3 * d2
+            if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+                s, t = d1 / (d1 - d3), 0.0
+            else:
+                cpx, cpy, cpz = apx - acx, apy - acy, apz - acz
+                d5 = abx * cpx + aby * cpy + abz * cpz
+                d6 = acx * cpx + acy * cpy + acz * cpz
+                if d6 >= 0.0 and d5 <= d6:
+                    s, t = 0.0, 1.0
+                else:
+                    vb = d5 * d2 - d1 * d6
+                    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+                        s, t = 0.0, d2 / (d2 - d6)
+                    else:
+                        va = d3 * d6 - d5 * d4
+                        if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+                            w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+                            s, t = 1.0 - w, w
+                        else:
+                            den = 1.0 / (va + vb + vc)
+                            s, t = vb * den, vc * den
+    dx = apx - s * abx - t * acx
+    dy = apy - s * aby - t * acy
+    dz = apz - s * abz - t * acz
+    return dx * dx + dy * dy + dz * dz
+
+
+@njit(cache=True)
+def _attach_kernel(vertices, root, faces, start, flist):
+    """Nearest coarse face among those around the vertex's root and its neighbours (2 rings); a vertex
+    whose root lost every face searches all faces. Independent per vertex."""
+    n = vertices.shape[0]
+    g = faces.shape[0]
+    face_out = np.empty(n, dtype=np.int64)
+    bary = np.zeros((n, 3))
+    offset = np.zeros(n)
+    for v in range(n):
+        p = vertices[v]
+        r = root[v]
+        best = -1
+        best_d = np.inf
+        if start[v + 1] > start[v]:  # a kept vertex: exactly on one of its faces
+            best = flist[start[v]]
+            best_d = 0.0
+        elif start[r + 1] > start[r]:
+            for t in range(start[r], start[r + 1]):
+                f0 = flist[t]
+                for k in range(3):
+                    u = faces[f0, k]
+                    for s in range(start[u], start[u + 1]):
+                        f = flist[s]
+                        d = _closest_sq(vertices, v, faces[f, 0], faces[f, 1], faces[f, 2])
+                        if d < best_d:
+                            best_d = d
+                            best = f
+        else:
+            for f in range(g):
+                d = _closest_sq(vertices, v, faces[f, 0], faces[f, 1], faces[f, 2])
+                if d < best_d:
+                    best_d = d
+                    best = f
+        face_out[v] = best
+        a = vertices[faces[best, 0]]
+        e1 = vertices[faces[best, 1]] - a
+        e2 = vertices[faces[best, 2]] - a
+        nrm = np.cross(e1, e2)
+        ln = math.sqrt(nrm @ nrm)
+        if start[v + 1] > start[v]:
+            for k in range(3):
+                if faces[best, k] == v:
+                    bary[v, k] = 1.0
+            continue
+        nrm = nrm / ln
+        w = p - a
+        h = w @ nrm
+        w = w - h * nrm
+        # solve w = s e1 + t e2 in the plane
+        d11 = e1 @ e1
+        d12 = e1 @ e2
+        d22 = e2 @ e2
+        dw1 = w @ e1
+        dw2 = w @ e2
+        den = d11 * d22 - d12 * d12
+        s = (d22 * dw1 - d12 * dw2) / den
+        t = (d11 * dw2 - d12 * dw1) / den
+        bary[v, 0] = 1.0 - s - t
+        bary[v, 1] = s
+        bary[v, 2] = t
+        offset[v] = h
+    return face_out, bary, offset

@@ -1,37 +1,297 @@
-// The try-on page: a three.js scene with a floor and orbit controls.
-import * as THREE from 'three';
-import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+// The try-on page: pick a garment, enter measurements, watch it drape live, read the fit.
+//
+// Modules: scene.js (three.js stage), api.js (REST + WebSocket), controls.js (form fields),
+// fitmap.js (strain colours). State for tests and debugging is on `window.tryon`.
+import { Stage } from './scene.js';
+import { ApiError, flatMesh, getJSON, liveTryOn, postJSON, saveBlob } from './api.js';
+import { MeasurementForm, normaliseRanges } from './controls.js';
+import { strainScale } from './fitmap.js';
 
-const container = document.getElementById('viewport');
-const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
-renderer.setPixelRatio(window.devicePixelRatio);
-renderer.setSize(container.clientWidth, container.clientHeight);
-renderer.shadowMap.enabled = true;
-container.appendChild(renderer.domElement);
+const $ = (id) => document.getElementById(id);
+const BODY_PREVIEW_DELAY_MS = 350;  // debounce: rebuild the body when the sliders rest this long
 
-const scene = new THREE.Scene();
-scene.background = new THREE.Color(0xe9e6e1);
-const camera = new THREE.PerspectiveCamera(35, container.clientWidth / container.clientHeight, 0.05, 50);
-camera.position.set(0, 1.2, 4.2);
-const controls = new OrbitControls(camera, renderer.domElement);
-controls.target.set(0, 1.0, 0);
-controls.update();
+const state = {
+  framesReceived: 0,
+  state: 'loading',     // loading | ready | draping | done | error
+  garments: [],
+  garmentId: null,
+  init: null,
+  done: null,
+  lastError: null,
+  lastStep: 0,
+  bodyRequests: 0,
+};
+window.tryon = state;
 
-scene.add(new THREE.HemisphereLight(0xffffff, 0x8d7c6b, 1.2));
-const sun = new THREE.DirectionalLight(0xffffff, 1.5);
-sun.position.set(2, 4, 3);
-sun.castShadow = true;
-scene.add(sun);
+const stage = new Stage($('viewport'));
+state.stage = stage;
+let form = null;
+let live = null;
+let bodyTimer = null;
+let bodySeq = 0;
 
-const floor = new THREE.Mesh(new THREE.CircleGeometry(3, 64), new THREE.MeshStandardMaterial({ color: 0xcfc8bd }));
-floor.rotation.x = -Math.PI / 2;
-floor.receiveShadow = true;
-scene.add(floor);
-
-function resize() {
-  camera.aspect = container.clientWidth / container.clientHeight;
-  camera.updateProjectionMatrix();
-  renderer.setSize(container.clientWidth, container.clientHeight);
+// ---- notices ----------------------------------------------------------------------------------
+function showError(error) {
+  const message = error instanceof ApiError || error instanceof Error ? error.message : String(error);
+  state.lastError = message;
+  $('notice').classList.remove('info');
+  $('notice-text').textContent = message;
+  $('notice').hidden = false;
 }
-window.addEventListener('resize', resize);
-renderer.setAnimationLoop(() => { controls.update(); renderer.render(scene, camera); });
+function clearNotice() { $('notice').hidden = true; }
+$('notice-close').addEventListener('click', clearNotice);
+
+// ---- catalogue ----------------------------------------------------------------------------------
+const CATEGORY_ICONS = {
+  top: '<path d="M8 3 3 6l2 5 2-1v11h10V10l2 1 2-5-5-3c-1 1.5-2.3 2-4 2S9 4.5 8 3z"/>',
+  bottom: '<path d="M6 3h12l1 18h-5l-2-11-2 11H5z"/>',
+  dress: '<path d="M9 2h6l-1 5 5 14H5l5-14z"/>',
+};
+const CATEGORY_COLORS = { top: '#b5523b', bottom: '#3f5f8a', dress: '#7a4f7f' };
+
+function renderGarments(list) {
+  const box = $('garments');
+  box.replaceChildren();
+  if (!list.length) {
+    const p = document.createElement('p');
+    p.className = 'muted';
+    p.textContent = 'The catalogue is empty: ingest a garment with `tryon ingest` first.';
+    box.append(p);
+    return;
+  }
+  for (const g of list) {
+    const button = document.createElement('button');
+    button.type = 'button';
+    button.className = 'garment';
+    button.setAttribute('role', 'radio');
+    button.setAttribute('aria-checked', 'false');
+    button.dataset.id = g.id;
+    const color = CATEGORY_COLORS[g.category] || '#8a6f5a';
+    const swatch = document.createElement('span');
+    swatch.className = 'swatch';
+    swatch.style.background = `${color}22`;
+    swatch.innerHTML = `<svg viewBox="0 0 24 24" fill="${color}">${CATEGORY_ICONS[g.category] || CATEGORY_ICONS.top}</svg>`;
+    const text = document.createElement('span');
+    const name = document.createElement('div');
+    name.className = 'name';
+    name.textContent = g.name;
+    const sub = document.createElement('div');
+    sub.className = 'sub';
+    const vertices = g.vertices ?? g.vertex_count;
+    sub.textContent = [g.category, vertices ? `${Number(vertices).toLocaleString()} vertices` : null].filter(Boolean).join(' · ');
+    text.append(name, sub);
+    const size = document.createElement('span');
+    size.className = 'size';
+    size.textContent = g.size || '—';
+    size.title = 'Size';
+    button.append(swatch, text, size);
+    button.addEventListener('click', () => selectGarment(g.id));
+    box.append(button);
+  }
+}
+
+function selectGarment(id) {
+  state.garmentId = id;
+  for (const b of $('garments').querySelectorAll('.garment')) b.setAttribute('aria-checked', String(b.dataset.id === id));
+  updateTryOnButton();
+}
+
+function updateTryOnButton() {
+  const button = $('tryon-button');
+  if (state.state === 'draping') {
+    button.textContent = 'Stop';
+    button.disabled = false;
+    return;
+  }
+  button.textContent = 'Try on';
+  button.disabled = !state.garmentId || !form || !form.valid();
+}
+
+// ---- body preview ---------------------------------------------------------------------------------
+function scheduleBody() {
+  clearTimeout(bodyTimer);
+  updateTryOnButton();
+  if (!form.valid()) return;
+  bodyTimer = setTimeout(refreshBody, BODY_PREVIEW_DELAY_MS);
+}
+
+async function refreshBody() {
+  const seq = ++bodySeq;
+  $('body-status').textContent = 'Updating the body…';
+  try {
+    const response = await postJSON('/api/bodies?format=json', form.bodyRequest());
+    const body = await response.json();
+    if (seq !== bodySeq) return;  // a newer request is on its way
+    state.bodyRequests++;
+    const mesh = flatMesh(body.mesh ?? body);
+    stage.setBody(mesh.vertices, mesh.faces);
+    form.showAchieved(body.achieved || {});
+    $('body-status').textContent = describeBody(body);
+    if (state.state === 'done') {  // the fitted garment belongs to the previous body
+      stage.clearGarment();
+      $('result').hidden = true;
+      $('legend').hidden = true;
+      $('progress').hidden = true;
+      state.state = 'ready';
+    }
+  } catch (error) {
+    if (seq !== bodySeq) return;
+    $('body-status').textContent = '';
+    showError(error);
+  }
+}
+
+function describeBody(body) {
+  const a = body.achieved || {};
+  const parts = ['chest', 'waist', 'hips'].filter((k) => Number.isFinite(a[k])).map((k) => `${k} ${a[k].toFixed(1)}`);
+  return parts.length ? `Body built: ${parts.join(', ')} cm` : '';
+}
+
+// ---- try-on ------------------------------------------------------------------------------------
+function setProgress(fraction, text) {
+  $('progress').hidden = false;
+  $('progress-bar').style.width = `${Math.round(Math.min(Math.max(fraction, 0), 1) * 100)}%`;
+  $('progress-text').textContent = text;
+}
+
+async function tryOn() {
+  if (state.state === 'draping') { live?.cancel(); return; }
+  clearNotice();
+  const payload = { ...form.tryOnRequest(state.garmentId), fps: 30 };
+  state.state = 'draping';
+  state.framesReceived = 0;
+  state.done = null;
+  state.init = null;
+  state.lastStep = 0;
+  $('result').hidden = true;
+  $('legend').hidden = true;
+  updateTryOnButton();
+  setProgress(0, 'Waiting for the fitting room…');
+  const started = performance.now();
+  live = liveTryOn(payload, {
+    onInit(init) {
+      state.init = init;
+      if (init.body) {
+        const body = flatMesh(init.body);
+        stage.setBody(body.vertices, body.faces);
+      }
+      stage.startGarment(init.vertex_count, flatMesh({ vertices: [], faces: init.faces }).faces, init.garment?.category);
+      setProgress(0.02, 'Dressing…');
+    },
+    onFrame(frameNo, step, positions) {
+      state.framesReceived++;
+      state.lastStep = step;
+      stage.updateGarment(positions);
+      const maxSteps = state.init?.max_steps || 0;
+      const seconds = ((performance.now() - started) / 1000).toFixed(1);
+      setProgress(maxSteps ? step / maxSteps : 0.5, `Draping… step ${step}${maxSteps ? ` of at most ${maxSteps}` : ''} · ${seconds} s`);
+    },
+  });
+  try {
+    const done = await live.promise;
+    state.done = done;
+    const strain = Float32Array.from(done.strain || []);
+    if (strain.length) {
+      const top = strainScale(strain);
+      stage.setStrain(strain, top);
+      $('legend-max').textContent = `${(top * 100).toFixed(0)}%+`;
+      $('legend-mid').textContent = `${(top * 50).toFixed(1)}%`;
+    }
+    showMetrics(done);
+    setProgress(1, done.cached ? 'Done (from the fitting-room memory).' : 'Done.');
+    setTimeout(() => { if (state.state === 'done') $('progress').hidden = true; }, 1500);
+    $('result').hidden = false;
+    $('legend').hidden = !$('fitmap-toggle').checked;
+    state.state = 'done';
+  } catch (error) {
+    if (error.stopped) {
+      state.state = 'ready';
+      setProgress(0, 'Stopped.');
+    } else {
+      state.state = 'error';
+      showError(error);
+      $('progress').hidden = true;
+    }
+    if (!state.framesReceived) stage.clearGarment();
+  } finally {
+    live = null;
+    updateTryOnButton();
+  }
+}
+
+function showMetrics(done) {
+  const m = done.metrics || {};
+  const rows = [
+    ['Time', Number.isFinite(m.wall_seconds) ? `${m.wall_seconds.toFixed(2)} s` : '—'],
+    ['Steps', Number.isFinite(m.steps) ? `${m.steps}` : '—'],
+    ['Penetration', !Number.isFinite(m.penetrating_vertices) ? '—' : (m.penetrating_vertices === 0 ? 'none'
+      : `${m.penetrating_vertices} pts, ${Number(m.max_penetration_mm ?? 0).toFixed(1)} mm`),
+      m.penetrating_vertices === 0 ? 'good' : 'warn'],
+    ['Max strain', Number.isFinite(m.max_strain) ? `${(m.max_strain * 100).toFixed(1)} %` : '—'],
+    ['Rest reached', m.rest_reached === undefined ? '—' : (m.rest_reached ? 'yes' : 'no'), m.rest_reached ? 'good' : 'warn'],
+    ['Simulated', Number.isFinite(m.sim_seconds) ? `${m.sim_seconds.toFixed(2)} s` : '—'],
+  ];
+  if (done.stopped_by === 'wall_limit') rows.push(['Stopped', 'time limit', 'warn']);
+  const dl = $('metrics');
+  dl.replaceChildren();
+  for (const [name, value, tone] of rows) {
+    const div = document.createElement('div');
+    const dt = document.createElement('dt');
+    dt.textContent = name;
+    const dd = document.createElement('dd');
+    dd.textContent = value;
+    if (tone) dd.className = tone;
+    div.append(dt, dd);
+    dl.append(div);
+  }
+  const g = done.garment || state.init?.garment || {};
+  $('result-garment').textContent = [g.name, g.size ? `size ${g.size}` : null].filter(Boolean).join(' · ');
+}
+
+$('tryon-button').addEventListener('click', tryOn);
+$('fitmap-toggle').addEventListener('change', (e) => {
+  stage.setFitMap(e.target.checked);
+  $('legend').hidden = !e.target.checked;
+});
+$('more-toggle').addEventListener('click', (e) => {
+  const open = e.currentTarget.getAttribute('aria-expanded') !== 'true';
+  e.currentTarget.setAttribute('aria-expanded', String(open));
+  e.currentTarget.textContent = open ? 'Fewer measurements' : 'More measurements';
+  $('more-measurements').hidden = !open;
+});
+
+// ---- downloads ----------------------------------------------------------------------------------
+async function withBusy(button, work) {
+  button.disabled = true;
+  try { await work(); } catch (error) { showError(error); } finally { button.disabled = false; }
+}
+$('download-garment').addEventListener('click', (e) => withBusy(e.currentTarget, async () => {
+  const glb = await stage.garmentGLB();
+  const name = (state.garments.find((g) => g.id === state.garmentId)?.name || 'garment').replace(/\W+/g, '-').toLowerCase();
+  saveBlob(glb, `${name}-fitted.glb`);
+}));
+$('download-body').addEventListener('click', (e) => withBusy(e.currentTarget, async () => {
+  const response = await postJSON('/api/bodies?format=glb', form.bodyRequest());
+  saveBlob(await response.blob(), 'body.glb');
+}));
+
+// ---- start --------------------------------------------------------------------------------------
+async function start() {
+  try {
+    const [ranges, garments] = await Promise.all([getJSON('/api/bodies/ranges'), getJSON('/api/garments')]);
+    form = new MeasurementForm(normaliseRanges(ranges), {
+      required: $('measurements'), optional: $('more-measurements'), pose: $('pose'),
+    }, scheduleBody);
+    state.garments = Array.isArray(garments) ? garments : (garments.garments || garments.items || []);
+    renderGarments(state.garments);
+    if (state.garments.length) selectGarment(state.garments[0].id);
+    state.state = 'ready';
+    updateTryOnButton();
+    await refreshBody();
+  } catch (error) {
+    state.state = 'error';
+    $('garments-empty')?.remove();
+    showError(error);
+  }
+}
+start();

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,6 +25,7 @@ class Body:
     part_axes (P, 2, 3): each part's axis segment (start, end), metres.
     maps: per-part OBBs and cylinder maps for collision.
     requested / achieved: measurements in cm; levels: height (m) at which each girth was taken.
+    estimated: the optional measurements that were not given and were estimated (cm).
     """
 
     vertices: np.ndarray
@@ -38,3 +39,4 @@ class Body:
     requested: dict
     achieved: dict
     levels: dict
+    estimated: dict = field(default_factory=dict)

@@ -1,0 +1,251 @@
+"""``build_body``: measurements and pose in, the body mesh with its collision maps out (SPEC section 2).
+
+Steps: (1) stations and placements from the measurements (``shape.body_layout``); (2) scale every measured
+section so that its sampled polygon has exactly the requested girth (the mesh row at that station *is* the
+sampled section, see ``nurbs.py``, so the mesh then measures what was asked); (3) move the homogeneous
+control sections into the world and evaluate each part's two surfaces on the cached (u, v) grid; (4)
+mirror the left limbs into the right ones, put the feet on y = 0 and stretch y so that the top of the head
+is at the requested stature (a no-op within 1 mm unless the legs are spread: spread legs would otherwise
+lower the head); (5) normals, measurements of the built mesh, OBBs and cylinder maps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from tryon.body import nurbs
+from tryon.body.kernels import face_vertex_normals
+from tryon.body.maps import build_part_maps
+from tryon.body.measure import horizontal_breadth, horizontal_girth, hull_perimeter, mesh_edges, section_girth
+from tryon.body.params import Measurements, Pose, complete
+from tryon.body.shape import A, B, F, SHAPE_NAMES, body_layout, station_params
+from tryon.body.types import PART_NAMES, Body
+
+# Grid intervals across the front half of the torso; every part's grid follows from it (``GRID``).
+# 30 gives about 10,000 vertices (the vertex count grows as 11.3 * resolution^2).
+DEFAULT_RESOLUTION = 30
+MIN_RESOLUTION = 6
+MAX_RESOLUTION = 200
+# Margin (m) the OBBs and cylinder cells are grown by: the collision offset of the body surface is
+# smaller than this (SPEC section 4), so a garment point near the offset surface is still found.
+MAP_MARGIN = 0.01
+
+# Per shape (u intervals per half, v intervals) as multiples of the resolution: proportional to the
+# reference body's half circumference and profile length, so triangles are about the same size everywhere.
+GRID = {
+    "head": (0.6, 0.9), "torso": (1.0, 1.5), "upper_arm": (0.33, 0.85),
+    "forearm": (0.30, 1.1), "thigh": (0.6, 1.1), "shin": (0.45, 1.2),
+}
+# Which shape each part is, and whether it is the mirror image (x -> -x) of the left one.
+PART_SHAPES = {
+    "head": ("head", False), "torso": ("torso", False),
+    "upper_arm_l": ("upper_arm", False), "upper_arm_r": ("upper_arm", True),
+    "forearm_l": ("forearm", False), "forearm_r": ("forearm", True),
+    "thigh_l": ("thigh", False), "thigh_r": ("thigh", True),
+    "shin_l": ("shin", False), "shin_r": ("shin", True),
+}
+GIRTHS = {"chest": "torso", "waist": "torso", "hips": "torso", "neck": "head", "thigh": "thigh",
+          "upper_arm": "upper_arm"}
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Everything that depends on the resolution only (cached).
+
+    ring[shape] (n_ring, 8), rows[shape] (n_v, n_stations): the basis matrices (``nurbs.py``);
+    row_of[shape]: station index -> mesh row of each measured station; faces (f, 3) int32 and
+    face_part (f,) int16 of the whole body; part_vertices: (start, stop) of each part's vertices;
+    part_faces: (start, stop) of each part's faces; part_edges: each part's unique edges (e, 2), indices
+    local to the part's vertices; incidence: sparse (n, f) vertex-face matrix."""
+
+    ring: dict
+    rows: dict
+    row_of: dict
+    faces: np.ndarray
+    face_part: np.ndarray
+    part_vertices: tuple
+    part_faces: tuple
+    part_edges: tuple
+
+
+def tube_faces(n_v: int, n_ring: int) -> np.ndarray:
+    """(f, 3) triangles of a closed tube sampled on n_v rows (rows 0 and n_v - 1 are poles, one vertex
+    each) and n_ring columns, vertices ordered pole, rows 1..n_v-2, pole. Two triangles per grid cell
+    (paper figure 1), one at the poles; counter-clockwise from outside when the columns run
+    counter-clockwise about the row direction."""
+    inner = n_v - 2
+    c = np.arange(n_ring)
+    c1 = (c + 1) % n_ring
+    r = np.arange(inner - 1)[:, None]
+    v00 = 1 + r * n_ring + c
+    v01 = 1 + r * n_ring + c1
+    v10 = v00 + n_ring
+    v11 = v01 + n_ring
+    body = np.concatenate([np.stack([v00, v01, v10], -1).reshape(-1, 3),
+                           np.stack([v01, v11, v10], -1).reshape(-1, 3)])
+    top = 1 + inner * n_ring
+    bottom_fan = np.stack([np.zeros(n_ring, int), 1 + c1, 1 + c], -1)
+    last = 1 + (inner - 1) * n_ring
+    top_fan = np.stack([last + c, last + c1, np.full(n_ring, top)], -1)
+    return np.concatenate([bottom_fan, body, top_fan]).astype(np.int32)
+
+
+@lru_cache(maxsize=8)
+def grid(resolution: int) -> Grid:
+    """Basis matrices and topology for ``resolution`` (built once per resolution)."""
+    params = station_params()
+    ring, rows, row_of = {}, {}, {}
+    layout = body_layout_reference()
+    for shape in SHAPE_NAMES:
+        gu, gv = GRID[shape]
+        n_u = max(4, round(gu * resolution)) + 1
+        n_v = max(6, round(gv * resolution)) + 1
+        t = params[shape]
+        measured = tuple(sorted(layout.parts[shape].measured.values()))
+        v = nurbs.sample_params(n_v, tuple(t[i] for i in measured))
+        ring[shape] = nurbs.ring_matrix(n_u)
+        rows[shape] = nurbs.station_matrix(t, tuple(v))
+        row_of[shape] = {i: int(np.flatnonzero(v == t[i])[0]) for i in measured}
+    faces, face_part, part_vertices, part_faces, part_edges = [], [], [], [], []
+    n_vert = n_face = 0
+    for k, name in enumerate(PART_NAMES):
+        shape, mirrored = PART_SHAPES[name]
+        f = tube_faces(rows[shape].shape[0], ring[shape].shape[0])
+        if mirrored:
+            f = f[:, [0, 2, 1]]
+        n_here = 2 + (rows[shape].shape[0] - 2) * ring[shape].shape[0]
+        part_edges.append(mesh_edges(f))
+        faces.append(f + n_vert)
+        face_part.append(np.full(len(f), k, np.int16))
+        part_vertices.append((n_vert, n_vert + n_here))
+        part_faces.append((n_face, n_face + len(f)))
+        n_vert += n_here
+        n_face += len(f)
+    faces = np.concatenate(faces).astype(np.int32)
+    face_part = np.concatenate(face_part)
+    for arr in (faces, face_part):
+        arr.setflags(write=False)
+    return Grid(ring, rows, row_of, faces, face_part, tuple(part_vertices), tuple(part_faces),
+                tuple(part_edges))
+
+
+@lru_cache(maxsize=1)
+def body_layout_reference():
+    from tryon.body.shape import REFERENCE
+    return body_layout(REFERENCE, Pose())
+
+
+def _homogeneous_world(stations: np.ndarray, rotation: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """(n, 8, 4) homogeneous control sections moved into the world (NURBS are affine invariant, so
+    moving the control points moves the surface)."""
+    pw = nurbs.ring_controls(*stations.T)
+    out = np.empty_like(pw)
+    out[..., :3] = pw[..., :3] @ rotation.T + pw[..., 3:4] * origin
+    out[..., 3] = pw[..., 3]
+    return out
+
+
+def _fit_girths(stations: np.ndarray, measured: dict, targets: dict, ring: np.ndarray) -> np.ndarray:
+    """``stations`` with each measured girth section scaled (a, f, b about its centre) so that the
+    perimeter of the convex hull of its sampled polygon equals the target (metres). Exact: the hull
+    perimeter of a section scaled about its centre scales by the same factor."""
+    out = stations.copy()
+    for name, i in measured.items():
+        if name not in targets:
+            continue
+        pts = nurbs.sample_rings(nurbs.ring_controls(*stations[i:i + 1].T), ring)[0]
+        achieved = hull_perimeter(pts[:, [0, 2]])
+        out[i, [A, F, B]] *= targets[name] / achieved
+    return out
+
+
+def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_RESOLUTION) -> Body:
+    """Build the body for measurements ``m`` (cm) in ``pose`` (degrees); mesh resolution ``resolution``
+    (grid intervals across the front of the torso; ~11.3 * resolution^2 vertices). See the module doc."""
+    if not MIN_RESOLUTION <= resolution <= MAX_RESOLUTION:
+        raise ValueError(f"resolution={resolution} is outside [{MIN_RESOLUTION}, {MAX_RESOLUTION}]")
+    full = complete(m)
+    g = grid(int(resolution))
+    layout = body_layout(full, pose)
+    targets = {name: getattr(full, name) / 100.0 for name in GIRTHS}
+
+    # ---- surfaces --------------------------------------------------------------------------------------
+    shape_points = {}
+    shape_axes = {}
+    for shape in SHAPE_NAMES:
+        part = layout.parts[shape]
+        stations = _fit_girths(part.stations, part.measured, targets, g.ring[shape])
+        pw = _homogeneous_world(stations, part.rotation, part.origin)
+        pts = nurbs.evaluate_tube(pw, g.rows[shape], g.ring[shape])
+        shape_points[shape] = np.concatenate([pts[0, :1], pts[1:-1].reshape(-1, 3), pts[-1, :1]])
+        shape_axes[shape] = np.stack([pts[0, 0], pts[-1, 0]])
+    mirror = np.array([-1.0, 1.0, 1.0])
+    vertices = np.concatenate([
+        shape_points[PART_SHAPES[name][0]] * (mirror if PART_SHAPES[name][1] else 1.0) for name in PART_NAMES
+    ])
+    part_axes = np.stack([
+        shape_axes[PART_SHAPES[name][0]] * (mirror if PART_SHAPES[name][1] else 1.0) for name in PART_NAMES
+    ])
+
+    # ---- floor and stature -----------------------------------------------------------------------------
+    y0 = vertices[:, 1].min()
+    stretch = (full.height / 100.0) / (vertices[:, 1].max() - y0)
+
+    def to_floor(p):
+        q = np.array(p, dtype=float, copy=True)
+        q[..., 1] = (q[..., 1] - y0) * stretch
+        return q
+
+    vertices = to_floor(vertices)
+    part_axes = to_floor(part_axes)
+    faces = g.faces
+
+    # ---- normals ---------------------------------------------------------------------------------------
+    face_normals, vertex_normals = face_vertex_normals(vertices, faces)  # vertex: area-weighted
+
+    # ---- what the built mesh measures ------------------------------------------------------------------
+    lm = layout.landmarks
+    levels = {k: float((v - y0) * stretch) for k, v in lm["levels"].items()}
+    achieved = _measure(vertices, g, layout, levels, to_floor)
+
+    maps = build_part_maps(vertices, faces, g.face_part, part_axes, margin=MAP_MARGIN)
+    requested = {k: v for k, v in m.as_dict().items() if v is not None}
+    return Body(
+        vertices=vertices, faces=faces, vertex_normals=vertex_normals, face_normals=face_normals,
+        face_part=g.face_part, parts=PART_NAMES, part_axes=part_axes, maps=maps,
+        requested=requested, achieved=achieved,
+        levels={k: levels[k] for k in ("chest", "waist", "hips")},
+        estimated={k: getattr(full, k) for k in full.as_dict() if getattr(m, k) is None},
+    )
+
+
+def _part_mesh(vertices: np.ndarray, g: Grid, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, edges) of one part, edges indexing the part's own vertices."""
+    k = PART_NAMES.index(name)
+    start, stop = g.part_vertices[k]
+    return vertices[start:stop], g.part_edges[k]
+
+
+def _measure(vertices: np.ndarray, g: Grid, layout, levels: dict, to_floor) -> dict:
+    """Measurements (cm) of the built mesh: height, the six girths (convex hull of plane sections of
+    the part that carries them), shoulder breadth at acromion level, arm length along the skeleton,
+    inseam (lowest point of the torso)."""
+    torso = _part_mesh(vertices, g, "torso")
+    out = {"height": float(vertices[:, 1].max() - vertices[:, 1].min())}
+    for name in ("chest", "waist", "hips"):
+        out[name] = horizontal_girth(*torso, levels[name])
+    out["neck"] = horizontal_girth(*_part_mesh(vertices, g, "head"), levels["neck"])
+    for name, shape in (("thigh", "thigh"), ("upper_arm", "upper_arm")):
+        part = layout.parts[shape]
+        i = part.measured[name]
+        centre = to_floor(part.rotation @ part.stations[i, [4, 0, 5]] + part.origin)
+        axis = to_floor(part.rotation[:, 1] + part.origin) - to_floor(part.origin)
+        out[name] = section_girth(*_part_mesh(vertices, g, shape + "_l"), centre, axis / np.linalg.norm(axis))
+    out["shoulder_width"] = horizontal_breadth(*torso, levels["acromion"])
+    lm = {k: to_floor(layout.landmarks[k]) for k in ("acromion", "elbow", "wrist")}
+    out["arm_length"] = float(np.linalg.norm(lm["acromion"] - lm["elbow"]) + np.linalg.norm(lm["elbow"] - lm["wrist"]))
+    out["inseam"] = float(torso[0][:, 1].min())
+    return {k: round(v * 100.0, 3) for k, v in out.items()}

@@ -1,0 +1,76 @@
+"""Small numba kernels of the body stage (serial: each is a single O(n) pass of a few microseconds)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def face_vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit face normals (f, 3) and area-weighted unit vertex normals (n, 3) of a triangle mesh
+    (vertices (n, 3) float64, faces (f, 3) int32, counter-clockwise from outside). Serial scatter."""
+    n = vertices.shape[0]
+    f = faces.shape[0]
+    fn = np.empty((f, 3))
+    vn = np.zeros((n, 3))
+    for k in range(f):
+        a, b, c = faces[k, 0], faces[k, 1], faces[k, 2]
+        ux = vertices[b, 0] - vertices[a, 0]
+        uy = vertices[b, 1] - vertices[a, 1]
+        uz = vertices[b, 2] - vertices[a, 2]
+        wx = vertices[c, 0] - vertices[a, 0]
+        wy = vertices[c, 1] - vertices[a, 1]
+        wz = vertices[c, 2] - vertices[a, 2]
+        nx = uy * wz - uz * wy
+        ny = uz * wx - ux * wz
+        nz = ux * wy - uy * wx
+        for v in (a, b, c):
+            vn[v, 0] += nx
+            vn[v, 1] += ny
+            vn[v, 2] += nz
+        length = np.sqrt(nx * nx + ny * ny + nz * nz)
+        if length > 0.0:
+            nx /= length
+            ny /= length
+            nz /= length
+        fn[k, 0] = nx
+        fn[k, 1] = ny
+        fn[k, 2] = nz
+    for v in range(n):
+        length = np.sqrt(vn[v, 0] ** 2 + vn[v, 1] ** 2 + vn[v, 2] ** 2)
+        if length > 0.0:
+            vn[v, 0] /= length
+            vn[v, 1] /= length
+            vn[v, 2] /= length
+    return fn, vn
+
+
+@njit(cache=True)
+def hull_perimeter_2d(points: np.ndarray) -> float:
+    """Perimeter of the convex hull of (k, 2) points (Andrew's monotone chain); 0 for fewer than 3."""
+    k = points.shape[0]
+    if k < 3:
+        return 0.0
+    by_y = np.argsort(points[:, 1], kind="mergesort")
+    order = by_y[np.argsort(points[by_y, 0], kind="mergesort")]  # lexicographic (x, y)
+    p = points[order]
+    hull = np.empty((2 * k, 2))
+    m = 0
+    for i in range(k):  # lower chain
+        while m >= 2 and ((hull[m - 1, 0] - hull[m - 2, 0]) * (p[i, 1] - hull[m - 2, 1])
+                          - (hull[m - 1, 1] - hull[m - 2, 1]) * (p[i, 0] - hull[m - 2, 0])) <= 0.0:
+            m -= 1
+        hull[m] = p[i]
+        m += 1
+    lower = m + 1
+    for i in range(k - 2, -1, -1):  # upper chain
+        while m >= lower and ((hull[m - 1, 0] - hull[m - 2, 0]) * (p[i, 1] - hull[m - 2, 1])
+                              - (hull[m - 1, 1] - hull[m - 2, 1]) * (p[i, 0] - hull[m - 2, 0])) <= 0.0:
+            m -= 1
+        hull[m] = p[i]
+        m += 1
+    total = 0.0
+    for i in range(m - 1):
+        total += np.sqrt((hull[i + 1, 0] - hull[i, 0]) ** 2 + (hull[i + 1, 1] - hull[i, 1]) ** 2)
+    return total

@@ -1,0 +1,173 @@
+"""Body parameters: measurements (cm) and pose (degrees), their ranges, and estimates of the optional ones.
+
+The API speaks centimetres; ``build_body`` converts to metres. Ranges cover every person of the ANSUR II
+sample (300 people, 150 men and 150 women; see the range comments) with a margin, so that real people of
+other populations still fit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+# Every field: (min, max) in cm. Required: height, chest, waist, hips. The ANSUR II sample spans
+# height 147.5-196.6, chest 78.3-125.2, waist 65.6-133.4, hips 84.7-130.6, biacromial breadth 31.2-45.0,
+# arm length (acromion-radiale + radiale-stylion) 46.2-70.2, crotch height 66.5-95.9, neck 29.4-45.5,
+# thigh 49.5-87.0, flexed biceps 23.8-45.6 (cm).
+MEASUREMENT_RANGES: dict[str, tuple[float, float]] = {
+    "height": (140.0, 210.0),
+    "chest": (70.0, 150.0),
+    "waist": (55.0, 150.0),
+    "hips": (75.0, 150.0),
+    "shoulder_width": (26.0, 55.0),
+    "arm_length": (40.0, 80.0),
+    "inseam": (55.0, 110.0),
+    "neck": (25.0, 56.0),
+    "thigh": (40.0, 100.0),
+    "upper_arm": (18.0, 56.0),
+}
+
+MEASUREMENT_DESCRIPTIONS: dict[str, str] = {
+    "height": "stature, floor to the top of the head, cm",
+    "chest": "chest girth at nipple (bust-point) level, tape on the skin, cm",
+    "waist": "waist girth at navel (omphalion) level, not the narrowest girth, cm",
+    "hips": "hip girth at the level of greatest buttock protrusion, cm",
+    "shoulder_width": "biacromial breadth, straight line between the two shoulder tips (acromions), cm",
+    "arm_length": "acromion (shoulder tip) to wrist, along the straight arm, cm",
+    "inseam": "crotch height, floor to crotch, standing, cm",
+    "neck": "neck girth just below the larynx, cm",
+    "thigh": "upper thigh girth just below the buttock crease, cm",
+    "upper_arm": "upper-arm girth over the biceps (ANSUR II takes it flexed; the body is built with it), cm",
+}
+
+# Ratios that a plausible body keeps (cross-field sanity). The ANSUR II sample spans
+# inseam/height 0.444-0.525, arm_length/height 0.309-0.374, thigh/hips 0.539-0.669, waist/chest
+# 0.755-1.149, waist/hips 0.733-1.061, chest/hips 0.791-1.168, shoulder_width/chest 0.301-0.476,
+# neck/chest 0.293-0.424, upper_arm/chest 0.266-0.392; the bounds add a wide margin.
+RATIO_BOUNDS: dict[tuple[str, str], tuple[float, float]] = {
+    ("inseam", "height"): (0.38, 0.56),
+    ("arm_length", "height"): (0.26, 0.43),
+    ("thigh", "hips"): (0.40, 0.80),
+    ("waist", "chest"): (0.55, 1.50),
+    ("waist", "hips"): (0.55, 1.40),
+    ("chest", "hips"): (0.60, 1.50),
+    ("shoulder_width", "chest"): (0.22, 0.60),
+    ("neck", "chest"): (0.22, 0.55),
+    ("upper_arm", "chest"): (0.18, 0.50),
+}
+
+# Least-squares fits over the 300 people of the ANSUR II sample (cm):
+#   optional = c0 + c_h * height + c_c * chest + c_w * waist + c_p * hips.
+# Residual RMS / max over the sample: shoulder_width 1.75 / 5.95, arm_length 1.81 / 5.41,
+# inseam 2.35 / 6.83, neck 1.83 / 6.84, thigh 2.03 / 8.16, upper_arm 2.13 / 6.42 cm. Lengths follow
+# height (arm 0.38 cm/cm, inseam 0.59 cm/cm), girths follow the nearest required girth (thigh 0.65 hips,
+# neck and upper arm about 0.26 chest), which is what one expects anatomically.
+OPTIONAL_FITS: dict[str, tuple[float, float, float, float, float]] = {
+    "shoulder_width": (-2.8817, 0.2124, 0.1544, -0.0450, -0.0544),
+    "arm_length": (-6.7200, 0.3846, 0.0012, 0.0110, -0.0149),
+    "inseam": (-11.1861, 0.5875, -0.0569, -0.0120, 0.0013),
+    "neck": (-3.1196, 0.1637, 0.2563, 0.0559, -0.1864),
+    "thigh": (-5.0403, -0.0247, 0.0294, 0.0226, 0.6492),
+    "upper_arm": (-12.4362, 0.0902, 0.2652, 0.0085, 0.0286),
+}
+
+REQUIRED = ("height", "chest", "waist", "hips")
+OPTIONAL = ("shoulder_width", "arm_length", "inseam", "neck", "thigh", "upper_arm")
+
+# Angles, degrees. arm_angle: between the upper arm and the side of the torso in the frontal plane
+# (0 = hanging down, 90 = T-pose). elbow_bend: forearm flexion (0 = straight). leg_spread: each leg's
+# abduction from vertical.
+POSE_RANGES: dict[str, tuple[float, float]] = {
+    "arm_angle": (0.0, 90.0),
+    "elbow_bend": (0.0, 120.0),
+    "leg_spread": (0.0, 20.0),
+}
+
+POSE_DESCRIPTIONS: dict[str, str] = {
+    "arm_angle": "angle between the upper arm and the side of the torso, frontal plane, degrees (0 = hanging)",
+    "elbow_bend": "elbow flexion, forearm forwards, degrees (0 = straight arm)",
+    "leg_spread": "abduction of each leg from vertical, degrees",
+}
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Pose angles in degrees. The default A-pose keeps the arms clear of the torso below the armpit
+    (30 degrees) and the knees apart (3 degrees per leg), as garments need."""
+
+    arm_angle: float = 30.0
+    elbow_bend: float = 0.0
+    leg_spread: float = 3.0
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """Body measurements in cm. The four girths and height are required; the others are estimated
+    from them (``OPTIONAL_FITS``) when None."""
+
+    height: float
+    chest: float
+    waist: float
+    hips: float
+    shoulder_width: float | None = None
+    arm_length: float | None = None
+    inseam: float | None = None
+    neck: float | None = None
+    thigh: float | None = None
+    upper_arm: float | None = None
+
+    def as_dict(self) -> dict[str, float | None]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+def estimate_optional(name: str, height: float, chest: float, waist: float, hips: float) -> float:
+    """ANSUR II least-squares estimate (cm) of optional measurement ``name`` from the required ones,
+    clipped to its range."""
+    c0, ch, cc, cw, cp = OPTIONAL_FITS[name]
+    value = c0 + ch * height + cc * chest + cw * waist + cp * hips
+    lo, hi = MEASUREMENT_RANGES[name]
+    return min(max(value, lo), hi)
+
+
+def complete(m: Measurements) -> Measurements:
+    """``m`` with every optional measurement filled in (estimated where None)."""
+    updates = {
+        name: estimate_optional(name, m.height, m.chest, m.waist, m.hips)
+        for name in OPTIONAL if getattr(m, name) is None
+    }
+    return replace(m, **updates)
+
+
+def check_measurements(m: Measurements) -> list[str]:
+    """Problems with ``m`` as messages naming the field and the allowed range (empty list: valid).
+    Checks every given field against ``MEASUREMENT_RANGES`` and the ratios in ``RATIO_BOUNDS``
+    (estimated optional fields are not checked against ratios: the fits keep them plausible)."""
+    problems = []
+    for name, value in m.as_dict().items():
+        if value is None:
+            continue
+        lo, hi = MEASUREMENT_RANGES[name]
+        if not lo <= value <= hi:
+            problems.append(f"{name}={value:g} cm is outside [{lo:g}, {hi:g}] cm")
+    if problems:
+        return problems
+    for (a, b), (lo, hi) in RATIO_BOUNDS.items():
+        va, vb = getattr(m, a), getattr(m, b)
+        if va is None or vb is None:
+            continue
+        ratio = va / vb
+        if not lo <= ratio <= hi:
+            problems.append(
+                f"{a}/{b} = {va:g}/{vb:g} = {ratio:.3f} is implausible: it must be within [{lo:g}, {hi:g}] "
+                f"(so {a} within [{lo * vb:.1f}, {hi * vb:.1f}] cm for {b}={vb:g} cm)"
+            )
+    return problems
+
+
+def check_pose(p: Pose) -> list[str]:
+    """Problems with ``p`` as messages naming the field and the range (empty list: valid)."""
+    problems = []
+    for name, (lo, hi) in POSE_RANGES.items():
+        value = getattr(p, name)
+        if not lo <= value <= hi:
+            problems.append(f"{name}={value:g} degrees is outside [{lo:g}, {hi:g}] degrees")
+    return problems

@@ -1,0 +1,425 @@
+"""The catalogue's own garment meshes, built the way 3DMAX-style garment models are (SPEC section 3).
+
+Every garment is a set of quad grids, each quad split into two triangles (v0 v1 v2 with right angles at
+v1, so v0v1 and v1v2 are the near right-angle edges and v2v0 the near hypotenuse), glued into one closed
+tube topology: a body tube of rings around the torso, sleeve tubes whose first ring is the armhole, leg
+tubes that share the crotch point. Openings: neck, hem, cuffs, waist, leg hems.
+
+Placement: as worn by a standing person 1.70 m tall, feet at y = 0, facing +z, left arm towards +x,
+arms in an A-pose (``ARM_ANGLE_DEG`` from the torso side). Metres.
+
+Sizes S, M, L from a standard unisex size chart (body girths, cm) plus each garment's ease.
+
+Run ``python3 -m tryon.garment.generate garments/`` to write the OBJ files and ``catalogue.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+# Body girths in cm (standard unisex chart: chest, waist, hips, upper arm, wrist, thigh, knee, neck).
+SIZE_CHART = {
+    "S": dict(chest=88, waist=74, hips=94, upper_arm=28, wrist=16, thigh=54, knee=36, neck=36),
+    "M": dict(chest=96, waist=82, hips=100, upper_arm=30, wrist=17, thigh=57, knee=38, neck=38),
+    "L": dict(chest=104, waist=90, hips=106, upper_arm=32, wrist=18, thigh=60, knee=40, neck=40),
+}
+# Shoulder half-width (acromion to the body's mid-plane), m, per size.
+SHOULDER_HALF = {"S": 0.185, "M": 0.195, "L": 0.205}
+
+# Landmark heights (m) of a 1.70 m standing person (anthropometric ratios of stature: shoulder 0.82,
+# armpit 0.72, chest 0.73, waist 0.62, hips 0.53, crotch 0.46, knee 0.28).
+Y_NECK_BASE = 1.45
+Y_SHOULDER = 1.40
+Y_ARMPIT = 1.21
+Y_WAIST = 1.05
+Y_HIP = 0.90
+Y_CROTCH = 0.78
+Y_KNEE = 0.47
+Y_ANKLE = 0.08
+# Shoulder joint centre (m): where the arm's axis starts.
+SHOULDER_JOINT = (0.175, 1.385)
+# The A-pose: arms this many degrees out from the torso's side.
+ARM_ANGLE_DEG = 27.0
+# Depth / width of the torso's cross-section ellipse (a chest is about 0.7 as deep as wide).
+DEPTH_RATIO = 0.72
+# Target grid spacing, m: about 1.7 cm gives the 2,000-8,000 vertices of a 3DMAX garment.
+SPACING = 0.017
+
+
+def ellipse_perimeter(a: float, b: float) -> float:
+    """Ramanujan's approximation, m."""
+    return math.pi * (3 * (a + b) - math.sqrt((3 * a + b) * (a + 3 * b)))
+
+
+def half_axes(girth_m: float, ratio: float = DEPTH_RATIO) -> tuple[float, float]:
+    """(half-width, half-depth) of an ellipse of the given perimeter and depth/width ratio."""
+    a = girth_m / ellipse_perimeter(1.0, ratio)
+    return a, a * ratio
+
+
+def smoothstep(t):
+    t = np.clip(t, 0.0, 1.0)
+    return t * t * (3 - 2 * t)
+
+
+class MeshBuilder:
+    """Vertices and quads (split into two triangles each) of a garment under construction."""
+
+    def __init__(self):
+        self.points: list[np.ndarray] = []
+        self.count = 0
+        self.faces: list[np.ndarray] = []
+
+    def add(self, pts: np.ndarray) -> np.ndarray:
+        """Add (m, 3) points, return their ids."""
+        pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+        ids = np.arange(self.count, self.count + len(pts))
+        self.points.append(pts)
+        self.count += len(pts)
+        return ids
+
+    def strip(self, row_a: np.ndarray, row_b: np.ndarray, closed: bool) -> None:
+        """Quads between two rows of equal length: (a_k, a_k+1, b_k+1) and (b_k+1, b_k, a_k)."""
+        a0, b0 = row_a, row_b
+        a1, b1 = (np.roll(row_a, -1), np.roll(row_b, -1)) if closed else (row_a[1:], row_b[1:])
+        if not closed:
+            a0, b0 = row_a[:-1], row_b[:-1]
+        self.faces.append(np.column_stack([a0, a1, b1]))
+        self.faces.append(np.column_stack([b1, b0, a0]))
+
+    def mesh(self) -> trimesh.Trimesh:
+        v = np.concatenate(self.points)
+        f = np.concatenate(self.faces)
+        f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+        mesh = trimesh.Trimesh(vertices=v, faces=f, process=False)
+        mesh.remove_unreferenced_vertices()  # the crotch point was added twice, then merged
+        trimesh.repair.fix_winding(mesh)  # mirrored parts were built with the other winding
+        # outward: normals point away from the vertical axis through the garment on average
+        centre = v.mean(axis=0)
+        radial = mesh.triangles_center - centre
+        radial[:, 1] = 0.0
+        if np.einsum("ij,ij->", mesh.face_normals, radial) < 0:
+            mesh.faces = np.fliplr(mesh.faces)
+        return mesh
+
+
+# --- tops and dresses -----------------------------------------------------------------------------
+
+
+@dataclass
+class TopSpec:
+    """A top or dress: girths (m, garment = body + ease) at heights (m), sleeves, neckline."""
+
+    girths: list[tuple[float, float]]  # (y, girth) from the hem up to the armpit
+    shoulder_half: float
+    neck_half: float  # half-width of the neck opening, m
+    neck_drop_front: float
+    neck_drop_back: float
+    neck_depth: float  # half-depth (z) of the neck opening, m
+    armhole_angle_deg: float  # how far the armhole cuts into the ring's side, degrees
+    sleeve_end: float | None  # distance of the cuff along the arm axis from the shoulder joint, m
+    sleeve_top_girth: float = 0.0
+    sleeve_end_girth: float = 0.0
+
+
+def build_top(spec: TopSpec) -> trimesh.Trimesh:
+    """Body tube (hem to shoulders) with armholes, neck opening and optional sleeves."""
+    mb = MeshBuilder()
+    ys, gs = np.array([g[0] for g in spec.girths]), np.array([g[1] for g in spec.girths])
+    y_hem, y_arm = ys[0], ys[-1]
+    n_half = 2 * int(round(gs.max() / 2 / SPACING / 2))  # columns per half ring (even)
+    n_ring = 2 * n_half
+    rows_low = max(2, int(round((y_arm - y_hem) / SPACING)))
+    rows_high = max(3, int(round((Y_SHOULDER - y_arm) / SPACING)))
+    a_arm, b_arm = half_axes(gs[-1])
+
+    # lower body: closed rings from the hem up to the armpit
+    rings = []
+    theta = np.pi * np.arange(n_ring) / n_half
+    for j in range(rows_low + 1):
+        y = y_hem + (y_arm - y_hem) * j / rows_low
+        a, b = half_axes(np.interp(y, ys, gs))
+        rings.append(mb.add(np.column_stack([-a * np.cos(theta), np.full(n_ring, y), b * np.sin(theta)])))
+    for j in range(rows_low):
+        mb.strip(rings[j], rings[j + 1], closed=True)
+
+    # upper body: front and back half rings with the armholes cut out of the sides
+    delta_max = math.radians(spec.armhole_angle_deg)
+    k = np.arange(n_half + 1) / n_half
+    fronts, backs = [], []
+    top_front_ids = None
+    for j in range(1, rows_high + 1):
+        u = j / rows_high
+        delta = delta_max * math.sin(math.pi * u) ** 0.7
+        a = a_arm + (spec.shoulder_half - a_arm) * u
+        half = []
+        for side in (+1, -1):  # front, back
+            th = delta + (np.pi - 2 * delta) * k
+            x = -a * np.cos(th)
+            y_top = _shoulder_line(x, spec, side)
+            y = y_arm + (y_top - y_arm) * u
+            z_top = _neck_z(x, spec) * side
+            z = side * np.sqrt((b_arm * np.sin(th)) ** 2 * (1 - u * u) + (np.abs(z_top) * u * u) ** 2)
+            half.append(np.column_stack([x, y, z]))
+        if j < rows_high:
+            front_ids = mb.add(half[0])
+            back_ids = mb.add(half[1][::-1])  # back runs from the +x side to the -x side
+        else:
+            # top row: the shoulder seams are shared by front and back; the neck opening is not
+            neck = np.abs(half[0][:, 0]) < spec.neck_half
+            front_ids = mb.add(half[0])
+            back_pts = half[1][::-1]
+            back_ids = np.empty(n_half + 1, dtype=np.int64)
+            shared = ~neck[::-1]
+            back_ids[shared] = front_ids[::-1][shared]
+            back_ids[~shared] = mb.add(back_pts[~shared])
+            top_front_ids = front_ids
+        fronts.append(front_ids)
+        backs.append(back_ids)
+    armpit = rings[-1]
+    prev_front = armpit[: n_half + 1]
+    prev_back = np.concatenate([armpit[n_half:], armpit[:1]])
+    for front_ids, back_ids in zip(fronts, backs):
+        mb.strip(prev_front, front_ids, closed=False)
+        mb.strip(prev_back, back_ids, closed=False)
+        prev_front, prev_back = front_ids, back_ids
+    del top_front_ids
+
+    if spec.sleeve_end is not None:
+        for side in (-1, +1):  # person's right (-x), left (+x)
+            if side < 0:
+                up_front = [f[0] for f in fronts]
+                up_back = [b[-1] for b in backs]
+                pit = armpit[0]
+            else:
+                up_front = [f[-1] for f in fronts]
+                up_back = [b[0] for b in backs]
+                pit = armpit[n_half]
+            # armhole loop: armpit, up the front, shoulder point (shared), down the back
+            root = np.array([pit, *up_front[:-1], up_front[-1], *up_back[:-1][::-1]])
+            _build_sleeve(mb, root, side, spec)
+    return mb.mesh()
+
+
+def _shoulder_line(x: np.ndarray, spec: TopSpec, side: int) -> np.ndarray:
+    """Height of the top edge: rises from the shoulder point to the neck base, dips at the neckline."""
+    ax = np.abs(x)
+    t = np.clip((spec.shoulder_half - ax) / max(spec.shoulder_half - spec.neck_half, 1e-6), 0.0, 1.0)
+    y = Y_SHOULDER + (Y_NECK_BASE - Y_SHOULDER) * t
+    inside = ax < spec.neck_half
+    drop = spec.neck_drop_front if side > 0 else spec.neck_drop_back
+    y = np.where(inside, Y_NECK_BASE - drop * np.sqrt(np.clip(1 - (ax / spec.neck_half) ** 2, 0, 1)), y)
+    return y
+
+
+def _neck_z(x: np.ndarray, spec: TopSpec) -> np.ndarray:
+    """Half-depth of the neck opening at x (0 on the shoulder seams)."""
+    return spec.neck_depth * np.sqrt(np.clip(1 - (x / spec.neck_half) ** 2, 0.0, 1.0))
+
+
+def _build_sleeve(mb: MeshBuilder, root: np.ndarray, side: int, spec: TopSpec) -> None:
+    """A sleeve tube from the armhole loop ``root`` (ids) along the A-pose arm axis to the cuff."""
+    alpha = math.radians(ARM_ANGLE_DEG)
+    d = np.array([side * math.sin(alpha), -math.cos(alpha), 0.0])
+    e1 = np.array([side * math.cos(alpha), math.sin(alpha), 0.0])  # towards the over-arm seam
+    joint = np.array([side * SHOULDER_JOINT[0], SHOULDER_JOINT[1], 0.0])
+    root_pts = np.concatenate(mb.points)[root]
+    m = len(root)
+    phi = 2 * np.pi * np.arange(m) / m  # 0 underarm, pi over-arm; front (z > 0) first
+    start = float((joint[1] - root_pts[:, 1].mean()) / math.cos(alpha))
+    length = spec.sleeve_end - start
+    rows = max(3, int(round(length / SPACING)))
+    blend = max(1.0, 0.09 / (length / rows))  # rows over which the armhole turns into a circle (9 cm)
+    r_top, r_end = spec.sleeve_top_girth / (2 * np.pi), spec.sleeve_end_girth / (2 * np.pi)
+    prev = root
+    for l_ in range(1, rows + 1):
+        t = l_ / rows
+        c = joint + (start + length * t) * d
+        r = r_top + (r_end - r_top) * t
+        circle = c + r * (-np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * np.array([0.0, 0.0, 1.0]))
+        w = smoothstep(l_ / blend)
+        ids = mb.add((1 - w) * root_pts + w * circle)
+        mb.strip(prev, ids, closed=True)
+        prev = ids
+
+
+# --- bottoms --------------------------------------------------------------------------------------
+
+
+def build_skirt(girths: list[tuple[float, float]], spacing: float = SPACING) -> trimesh.Trimesh:
+    """A tube of rings from the hem (first) to the waist (last), grid ``spacing`` m."""
+    mb = MeshBuilder()
+    ys, gs = np.array([g[0] for g in girths]), np.array([g[1] for g in girths])
+    n_ring = 2 * int(round(np.mean(gs) / spacing / 2))
+    rows = max(2, int(round((ys[-1] - ys[0]) / spacing)))
+    theta = 2 * np.pi * np.arange(n_ring) / n_ring
+    prev = None
+    for j in range(rows + 1):
+        y = ys[0] + (ys[-1] - ys[0]) * j / rows
+        a, b = half_axes(np.interp(y, ys, gs), 0.8)
+        ids = mb.add(np.column_stack([-a * np.cos(theta), np.full(n_ring, y), b * np.sin(theta)]))
+        if prev is not None:
+            mb.strip(prev, ids, closed=True)
+        prev = ids
+    return mb.mesh()
+
+
+def build_trousers(waist_girth: float, hip_girth: float, thigh_girth: float, knee_girth: float,
+                   hem_girth: float, y_hem: float) -> trimesh.Trimesh:
+    """Seat tube (crotch to waist) whose first ring is a figure eight pinched at the crotch point, and
+    two leg tubes from that ring down to the leg hems at ``y_hem``.
+
+    Seat ring node k (of 2 h, h even, q = h / 2): angle pi k / h around the seat from the person's right
+    side (-x) over the front (+z); k = q is the front centre, k = h + q the back centre. On the crotch
+    ring both are the crotch point. The right leg takes nodes 0..q and h+q..2h-1, the left q..h+q.
+    """
+    mb = MeshBuilder()
+    h = 2 * int(round(thigh_girth / SPACING / 2))  # nodes per leg ring (even)
+    n_ring, q = 2 * h, h // 2
+    r_thigh = thigh_girth / (2 * np.pi)
+    x_leg = r_thigh  # the two thigh circles touch at the crotch point
+
+    # angle psi around each leg (0 at its outer side, pi at the crotch; front z > 0), and the leg's side
+    k = np.arange(n_ring)
+    side = np.where((k <= q) | (k >= h + q), -1, 1)
+    psi = np.where(k <= q, np.pi * k / q, 0.0)
+    psi = np.where(k >= h + q, np.pi + np.pi * (k - h - q) / q, psi)
+    left_front = (k >= q) & (k <= h)
+    psi = np.where(left_front, np.pi * (1 - (k - q) / q), psi)
+    left_back = (k > h) & (k < h + q)
+    psi = np.where(left_back, -np.pi * (k - h) / q, psi)
+
+    def on_legs(y, r, xc):
+        return np.column_stack([side * (xc + r * np.cos(psi)), np.full(n_ring, y), r * np.sin(psi)])
+
+    theta = np.pi * k / h
+    seat_rows = max(3, int(round((Y_WAIST - Y_CROTCH) / SPACING)))
+    crotch_pts = on_legs(Y_CROTCH, r_thigh, x_leg)
+    rings = []
+    for j in range(seat_rows + 1):
+        y = Y_CROTCH + (Y_WAIST - Y_CROTCH) * j / seat_rows
+        g = np.interp(y, [Y_CROTCH, Y_HIP, Y_WAIST], [hip_girth, hip_girth, waist_girth])
+        a, b = half_axes(g, 0.8)
+        ellipse = np.column_stack([-a * np.cos(theta), np.full(n_ring, y), b * np.sin(theta)])
+        w = smoothstep((y - Y_CROTCH) / (Y_HIP + 0.04 - Y_CROTCH))
+        ids = mb.add((1 - w) * crotch_pts + w * ellipse)
+        if j == 0:
+            ids[h + q] = ids[q]  # the crotch point: front and back centre are one vertex
+        rings.append(ids)
+    for j in range(seat_rows):
+        mb.strip(rings[j], rings[j + 1], closed=True)
+
+    crotch = rings[0]
+    leg_nodes = (np.concatenate([k[: q + 1], k[h + q + 1:]]), k[q: h + q])  # right, left
+    leg_rows = max(3, int(round((Y_CROTCH - y_hem) / SPACING)))
+    for leg_side, nodes in zip((-1, +1), leg_nodes):
+        prev = crotch[nodes]
+        for l_ in range(1, leg_rows + 1):
+            y = Y_CROTCH - (Y_CROTCH - y_hem) * l_ / leg_rows
+            g = np.interp(y, [Y_ANKLE, Y_KNEE, Y_CROTCH], [hem_girth, knee_girth, thigh_girth])
+            r = g / (2 * np.pi)
+            # the legs part slightly towards the feet; the centre moves out as the leg narrows so the
+            # inner seams do not touch below the crotch
+            xc = x_leg + (r_thigh - r) * 0.6 + 0.015 * (Y_CROTCH - y) / Y_CROTCH
+            pts = np.column_stack([leg_side * (xc + r * np.cos(psi[nodes])), np.full(len(nodes), y),
+                                   r * np.sin(psi[nodes])])
+            ids = mb.add(pts)
+            mb.strip(prev, ids, closed=True)
+            prev = ids
+    return mb.mesh()
+
+
+# --- the catalogue --------------------------------------------------------------------------------
+
+
+def _cm(x: float) -> float:
+    return x / 100.0
+
+
+def garment_mesh(kind: str, size: str) -> trimesh.Trimesh:
+    """One catalogue garment: kind in ``GARMENTS``, size S | M | L."""
+    s = {k: _cm(v) for k, v in SIZE_CHART[size].items()}
+    neck = dict(neck_half=s["neck"] / (2 * np.pi) + 0.02, neck_depth=s["neck"] / (2 * np.pi) + 0.012)
+    if kind == "tshirt":  # ease: chest +8 cm, hem +6 cm over the hips, short sleeves to mid upper arm
+        return build_top(TopSpec(
+            girths=[(0.75, s["hips"] + 0.06), (Y_WAIST, max(s["waist"] + 0.14, s["chest"] + 0.02)),
+                    (1.16, s["chest"] + 0.08), (Y_ARMPIT, s["chest"] + 0.08)],
+            shoulder_half=SHOULDER_HALF[size], neck_drop_front=0.08, neck_drop_back=0.02,
+            armhole_angle_deg=40.0, sleeve_end=0.24, sleeve_top_girth=s["upper_arm"] + 0.12,
+            sleeve_end_girth=s["upper_arm"] + 0.08, **neck))
+    if kind == "longsleeve":  # ease: chest +10 cm, sleeves to the wrist
+        return build_top(TopSpec(
+            girths=[(0.72, s["hips"] + 0.08), (Y_WAIST, max(s["waist"] + 0.14, s["chest"] + 0.04)),
+                    (1.16, s["chest"] + 0.10), (Y_ARMPIT, s["chest"] + 0.10)],
+            shoulder_half=SHOULDER_HALF[size], neck_drop_front=0.07, neck_drop_back=0.02,
+            armhole_angle_deg=40.0, sleeve_end=0.60, sleeve_top_girth=s["upper_arm"] + 0.12,
+            sleeve_end_girth=s["wrist"] + 0.08, **neck))
+    if kind == "dress":  # sleeveless, fitted bodice (+6 cm), flared knee-length skirt
+        return build_top(TopSpec(
+            girths=[(0.52, s["hips"] + 0.50), (Y_HIP, s["hips"] + 0.08), (Y_WAIST, s["waist"] + 0.08),
+                    (1.16, s["chest"] + 0.06), (Y_ARMPIT, s["chest"] + 0.06)],
+            shoulder_half=SHOULDER_HALF[size] - 0.03, neck_drop_front=0.11, neck_drop_back=0.04,
+            armhole_angle_deg=50.0, sleeve_end=None, **neck))
+    if kind == "skirt":  # A-line to just above the knee, sits at the waist
+        return build_skirt([(0.52, s["hips"] + 0.30), (Y_HIP, s["hips"] + 0.06), (1.01, s["waist"] + 0.02)],
+                           spacing=0.8 * SPACING)  # a small garment: a finer grid keeps >= 2,000 vertices
+    if kind == "trousers":
+        return build_trousers(s["waist"] + 0.02, s["hips"] + 0.08, s["thigh"] + 0.08, s["knee"] + 0.10,
+                              s["knee"] + 0.04, y_hem=0.04)
+    if kind == "shorts":
+        return build_trousers(s["waist"] + 0.02, s["hips"] + 0.08, s["thigh"] + 0.10, s["knee"] + 0.14,
+                              s["knee"] + 0.14, y_hem=0.58)
+    raise ValueError(f"unknown garment kind {kind!r}")
+
+
+# kind -> (display name, category)
+GARMENTS = {
+    "tshirt": ("T-shirt", "top"),
+    "longsleeve": ("Long-sleeve shirt", "top"),
+    "dress": ("Sleeveless dress", "dress"),
+    "skirt": ("A-line skirt", "bottom"),
+    "trousers": ("Trousers", "bottom"),
+    "shorts": ("Shorts", "bottom"),
+}
+
+
+def obj_text(mesh: trimesh.Trimesh, title: str) -> str:
+    """Minimal OBJ: a comment, ``v`` lines (m, 0.1 mm), ``f`` lines (1-based triangles)."""
+    lines = [f"# {title}", "# generated by tryon.garment.generate: metres, y up, facing +z"]
+    lines += [f"v {x:.4f} {y:.4f} {z:.4f}" for x, y, z in mesh.vertices]
+    lines += [f"f {a} {b} {c}" for a, b, c in mesh.faces + 1]
+    return "\n".join(lines) + "\n"
+
+
+def write_catalogue(out_dir: Path) -> list[dict]:
+    """Write every garment in every size as OBJ plus ``catalogue.json``; returns the entries."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    entries = []
+    for kind, (name, category) in GARMENTS.items():
+        for size in SIZE_CHART:
+            mesh = garment_mesh(kind, size)
+            file = f"{kind}-{size.lower()}.obj"
+            (out_dir / file).write_text(obj_text(mesh, f"{name}, size {size}"))
+            entries.append(dict(file=file, name=f"{name} {size}", category=category, size=size, units="m"))
+    (out_dir / "catalogue.json").write_text(json.dumps(entries, indent=1) + "\n")
+    return entries
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="write the catalogue's garment meshes")
+    parser.add_argument("out_dir", type=Path, help="directory for the OBJ files and catalogue.json")
+    args = parser.parse_args(argv)
+    for e in write_catalogue(args.out_dir):
+        print(e["file"], e["name"], e["category"])
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -100,11 +100,11 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     y_ch = 0.720 * H
     y_ax = 0.750 * H
     y_ac = 0.818 * H
-    y_nb = 0.842 * H
+    y_nb = 0.843 * H
     y_tp = 0.852 * H
     r_n = N / (2.0 * np.pi)
 
-    a_h, f_h, b_h = 0.170 * P, 0.110 * P, 0.140 * P
+    a_h, f_h, b_h = 0.170 * P, 0.095 * P, 0.150 * P
     belly = np.clip(W / P - 0.85, 0.0, 0.3)  # a waist large for the hips is a belly: deeper in front
     a_w, f_w, b_w = 0.165 * W, (0.125 + 0.2 * belly) * W, 0.110 * W
     a_c, f_c, b_c = 0.170 * C, 0.125 * C, 0.120 * C
@@ -124,17 +124,17 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
         _station(y_ch, a_c, f_c, b_c, cz=cz_c, wf=0.8, wb=SQUARE),
         _station(y_ax, a_c, 0.92 * f_c, b_c, cz=cz_c, wf=0.8, wb=SQUARE),
         _station(y_ac, 0.5 * S, 0.55 * f_c, 0.62 * b_c, cz=cz_ac, wf=SQUARE, wb=SQUARE),
-        _station(y_nb, 1.5 * r_n, 1.3 * r_n, 1.5 * r_n, cz=cz_ac, wf=SQUARE, wb=SQUARE),
-        _pole(y_tp, cz=cz_ac),
+        _station(y_nb, 1.5 * r_n, 1.2 * r_n, 1.2 * r_n, cz=cz_ac + 0.01, wf=SQUARE, wb=SQUARE),
+        _pole(y_tp, cz=cz_ac + 0.01),
     ])
     torso_measured = {"hips": 3, "waist": 5, "chest": 7, "shoulder_width": 9}
 
     # ---- head and neck (world frame) --------------------------------------------------------------------
     hh = 0.13 * H  # chin to vertex
     y_chin = H - hh
-    y_neck = min(y_chin - 0.03 * head_s, 0.5 * (y_nb + y_chin))
-    cz_n = cz_ac - 0.1 * b_c
-    cz_f = cz_n + 0.012 * head_s  # the skull sits a little forward of the neck
+    y_neck = max(y_chin - 0.025 * head_s, y_tp + 0.005)  # below the larynx, above the torso
+    cz_n = cz_ac + 0.01
+    cz_f = cz_n + 0.025 * head_s  # the skull sits forward of the neck
     hsz = head_s
     head = np.array([
         _pole(y_ac - 0.03, cz=cz_n),
@@ -209,8 +209,8 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     s_g = (y_h - y_c) + 0.02 * hs  # thigh girth just below the buttock crease
     thigh = np.array([
         _pole(-0.5 * r_t),
-        _ring(-0.3 * r_t, 0.55 * r_t),
-        _ring(0.0, 0.72 * r_t),
+        _ring(-0.3 * r_t, 0.6 * r_t, sa=0.85),
+        _ring(0.0, 0.88 * r_t, sa=0.85, sb=1.05),
         _ring(s_g, r_t, sa=0.9, sf=1.0, sb=1.1),
         _ring(s_g + 0.45 * (l_th - s_g), 0.82 * r_t, sa=0.92),
         _ring(l_th - 0.06 * hs, 0.66 * r_t, sa=0.95),
@@ -257,15 +257,18 @@ REFERENCE = Measurements(height=172.0, chest=100.0, waist=88.0, hips=101.0)
 def station_params() -> dict[str, tuple[float, ...]]:
     """Fixed v parameter of every station of every part, in [0, 1].
 
-    Chord length along the reference body's profile (local y, mean section radius), so that uniform
-    samples in v are roughly evenly spaced on the surface. Fixed per part (not per person) so that the
-    basis matrices can be cached per resolution."""
+    Chord length along the reference body's profile: the step between two stations is the largest
+    displacement of the section's four extreme points (left, right, front, back), so that uniform samples
+    in v are roughly evenly spaced on the surface and the cubic interpolation does not overshoot where a
+    section moves sideways (chin over the neck, toes over the ankle). Fixed per part (not per person) so
+    that the basis matrices can be cached per resolution."""
     layout = body_layout(REFERENCE, Pose())
     out = {}
     for name, part in layout.parts.items():
         st = part.stations
-        radius = (2.0 * st[:, A] + st[:, F] + st[:, B]) / 4.0
-        step = np.hypot(np.diff(st[:, Y]), np.diff(radius))
+        extremes = np.stack([st[:, CX] - st[:, A], st[:, CX] + st[:, A], st[:, CZ] + st[:, F],
+                             st[:, CZ] - st[:, B]], axis=1)
+        step = np.hypot(np.diff(st[:, Y]), np.abs(np.diff(extremes, axis=0)).max(axis=1))
         t = np.concatenate([[0.0], np.cumsum(step)])
         out[name] = tuple(float(v) for v in t / t[-1])
     return out

@@ -10,9 +10,9 @@ import argparse
 import sys
 
 from tryon import __version__
-from tryon.cli import serve
+from tryon.cli import ingest, serve
 
-COMMANDS = [serve]
+COMMANDS = [serve, ingest]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -44,12 +44,21 @@ REFUSED_FORMATS = {
 MIN_COMPONENT_AREA_FRACTION = 0.02
 # Faces whose area is below this fraction of the mean face area are degenerate (slivers with no area).
 DEGENERATE_AREA_FRACTION = 1e-6
+# More than this fraction of the vertices used by no face means the faces were cut off (a truncated file).
+MAX_UNUSED_VERTEX_FRACTION = 0.5
 # A panel is flat when its thickness (smallest principal extent) is under 1% of its size.
 FLAT_PANEL_RATIO = 0.01
 
 
 class GarmentError(ValueError):
-    """A garment file was refused; ``str(error)`` is a reason a user can act on."""
+    """A garment file was refused; ``str(error)`` is a reason a user can act on.
+
+    ``status`` is the HTTP status the service answers with: 422 (a file it cannot use), 415 (a file
+    type it does not read), 413 (too large), 400 (a bad file name)."""
+
+    def __init__(self, message: str, status: int = 422):
+        super().__init__(message)
+        self.status = status
 
 
 @dataclass
@@ -66,16 +75,17 @@ class CleanMesh:
 def file_extension(filename: str) -> str:
     """Lower-case extension of a bare file name; refuses paths and unknown formats."""
     if not filename or filename != PurePosixPath(filename).name or filename != PureWindowsPath(filename).name:
-        raise GarmentError(f"file name {filename!r} must be a bare name without a directory part")
+        raise GarmentError(f"file name {filename!r} must be a bare name without a directory part", 400)
     if filename in (".", "..") or "\x00" in filename:
-        raise GarmentError(f"file name {filename!r} is not a valid file name")
+        raise GarmentError(f"file name {filename!r} is not a valid file name", 400)
     ext = PurePosixPath(filename).suffix.lower().lstrip(".")
     if ext in REFUSED_FORMATS:
-        raise GarmentError(REFUSED_FORMATS[ext])
+        raise GarmentError(REFUSED_FORMATS[ext], 415)
     if ext not in FORMATS:
         raise GarmentError(
             f"unknown file type {('.' + ext) if ext else '(no extension)'!r}: use one of "
-            + ", ".join("." + f for f in FORMATS)
+            + ", ".join("." + f for f in FORMATS),
+            415,
         )
     return ext
 
@@ -88,7 +98,14 @@ def load_garment(data: bytes, filename: str, units: str = "auto", max_faces: int
     if not data:
         raise GarmentError("the file is empty")
     notes: list[str] = []
+    if ext == "obj":
+        _refuse_truncated_obj(data)
     vertices, faces = _read(data, ext, max_faces)
+    unused = 1.0 - len(np.unique(faces)) / len(vertices)
+    if unused > MAX_UNUSED_VERTEX_FRACTION:
+        raise GarmentError(
+            f"{unused:.0%} of the vertices belong to no face: the file looks truncated (faces missing)"
+        )
     if ext == "obj" and (b"\nstitch " in data or b"\nseam " in data):
         notes.append("ignored non-standard OBJ 'stitch'/'seam' lines")
     vertices, faces = _clean(vertices, faces, notes)
@@ -125,7 +142,7 @@ def _read(data: bytes, ext: str, max_faces: int) -> tuple[np.ndarray, np.ndarray
     if faces.size == 0:
         raise GarmentError("the file has no faces (a point cloud or empty mesh): a garment needs faces")
     if len(faces) > max_faces:
-        raise GarmentError(f"the mesh has {len(faces):,} faces, more than the limit of {max_faces:,}")
+        raise GarmentError(f"the mesh has {len(faces):,} faces, more than the limit of {max_faces:,}", 413)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     if not np.isfinite(vertices).all():
         raise GarmentError("the file has non-finite vertex coordinates (NaN or infinity)")
@@ -135,6 +152,16 @@ def _read(data: bytes, ext: str, max_faces: int) -> tuple[np.ndarray, np.ndarray
     # trimesh keeps vertices apart at UV and normal seams unless told: weld by position only.
     mesh.merge_vertices(merge_tex=True, merge_norm=True)
     return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def _refuse_truncated_obj(data: bytes) -> None:
+    """An OBJ cut off in the middle of a ``v`` or ``f`` line is truncated."""
+    tail = data.rstrip(b"\r\n\t ")
+    if tail != data.rstrip(b"\t "):  # ends with a newline: nothing visibly cut
+        return
+    last = tail.rsplit(b"\n", 1)[-1].split()
+    if (last[:1] == [b"v"] and len(last) < 4) or (last[:1] == [b"f"] and len(last) < 4):
+        raise GarmentError("the file ends in the middle of a line: it is truncated")
 
 
 def _short(exc: Exception) -> str:

@@ -1,7 +1,113 @@
-"""Routes for garments (filled in by its issue)."""
+"""Routes for garments: the catalogue (list, one entry, its mesh) and admin writes (upload, delete)."""
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from typing import Annotated, Literal
+
+from fastapi import APIRouter, File, Form, HTTPException, Query, Response, UploadFile, status
+from fastapi.concurrency import run_in_threadpool
+
+from tryon.api.deps import AdminDep, CatalogueDep, SettingsDep
+from tryon.api.export import MEDIA_TYPES, mesh_bytes, mesh_json
+from tryon.api.schemas.garments import Category, GarmentEntry, GarmentList, MeshFormat, Units
+from tryon.garment.ingest import GarmentError, file_extension
+from tryon.garment.prepare import DEFAULT_SIMPLIFICATION
 
 router = APIRouter(tags=["garments"])
+
+# Uploads are read in chunks of this many bytes so that an oversized one is refused without holding it.
+UPLOAD_CHUNK = 1 << 20
+
+
+def _not_found(garment_id: str) -> HTTPException:
+    return HTTPException(status.HTTP_404_NOT_FOUND, f"no garment with id {garment_id!r}")
+
+
+@router.get("/garments", response_model=GarmentList)
+def list_garments(catalogue: CatalogueDep) -> GarmentList:
+    """The catalogue: every entry with counts (original and simplified), size and units."""
+    return GarmentList(garments=[GarmentEntry.from_meta(m) for m in catalogue.list()])
+
+
+@router.get("/garments/{garment_id}", response_model=GarmentEntry)
+def get_garment(garment_id: str, catalogue: CatalogueDep) -> GarmentEntry:
+    meta = catalogue.get(garment_id)
+    if meta is None:
+        raise _not_found(garment_id)
+    return GarmentEntry.from_meta(meta)
+
+
+@router.get("/garments/{garment_id}/mesh")
+async def garment_mesh(
+    garment_id: str,
+    catalogue: CatalogueDep,
+    format: Annotated[MeshFormat, Query(description="json | glb | obj")] = "json",
+    level: Annotated[Literal["full", "coarse"], Query(description="full mesh, or the simplified one")] = "full",
+) -> Response:
+    """The garment's rest mesh in metres, y up: JSON ``{"vertices", "faces"}``, GLB or OBJ."""
+    if catalogue.get(garment_id) is None:
+        raise _not_found(garment_id)
+    model = await run_in_threadpool(catalogue.model, garment_id)
+    if level == "full":
+        vertices, faces = model.vertices, model.faces
+    else:
+        vertices, faces = model.coarse_vertices, model.coarse_faces
+    if format == "json":
+        return Response(content=_json_bytes(mesh_json(vertices, faces)), media_type=MEDIA_TYPES["json"])
+    data = await run_in_threadpool(mesh_bytes, vertices, faces, format)
+    return Response(content=data, media_type=MEDIA_TYPES[format],
+                    headers={"Content-Disposition": f'inline; filename="{garment_id}.{format}"'})
+
+
+def _json_bytes(obj: dict) -> bytes:
+    import json
+
+    return json.dumps(obj, separators=(",", ":")).encode()
+
+
+@router.post("/garments", response_model=GarmentEntry, status_code=status.HTTP_201_CREATED,
+             responses={200: {"description": "the same file with the same parameters was already there"}})
+async def upload_garment(
+    _: AdminDep,
+    settings: SettingsDep,
+    catalogue: CatalogueDep,
+    response: Response,
+    file: Annotated[UploadFile, File(description="the mesh file: .obj, .glb, .gltf, .ply, .stl or .off")],
+    name: Annotated[str, Form(min_length=1, max_length=200, description="display name")],
+    category: Annotated[Category, Form(description="top | bottom | dress")],
+    units: Annotated[Units, Form(description="units of the file's coordinates, or auto to guess")] = "auto",
+    size: Annotated[str | None, Form(max_length=20, description="size label, e.g. M")] = None,
+    simplify: Annotated[float, Form(ge=0.05, le=1.0, description="simplification degree B (kept / original vertices)")]
+    = DEFAULT_SIMPLIFICATION,
+) -> GarmentEntry:
+    """Prepare an uploaded garment into the catalogue (admin). 201 with the new entry; 200 with the
+    existing one if the same file was already ingested with the same parameters."""
+    filename = file.filename or ""
+    try:
+        file_extension(filename)
+    except GarmentError as exc:
+        raise HTTPException(exc.status, f"file: {exc}") from None
+    data = bytearray()
+    while chunk := await file.read(UPLOAD_CHUNK):
+        data += chunk
+        if len(data) > settings.max_upload_bytes:
+            raise HTTPException(status.HTTP_413_REQUEST_ENTITY_TOO_LARGE,
+                                f"file: larger than the limit of {settings.max_upload_bytes:,} bytes")
+    try:
+        meta, created = await run_in_threadpool(
+            catalogue.ingest_with_status, bytes(data), name, category, units, simplify, size or None, filename,
+            max_faces=settings.max_faces,
+        )
+    except GarmentError as exc:
+        raise HTTPException(exc.status, f"file: {exc}") from None
+    if not created:
+        response.status_code = status.HTTP_200_OK
+    return GarmentEntry.from_meta(meta)
+
+
+@router.delete("/garments/{garment_id}", status_code=status.HTTP_204_NO_CONTENT)
+async def delete_garment(_: AdminDep, garment_id: str, catalogue: CatalogueDep) -> Response:
+    """Remove an entry and its prepared files (admin)."""
+    if not await run_in_threadpool(catalogue.delete, garment_id):
+        raise _not_found(garment_id)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)

@@ -1,0 +1,52 @@
+"""Response and request schemas for garments."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+from tryon.garment.model import GarmentMeta
+
+Category = Literal["top", "bottom", "dress"]
+Units = Literal["auto", "m", "cm", "mm", "dm", "in"]
+MeshFormat = Literal["json", "glb", "obj"]
+
+
+class SpringCounts(BaseModel):
+    structural: int = Field(ge=0, description="structural springs (count)")
+    shear: int = Field(ge=0, description="shear springs (count)")
+    bending: int = Field(ge=0, description="bending springs (count)")
+
+
+class GarmentEntry(BaseModel):
+    """A catalogue entry: what a garment is and how it was prepared."""
+
+    id: str = Field(description="catalogue id (hash of the file content and preparation parameters)")
+    name: str = Field(description="display name")
+    category: Category = Field(description="top | bottom | dress")
+    size: str | None = Field(default=None, description="size label, e.g. S, M, L")
+    units: str = Field(description="units the source file was read in (m, cm, mm, dm, in)")
+    units_guessed: bool = Field(description="true if the units were guessed from the garment's size")
+    simplification: float = Field(gt=0, le=1, description="simplification degree B = kept / original vertices")
+    vertices: int = Field(ge=0, description="vertices of the full mesh")
+    faces: int = Field(ge=0, description="triangles of the full mesh")
+    coarse_vertices: int = Field(ge=0, description="vertices of the simplified (simulated) mesh")
+    coarse_faces: int = Field(ge=0, description="triangles of the simplified mesh")
+    springs: SpringCounts = Field(description="springs of the simplified mesh by type")
+    source_name: str = Field(description="file name as uploaded")
+    notes: list[str] = Field(default_factory=list, description="what loading and cleaning did, in words")
+
+    @classmethod
+    def from_meta(cls, meta: GarmentMeta) -> "GarmentEntry":
+        return cls(
+            id=meta.id, name=meta.name, category=meta.category, size=meta.size, units=meta.units,
+            units_guessed=meta.units_guessed, simplification=meta.simplification, vertices=meta.vertices,
+            faces=meta.faces, coarse_vertices=meta.coarse_vertices, coarse_faces=meta.coarse_faces,
+            springs=SpringCounts(**{k: meta.springs.get(k, 0) for k in ("structural", "shear", "bending")}),
+            source_name=meta.source_name, notes=list(meta.notes),
+        )
+
+
+class GarmentList(BaseModel):
+    garments: list[GarmentEntry] = Field(description="every catalogue entry, oldest first")

@@ -1,0 +1,126 @@
+"""``tryon ingest``: prepare garment files into the catalogue (offline), one line per garment.
+
+    tryon ingest PATH... [--name N] [--category top|bottom|dress|auto] [--units auto|m|cm|mm|dm|in]
+                 [--simplify B] [--size S] [--data-dir DIR]
+    tryon ingest --catalogue garments/      # every file listed in garments/catalogue.json
+
+Exit status 0 if every file was ingested (or already was), 1 if any was refused (the others are still
+ingested), 2 for a usage error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import time
+from pathlib import Path
+
+from tryon.garment.ingest import UNITS, GarmentError
+
+CATEGORY_WORDS = (
+    ("dress", r"dress|gown|robe"),
+    ("bottom", r"skirt|trouser|pant|short|jean|legging|bottom"),
+)
+
+
+def guess_category(name: str) -> str:
+    """top | bottom | dress from words in a file name (top when nothing matches)."""
+    for category, pattern in CATEGORY_WORDS:
+        if re.search(pattern, name, re.IGNORECASE):
+            return category
+    return "top"
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("ingest", help="prepare garment mesh files into the catalogue",
+                       description="Prepare garment mesh files (OBJ, GLB/GLTF, PLY, STL, OFF) into the catalogue.")
+    p.add_argument("paths", nargs="*", type=Path, help="garment files")
+    p.add_argument("--catalogue", type=Path, metavar="DIR", help="ingest every file listed in DIR/catalogue.json")
+    p.add_argument("--name", help="display name (default: the file name); only with one file")
+    p.add_argument("--category", default="auto", choices=["auto", "top", "bottom", "dress"],
+                   help="garment category (default auto: from words in the file name)")
+    p.add_argument("--units", default="auto", choices=list(UNITS), help="units of the file (default auto: guessed)")
+    p.add_argument("--simplify", type=float, default=None, metavar="B",
+                   help="simplification degree B = kept / original vertices, in (0, 1] (default 0.3)")
+    p.add_argument("--size", help="size label, e.g. M")
+    p.add_argument("--density", type=float, default=None, help="fabric areal density, kg/m^2 (default 0.15)")
+    p.add_argument("--data-dir", type=Path, help="catalogue directory (default: TRYON_DATA_DIR or ./data)")
+    p.set_defaults(func=run)
+
+
+def _jobs(args: argparse.Namespace) -> list[dict]:
+    """One dict per file: path and the ingest keyword arguments."""
+    jobs = []
+    if args.catalogue is not None:
+        listing = args.catalogue / "catalogue.json"
+        entries = json.loads(listing.read_text())
+        for e in entries:
+            jobs.append(dict(path=args.catalogue / e["file"], name=e.get("name"), category=e.get("category", "top"),
+                             units=e.get("units", "auto"), size=e.get("size")))
+    for path in args.paths:
+        category = args.category if args.category != "auto" else guess_category(path.name)
+        jobs.append(dict(path=path, name=args.name, category=category, units=args.units, size=args.size))
+    for job in jobs:
+        if args.simplify is not None:
+            job["simplify"] = args.simplify
+        if args.density is not None:
+            job["density"] = args.density
+    return jobs
+
+
+def run(args: argparse.Namespace) -> int:
+    from tryon.config import Settings
+    from tryon.garment.catalogue import Catalogue
+
+    if not args.paths and args.catalogue is None:
+        print("tryon ingest: give garment files or --catalogue DIR", file=sys.stderr)
+        return 2
+    if args.name and len(args.paths) + (args.catalogue is not None) > 1:
+        print("tryon ingest: --name only with a single file", file=sys.stderr)
+        return 2
+    if args.simplify is not None and not 0.0 < args.simplify <= 1.0:
+        print(f"tryon ingest: --simplify must be in (0, 1], got {args.simplify}", file=sys.stderr)
+        return 2
+    try:
+        jobs = _jobs(args)
+    except (OSError, ValueError, KeyError) as exc:
+        print(f"tryon ingest: cannot read {args.catalogue}/catalogue.json: {exc}", file=sys.stderr)
+        return 2
+    settings = Settings()
+    data_dir = args.data_dir or settings.data_dir
+    catalogue = Catalogue(data_dir)
+    refused = 0
+    total = len(jobs)
+    width = len(str(total))
+    t_all = time.perf_counter()
+    for i, job in enumerate(jobs, 1):
+        path = job.pop("path")
+        prefix = f"[{i:>{width}}/{total}] {path.name}"
+        print(f"{prefix} ...", end="\r", flush=True, file=sys.stderr) if sys.stderr.isatty() else None
+        t0 = time.perf_counter()
+        try:
+            if not path.is_file():
+                raise GarmentError(f"no such file: {path}")
+            meta, created = catalogue.ingest_with_status(path, max_faces=settings.max_faces, **job)
+        except GarmentError as exc:
+            refused += 1
+            print(f"{prefix}: REFUSED: {exc}")
+            continue
+        dt = time.perf_counter() - t0
+        s = meta.springs
+        print(
+            f"{prefix}: {meta.id} {meta.name!r} {meta.category}"
+            f"{' ' + meta.size if meta.size else ''}, {meta.vertices} v / {meta.faces} f -> "
+            f"{meta.coarse_vertices} v / {meta.coarse_faces} f (B {meta.simplification:g}), springs "
+            f"{s.get('structural', 0)}/{s.get('shear', 0)}/{s.get('bending', 0)}, units {meta.units}"
+            f"{' (guessed)' if meta.units_guessed else ''}, {dt * 1000:.0f} ms"
+            f"{'' if created else ' (cached)'}"
+        )
+        for note in meta.notes:
+            if created:
+                print(f"{' ' * (len(prefix) + 2)}note: {note}")
+    print(f"{total - refused} of {total} garments in {data_dir} ({time.perf_counter() - t_all:.2f} s)"
+          + (f"; {refused} refused" if refused else ""))
+    return 1 if refused else 0

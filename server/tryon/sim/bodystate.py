@@ -1,0 +1,137 @@
+"""The body as the simulation sees it: offset surface, per-part maps, growth and arm posing.
+
+``BodyCollider`` owns mutable copies of the arrays the collision kernels read, so that the growth phase
+(each part scaled toward its axis) and the arm posing (upper arm and forearm turned rigidly about the
+shoulder) can change them without touching the immutable ``Body``. Both keep the cylinder maps valid:
+growth keeps every vertex's (theta, z), and a rigid turn of a part carries its frame and box along.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tryon.body.types import Body
+from tryon.sim.collide import (
+    cell_max_radius, collide_points, face_normals, grow_vertices, offset_body, penetration_depth, vertex_parts,
+)
+
+
+def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """3x3 rotation matrix about unit ``axis`` by ``angle`` radians (Rodrigues)."""
+    axis = axis / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+
+
+class BodyCollider:
+    """Collision state of one body for one drape.
+
+    body: the built body; margin: m, outward offset of the collision surface (paper 3.3).
+    Attributes read by the kernels: ``vertices`` (n, 3) current (grown / posed) body, ``offset`` (n, 3)
+    and ``offset_normals`` (f, 3) the offset surface, and the map arrays (OBB, cylinder frames).
+    """
+
+    def __init__(self, body: Body, margin: float):
+        self.body = body
+        self.margin = float(margin)
+        m = body.maps
+        self.faces = np.ascontiguousarray(body.faces, dtype=np.int64)
+        self.vertex_part = vertex_parts(self.faces, body.face_part.astype(np.int64), len(body.vertices))
+        self.rest_vertices = np.ascontiguousarray(body.vertices, dtype=np.float64)
+        self.rest_normals = np.ascontiguousarray(body.vertex_normals, dtype=np.float64)
+        # map arrays that posing may change (copies), and the ones it never does
+        self.rest_frames = {
+            "obb_normals": m.obb_normals, "obb_offsets": m.obb_offsets, "cyl_origin": m.cyl_origin,
+            "cyl_axes": m.cyl_axes, "obb_center": m.obb_center,
+        }
+        self.obb_normals = np.ascontiguousarray(m.obb_normals, dtype=np.float64).copy()
+        self.obb_offsets = np.ascontiguousarray(m.obb_offsets, dtype=np.float64).copy()
+        self.cyl_origin = np.ascontiguousarray(m.cyl_origin, dtype=np.float64).copy()
+        self.cyl_axes = np.ascontiguousarray(m.cyl_axes, dtype=np.float64).copy()
+        self.cyl_zrange = np.ascontiguousarray(m.cyl_zrange, dtype=np.float64)
+        self.cyl_shape = np.ascontiguousarray(m.cyl_shape, dtype=np.int64)
+        self.cell_base = np.ascontiguousarray(m.cell_base, dtype=np.int64)
+        self.cell_start = np.ascontiguousarray(m.cell_start, dtype=np.int64)
+        self.cell_faces = np.ascontiguousarray(m.cell_faces, dtype=np.int64)
+        self.vertices = self.rest_vertices.copy()
+        self.normals = self.rest_normals.copy()
+        self.offset = np.empty_like(self.vertices)
+        self.offset_normals = np.empty((len(self.faces), 3))
+        self.plain_normals = np.empty((len(self.faces), 3))
+        self.cell_rmax = np.empty(len(self.cell_start) - 1)
+        self.plain_rmax = np.empty(len(self.cell_start) - 1)
+        self.scale = 1.0
+        self.arm_turn = {}
+        self._pose_vertices = self.rest_vertices
+        self._pose_normals = self.rest_normals
+        self.update()
+
+    # ------------------------------------------------------------------ shape changes
+
+    def update(self) -> None:
+        """Recompute the offset surface from the current posed vertices and the growth scale."""
+        if self.scale != 1.0:
+            grow_vertices(self._pose_vertices, self.vertex_part, self.cyl_origin, self.cyl_axes, self.scale,
+                          self.vertices)
+        else:
+            self.vertices[:] = self._pose_vertices
+        offset_body(self.vertices, self._pose_normals, self.faces, self.margin, self.offset, self.offset_normals)
+        cell_max_radius(self.cyl_origin, self.cyl_axes, self.cyl_shape, self.cell_base, self.cell_start,
+                        self.cell_faces, self.faces, self.offset, self.cell_rmax)
+
+    def set_scale(self, scale: float) -> None:
+        """Radial scale of every part about its axis (growth phase), 0 < scale <= 1."""
+        self.scale = float(scale)
+        self.update()
+
+    def pose_arms(self, turns: dict[int, tuple[np.ndarray, np.ndarray]]) -> None:
+        """Turn body parts rigidly: ``turns[k] = (pivot (3,), R (3, 3))`` moves part k's vertices to
+        pivot + R (v - pivot), with its OBB and cylinder frame. Parts not named go back to rest."""
+        v = self.rest_vertices.copy()
+        n = self.rest_normals.copy()
+        rf = self.rest_frames
+        self.obb_normals[:] = rf["obb_normals"]
+        self.obb_offsets[:] = rf["obb_offsets"]
+        self.cyl_origin[:] = rf["cyl_origin"]
+        self.cyl_axes[:] = rf["cyl_axes"]
+        for k, (pivot, rot) in turns.items():
+            sel = self.vertex_part == k
+            v[sel] = pivot + (v[sel] - pivot) @ rot.T
+            n[sel] = n[sel] @ rot.T
+            self.cyl_origin[k] = pivot + rot @ (rf["cyl_origin"][k] - pivot)
+            self.cyl_axes[k] = rf["cyl_axes"][k] @ rot.T
+            self.obb_normals[k] = rf["obb_normals"][k] @ rot.T
+            center = pivot + rot @ (rf["obb_center"][k] - pivot)
+            # each plane keeps its distance (half extent) to the turned centre: n' . c' + (offset - n . c)
+            self.obb_offsets[k] = rf["obb_offsets"][k] - rf["obb_normals"][k] @ rf["obb_center"][k] \
+                + self.obb_normals[k] @ center
+        self._pose_vertices = v
+        self._pose_normals = n
+        self.update()
+
+    # ------------------------------------------------------------------ queries
+
+    def collide(self, x, x_prev, inv_mass, active, parts, lam, friction, contact) -> int:
+        """Push points ``x`` out of the offset body in place; returns how many moved (see collide_points)."""
+        return collide_points(
+            x, x_prev, inv_mass, active, parts, self.obb_normals, self.obb_offsets, self.cyl_origin,
+            self.cyl_axes, self.cyl_zrange, self.cyl_shape, self.cell_base, self.cell_start, self.cell_faces,
+            self.cell_rmax, self.offset, self.faces, self.offset_normals, lam, friction, contact,
+        )
+
+    def depth(self, points: np.ndarray, parts: np.ndarray, offset: bool = False) -> np.ndarray:
+        """Depth (m) of each point (n, 3) inside the body (``offset=False``: the real, un-offset surface of
+        the current shape), 0 outside."""
+        if offset:
+            bv, fn, rmax = self.offset, self.offset_normals, self.cell_rmax
+        else:
+            bv = self.vertices
+            face_normals(bv, self.faces, self.plain_normals)
+            cell_max_radius(self.cyl_origin, self.cyl_axes, self.cyl_shape, self.cell_base, self.cell_start,
+                            self.cell_faces, self.faces, bv, self.plain_rmax)
+            fn, rmax = self.plain_normals, self.plain_rmax
+        return penetration_depth(
+            np.ascontiguousarray(points, dtype=np.float64), parts, self.obb_normals, self.obb_offsets,
+            self.cyl_origin, self.cyl_axes, self.cyl_zrange, self.cyl_shape, self.cell_base, self.cell_start,
+            self.cell_faces, rmax, bv, self.faces, fn,
+        )

@@ -1,0 +1,443 @@
+"""Collision of garment points with the body (paper sections 3.3-3.4).
+
+The body is offset outward along its vertex normals by the collision margin (``offset_body``), so only
+point-triangle contacts matter. For a garment point p and each body part whose OBB contains it (only the
+parts the garment comes near are tested at all, ``relevant_parts``):
+
+1. local cylinder coordinates (r, theta, z) of p; its cell of the part's cylinder map;
+2. the ray from p's projection on the part axis through p (perpendicular to the axis, so it keeps theta
+   and z and can only hit that cell's triangles) is intersected with the cell's offset triangles; the
+   hit inside its triangle (``inside_triangle``) farthest along the ray is the part's surface there;
+3. p is inside the part iff it is closer to the axis than that hit (r < t);
+4. response: p moves to hit + lambda * n (eq. 4), n the hit triangle's unit normal.
+
+Where the construction has no good answer we fall back to the nearest point of the part's offset
+surface among the faces of the 3 x 3 neighbouring cells:
+- the ray hits its triangle at a grazing angle (n . ray < 0.7, e.g. under the top of the shoulders): the
+  radial push would be long and sideways, the nearest surface point is the short way out;
+- the ray misses every triangle of its cell (the part's open end at the armpit or crotch, overlaps): p
+  is inside iff it is behind the nearest face (signed distance along that face's normal < 0), judged
+  only within ``FALLBACK_DEPTH`` of the surface so the open ends of a tube never capture far points.
+Overlapping parts (a point in the torso and in the upper arm's box) are handled by repeating the part
+loop (up to ``ROUNDS`` times) until no part reports the point inside, so it leaves the union of parts.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from tryon.sim.inside import inside_triangle
+
+# Below this cosine between the ray and the hit triangle's normal, the radial push is replaced by the
+# nearest-surface push (45 degrees: the radial path is then more than 1.4x the shortest one).
+GRAZING_COS = 0.7
+# m: how deep behind its nearest face a point whose ray missed everything may be and still be pushed
+# out. Garment points penetrate at most a few mm per step; 3 cm also covers the growth phase.
+FALLBACK_DEPTH = 0.03
+# m: radial depths up to (this step's motion + TRUST_SLACK) are taken as the paper's answer directly; the
+# slack covers rounding and the last push's lambda.
+TRUST_SLACK = 0.002
+# m: radial depths below this are used as they are (any way out is then within 0.5 mm of the best).
+SMALL_DEPTH = 0.0005
+# Part-loop repetitions per point: enough for a point in the overlap of two parts (shoulder, hip).
+ROUNDS = 3
+
+
+@njit(cache=True, nogil=True)
+def vertex_parts(faces, face_part, n_vertices):
+    """Part index of every body vertex (the part of the last face using it), (n,) int64."""
+    out = np.zeros(n_vertices, dtype=np.int64)
+    for f in range(faces.shape[0]):
+        for c in range(3):
+            out[faces[f, c]] = face_part[f]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def offset_body(vertices, vertex_normals, faces, margin, out_vertices, out_normals):
+    """Offset vertices (n, 3) = vertices + margin * vertex_normals, and their unit face normals (f, 3),
+    written into ``out_vertices`` / ``out_normals``."""
+    for i in range(vertices.shape[0]):
+        for a in range(3):
+            out_vertices[i, a] = vertices[i, a] + margin * vertex_normals[i, a]
+    face_normals(out_vertices, faces, out_normals)
+
+
+@njit(cache=True, nogil=True)
+def face_normals(vertices, faces, out):
+    """Unit face normals (f, 3) of a triangle mesh into ``out``."""
+    for f in range(faces.shape[0]):
+        a = faces[f, 0]
+        b = faces[f, 1]
+        c = faces[f, 2]
+        e1x = vertices[b, 0] - vertices[a, 0]
+        e1y = vertices[b, 1] - vertices[a, 1]
+        e1z = vertices[b, 2] - vertices[a, 2]
+        e2x = vertices[c, 0] - vertices[a, 0]
+        e2y = vertices[c, 1] - vertices[a, 1]
+        e2z = vertices[c, 2] - vertices[a, 2]
+        nx = e1y * e2z - e1z * e2y
+        ny = e1z * e2x - e1x * e2z
+        nz = e1x * e2y - e1y * e2x
+        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if ln > 0.0:
+            ln = 1.0 / ln
+        out[f, 0] = nx * ln
+        out[f, 1] = ny * ln
+        out[f, 2] = nz * ln
+
+
+@njit(cache=True, nogil=True)
+def grow_vertices(vertices, vertex_part, origin, axes, scale, out):
+    """Body vertices with each part's distance to its axis scaled by ``scale`` (the growth phase).
+
+    The cylinder maps stay valid: theta and z of every vertex are unchanged, only r shrinks.
+    """
+    for i in range(vertices.shape[0]):
+        k = vertex_part[i]
+        dx = vertices[i, 0] - origin[k, 0]
+        dy = vertices[i, 1] - origin[k, 1]
+        dz = vertices[i, 2] - origin[k, 2]
+        z = dx * axes[k, 2, 0] + dy * axes[k, 2, 1] + dz * axes[k, 2, 2]
+        for a in range(3):
+            on_axis = origin[k, a] + z * axes[k, 2, a]
+            out[i, a] = on_axis + scale * (vertices[i, a] - on_axis)
+
+
+@njit(cache=True, nogil=True)
+def cell_max_radius(cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell_faces, faces, bv, out):
+    """Largest distance to the part axis of any vertex of each cell's faces, (C,) m, into ``out``.
+
+    A point farther from the axis than its cell's radius is outside that part without casting a ray:
+    most garment points are outside, so most tests stop there.
+    """
+    for k in range(cyl_shape.shape[0]):
+        for c in range(cell_base[k], cell_base[k] + cyl_shape[k, 0] * cyl_shape[k, 1]):
+            r_max = 0.0
+            for m in range(cell_start[c], cell_start[c + 1]):
+                f = cell_faces[m]
+                for j in range(3):
+                    v = faces[f, j]
+                    dx = bv[v, 0] - cyl_origin[k, 0]
+                    dy = bv[v, 1] - cyl_origin[k, 1]
+                    dz = bv[v, 2] - cyl_origin[k, 2]
+                    lx = dx * cyl_axes[k, 0, 0] + dy * cyl_axes[k, 0, 1] + dz * cyl_axes[k, 0, 2]
+                    ly = dx * cyl_axes[k, 1, 0] + dy * cyl_axes[k, 1, 1] + dz * cyl_axes[k, 1, 2]
+                    r = lx * lx + ly * ly
+                    if r > r_max:
+                        r_max = r
+            out[c] = math.sqrt(r_max)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _in_obb(px, py, pz, normals, offsets, k):
+    for j in range(6):
+        if normals[k, j, 0] * px + normals[k, j, 1] * py + normals[k, j, 2] * pz > offsets[k, j]:
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _closest_on_triangle(p, a, b, c, out):
+    """Closest point of triangle a, b, c to p (Ericson, Real-Time Collision Detection 5.1.5) into out;
+    returns the squared distance."""
+    abx = b[0] - a[0]
+    aby = b[1] - a[1]
+    abz = b[2] - a[2]
+    acx = c[0] - a[0]
+    acy = c[1] - a[1]
+    acz = c[2] - a[2]
+    apx = p[0] - a[0]
+    apy = p[1] - a[1]
+    apz = p[2] - a[2]
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    u = 0.0
+    v = 0.0
+    if d1 <= 0.0 and d2 <= 0.0:
+        u = 0.0
+        v = 0.0
+    else:
+        bpx = p[0] - b[0]
+        bpy = p[1] - b[1]
+        bpz = p[2] - b[2]
+        d3 = abx * bpx + aby * bpy + abz * bpz
+        d4 = acx * bpx + acy * bpy + acz * bpz
+        cpx = p[0] - c[0]
+        cpy = p[1] - c[1]
+        cpz = p[2] - c[2]
+        d5 = abx * cpx + aby * cpy + abz * cpz
+        d6 = acx * cpx + acy * cpy + acz * cpz
+        vc = d1 * d4 - d3 * d2
+        vb = d5 * d2 - d1 * d6
+        va = d3 * d6 - d5 * d4
+        if d3 >= 0.0 and d4 <= d3:
+            u = 1.0
+            v = 0.0
+        elif d6 >= 0.0 and d5 <= d6:
+            u = 0.0
+            v = 1.0
+        elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+            u = d1 / (d1 - d3)
+            v = 0.0
+        elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+            u = 0.0
+            v = d2 / (d2 - d6)
+        elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+            w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+            u = 1.0 - w
+            v = w
+        else:
+            den = 1.0 / (va + vb + vc)
+            u = vb * den
+            v = vc * den
+    dd = 0.0
+    for ax in range(3):
+        out[ax] = a[ax] + u * (b[ax] - a[ax]) + v * (c[ax] - a[ax])
+        dd += (p[ax] - out[ax]) ** 2
+    return dd
+
+
+@njit(cache=True, nogil=True)
+def _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces, bv, faces, q_out, tmp, reach=1):
+    """Nearest face of part k's offset surface to p among the cells around (it, iz): the
+    (2 reach + 1)^2 block (reach 0: the cell itself). Returns (face id or -1, squared distance); the
+    closest point goes into ``q_out``."""
+    best = np.inf
+    best_f = -1
+    for dt in range(-reach, reach + 1):
+        jt = (it + dt) % n_theta
+        for dz in range(-reach, reach + 1):
+            jz = iz + dz
+            if jz < 0 or jz >= n_z:
+                continue
+            c = cell_base[k] + jt * n_z + jz
+            for m in range(cell_start[c], cell_start[c + 1]):
+                f = cell_faces[m]
+                d = _closest_on_triangle(p, bv[faces[f, 0]], bv[faces[f, 1]], bv[faces[f, 2]], tmp)
+                if d < best:
+                    best = d
+                    best_f = f
+                    q_out[0] = tmp[0]
+                    q_out[1] = tmp[1]
+                    q_out[2] = tmp[2]
+    return best_f, best
+
+
+@njit(cache=True, nogil=True)
+def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape, cell_base,
+               cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal, scratch, trust):
+    """Is p inside part k of the (offset) body with vertices ``bv`` and face normals ``fn``?
+
+    Returns the depth (m, > 0 inside, 0 outside); when inside, ``target`` gets the surface point p must
+    move to (before adding lambda * normal) and ``normal`` the outward unit normal there.
+    scratch: (3, 3) float64 work space (no allocation per query).
+    trust: m, the deepest radial answer taken without a second opinion. A point cannot have gone deeper
+    in one step than it moved, so a deeper radial depth means it came in through another surface (the
+    end of a part, the top of a shoulder, where the ray runs along the surface): then the nearest face
+    of the 3 x 3 neighbouring cells gives the way out if it is shorter.
+    """
+    if not _in_obb(p[0], p[1], p[2], obb_normals, obb_offsets, k):
+        return 0.0
+    dx = p[0] - cyl_origin[k, 0]
+    dy = p[1] - cyl_origin[k, 1]
+    dz = p[2] - cyl_origin[k, 2]
+    lx = dx * cyl_axes[k, 0, 0] + dy * cyl_axes[k, 0, 1] + dz * cyl_axes[k, 0, 2]
+    ly = dx * cyl_axes[k, 1, 0] + dy * cyl_axes[k, 1, 1] + dz * cyl_axes[k, 1, 2]
+    lz = dx * cyl_axes[k, 2, 0] + dy * cyl_axes[k, 2, 1] + dz * cyl_axes[k, 2, 2]
+    n_theta = cyl_shape[k, 0]
+    n_z = cyl_shape[k, 1]
+    z0 = cyl_zrange[k, 0]
+    z1 = cyl_zrange[k, 1]
+    if lz < z0 or lz > z1:
+        return 0.0
+    iz = min(int((lz - z0) / (z1 - z0) * n_z), n_z - 1)
+    theta = math.atan2(ly, lx)
+    it = min(int((theta + math.pi) / (2.0 * math.pi) * n_theta), n_theta - 1)
+    r = math.sqrt(lx * lx + ly * ly)
+    c = cell_base[k] + it * n_z + iz
+    if r > cell_rmax[c]:
+        return 0.0  # beyond every face of the cell: outside this part
+    ox = cyl_origin[k, 0] + lz * cyl_axes[k, 2, 0]
+    oy = cyl_origin[k, 1] + lz * cyl_axes[k, 2, 1]
+    oz = cyl_origin[k, 2] + lz * cyl_axes[k, 2, 2]
+    if r > 1e-9:
+        rx = (p[0] - ox) / r
+        ry = (p[1] - oy) / r
+        rz = (p[2] - oz) / r
+    else:
+        rx = cyl_axes[k, 0, 0]
+        ry = cyl_axes[k, 0, 1]
+        rz = cyl_axes[k, 0, 2]
+    # Ray (o, dir) against the cell's triangles: plane hit, then the inside-triangle test.
+    best_t = -1.0
+    best_f = -1
+    hit = scratch[0]
+    for m in range(cell_start[c], cell_start[c + 1]):
+        f = cell_faces[m]
+        a = faces[f, 0]
+        den = fn[f, 0] * rx + fn[f, 1] * ry + fn[f, 2] * rz
+        if abs(den) < 1e-12:
+            continue
+        t = (fn[f, 0] * (bv[a, 0] - ox) + fn[f, 1] * (bv[a, 1] - oy) + fn[f, 2] * (bv[a, 2] - oz)) / den
+        if t <= best_t or t <= 0.0:
+            continue
+        hit[0] = ox + t * rx
+        hit[1] = oy + t * ry
+        hit[2] = oz + t * rz
+        if inside_triangle(hit, bv[a], bv[faces[f, 1]], bv[faces[f, 2]]):
+            best_t = t
+            best_f = f
+    q = scratch[1]
+    tmp = scratch[2]
+    if best_f >= 0:
+        if r >= best_t:
+            return 0.0
+        ray_depth = best_t - r
+        target[0] = ox + best_t * rx
+        target[1] = oy + best_t * ry
+        target[2] = oz + best_t * rz
+        for ax in range(3):
+            normal[ax] = fn[best_f, ax]
+        if ray_depth <= SMALL_DEPTH:
+            return ray_depth
+        # Second opinion: the nearest face of the cell (of the 3 x 3 block when the ray is grazing or
+        # deeper than the point can have gone this step). Near the end of a part (a shoulder top, the
+        # rim of a cap) the radial way out is long and sideways while the real one is short.
+        cos = fn[best_f, 0] * rx + fn[best_f, 1] * ry + fn[best_f, 2] * rz
+        reach = 1 if (cos < GRAZING_COS or ray_depth > trust) else 0
+        f, d2 = _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces, bv, faces, q, tmp,
+                              reach)
+        depth = math.sqrt(d2)
+        if f >= 0 and depth < ray_depth:
+            for ax in range(3):
+                target[ax] = q[ax]
+                normal[ax] = fn[f, ax]
+            return depth
+        return ray_depth
+    # the ray missed every triangle of the cell: judge by the nearest face's side
+    f, d2 = _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces, bv, faces, q, tmp)
+    if f < 0 or d2 > FALLBACK_DEPTH * FALLBACK_DEPTH:
+        return 0.0
+    side = fn[f, 0] * (p[0] - q[0]) + fn[f, 1] * (p[1] - q[1]) + fn[f, 2] * (p[2] - q[2])
+    if side >= 0.0:
+        return 0.0
+    for ax in range(3):
+        target[ax] = q[ax]
+        normal[ax] = fn[f, ax]
+    return math.sqrt(d2)
+
+
+@njit(cache=True, nogil=True)
+def collide_points(x, x_prev, inv_mass, active, parts, obb_normals, obb_offsets, cyl_origin, cyl_axes,
+                   cyl_zrange, cyl_shape, cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, lam,
+                   friction, contact):
+    """Push garment points out of the offset body, in place (paper 3.4, eq. 4 plus the fallbacks above).
+
+    x, x_prev (k, 3) m; inv_mass (k,) (0 = pinned, skipped); active (k,) bool: points to test (the
+    caller skips points at rest); parts (q,) int64 part ids to test; bv (n, 3) offset body vertices,
+    faces (f, 3), fn (f, 3) their unit normals; cell_rmax (C,) from ``cell_max_radius`` for ``bv``; lam m (eq. 4's lambda); friction 0..1: fraction of the
+    tangential velocity removed at a contact (and the inward normal velocity is removed entirely).
+    contact (k,) bool out: whether each point was moved. Returns the number of points moved.
+    One point at a time, each writing only its own row: safe to split the loop across threads.
+    """
+    target = np.empty(3)
+    normal = np.empty(3)
+    scratch = np.empty((3, 3))
+    moved = 0
+    for i in range(x.shape[0]):
+        contact[i] = False
+        if inv_mass[i] == 0.0 or not active[i]:
+            continue
+        p = x[i]
+        for _ in range(ROUNDS):
+            any_inside = False
+            for kk in range(parts.shape[0]):
+                k = parts[kk]
+                # the box test inline: a call with ~20 array arguments costs more than the test itself
+                if not _in_obb(p[0], p[1], p[2], obb_normals, obb_offsets, k):
+                    continue
+                mx = p[0] - x_prev[i, 0]
+                my = p[1] - x_prev[i, 1]
+                mz = p[2] - x_prev[i, 2]
+                trust = math.sqrt(mx * mx + my * my + mz * mz) + TRUST_SLACK
+                depth = part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
+                                   cyl_shape, cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, target,
+                                   normal, scratch, trust)
+                if depth > 0.0:
+                    any_inside = True
+                    contact[i] = True
+                    for ax in range(3):
+                        p[ax] = target[ax] + lam * normal[ax]
+                    # velocity response: drop the inward normal part, damp the tangential part
+                    vx = p[0] - x_prev[i, 0]
+                    vy = p[1] - x_prev[i, 1]
+                    vz = p[2] - x_prev[i, 2]
+                    vn = vx * normal[0] + vy * normal[1] + vz * normal[2]
+                    tx = vx - vn * normal[0]
+                    ty = vy - vn * normal[1]
+                    tz = vz - vn * normal[2]
+                    vn = max(vn, 0.0)
+                    x_prev[i, 0] = p[0] - ((1.0 - friction) * tx + vn * normal[0])
+                    x_prev[i, 1] = p[1] - ((1.0 - friction) * ty + vn * normal[1])
+                    x_prev[i, 2] = p[2] - ((1.0 - friction) * tz + vn * normal[2])
+            if not any_inside:
+                break
+        if contact[i]:
+            moved += 1
+    return moved
+
+
+@njit(cache=True, nogil=True)
+def penetration_depth(points, parts, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape,
+                      cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn):
+    """Depth (m) of each point inside the body surface ``bv`` (0 outside), (n,) float64: the largest
+    depth over the parts (the same inside test as the collision, with the nearest-surface distance)."""
+    out = np.zeros(points.shape[0])
+    target = np.empty(3)
+    normal = np.empty(3)
+    q = np.empty(3)
+    tmp = np.empty(3)
+    scratch = np.empty((3, 3))
+    for i in range(points.shape[0]):
+        p = points[i]
+        for kk in range(parts.shape[0]):
+            k = parts[kk]
+            if not _in_obb(p[0], p[1], p[2], obb_normals, obb_offsets, k):
+                continue
+            d = part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape,
+                           cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal,
+                           scratch, 0.0)
+            if d > 0.0:
+                # the true depth is the distance to the nearest surface point, never more than the
+                # distance to the response point
+                n_theta = cyl_shape[k, 0]
+                n_z = cyl_shape[k, 1]
+                dx = p[0] - cyl_origin[k, 0]
+                dy = p[1] - cyl_origin[k, 1]
+                dz = p[2] - cyl_origin[k, 2]
+                lx = dx * cyl_axes[k, 0, 0] + dy * cyl_axes[k, 0, 1] + dz * cyl_axes[k, 0, 2]
+                ly = dx * cyl_axes[k, 1, 0] + dy * cyl_axes[k, 1, 1] + dz * cyl_axes[k, 1, 2]
+                lz = dx * cyl_axes[k, 2, 0] + dy * cyl_axes[k, 2, 1] + dz * cyl_axes[k, 2, 2]
+                z0 = cyl_zrange[k, 0]
+                z1 = cyl_zrange[k, 1]
+                iz = min(int((lz - z0) / (z1 - z0) * n_z), n_z - 1)
+                it = min(int((math.atan2(ly, lx) + math.pi) / (2.0 * math.pi) * n_theta), n_theta - 1)
+                f, d2 = _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces, bv, faces,
+                                      q, tmp)
+                if f >= 0:
+                    d = min(d, math.sqrt(d2))
+                out[i] = max(out[i], d)
+    return out
+
+
+def relevant_parts(maps, lo: np.ndarray, hi: np.ndarray, reach: float) -> np.ndarray:
+    """Ids (q,) int64 of the parts whose OBB comes within ``reach`` (m) of the box [lo, hi] (3,) each:
+    the parts a garment in that box can touch (a skirt never tests the head or the arms)."""
+    corners = maps.obb_corners  # (P, 8, 3)
+    keep = np.all(corners.max(axis=1) >= lo - reach, axis=1) & np.all(corners.min(axis=1) <= hi + reach, axis=1)
+    keep &= np.isfinite(maps.obb_offsets).all(axis=1)
+    return np.flatnonzero(keep).astype(np.int64)

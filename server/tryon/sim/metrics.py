@@ -1,0 +1,56 @@
+"""Fit metrics of a drape: penetration and strain (SPEC section 7)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from tryon.garment.model import SPRING_KINDS
+from tryon.sim.constraints import spring_strain
+
+# m: a garment vertex deeper than this inside the un-offset body counts as penetrating (SPEC 7).
+PENETRATION_TOLERANCE = 0.002
+
+
+@njit(cache=True, nogil=True)
+def vertex_max_strain(n_vertices, springs, strain):
+    """Largest strain of each coarse vertex's springs, (k,) float64 (0 for a vertex without springs)."""
+    out = np.zeros(n_vertices)
+    for s in range(springs.shape[0]):
+        for c in range(2):
+            v = springs[s, c]
+            if strain[s] > out[v]:
+                out[v] = strain[s]
+    return out
+
+
+def strain_metrics(coarse: np.ndarray, model, limits: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Per-spring strain (s,), per full-mesh vertex strain (n,), and per-kind {max, limit, over}.
+
+    The full-mesh strain interpolates the coarse vertices' strains with the re-attachment barycentrics.
+    ``over``: how many springs exceed their kind's limit by more than 1 % (l > 1.01 l_max).
+    """
+    strain = spring_strain(coarse, model.springs, model.rest)
+    per_coarse = vertex_max_strain(len(coarse), model.springs, strain)
+    corners = model.coarse_faces[model.attach_face]  # (n, 3)
+    per_full = np.einsum("nj,nj->n", model.attach_bary, per_coarse[corners])
+    by_kind = {}
+    for k, name in enumerate(SPRING_KINDS):
+        sel = model.kind == k
+        if not sel.any():
+            continue
+        lmax = 1.0 + limits[k]
+        by_kind[name] = {
+            "max": float(strain[sel].max()),
+            "limit": float(limits[k]),
+            "over": int(((1.0 + strain[sel]) > 1.01 * lmax).sum()),
+        }
+    return strain, per_full, by_kind
+
+
+def penetration_metrics(depth: np.ndarray) -> dict:
+    """Count of vertices deeper than 2 mm and the deepest (mm), from per-vertex depths (n,) in metres."""
+    return {
+        "penetrating_vertices": int((depth > PENETRATION_TOLERANCE).sum()),
+        "max_penetration_mm": float(depth.max() * 1000.0) if len(depth) else 0.0,
+    }

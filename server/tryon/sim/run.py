@@ -1,0 +1,231 @@
+"""One try-on: align, then step (integrate, constrain, collide) until the garment is at rest.
+
+State is flat arrays: positions x (k, 3), previous positions (k, 3), inverse masses (k,), the model's
+springs (s, 2) / rest lengths (s,) / kinds (s,), strain limits per kind. Python only loops over steps.
+
+Start-up, for garments that begin tangled with the body (sleeves at another angle than the arms, a
+garment modelled on another body):
+- the arms are posed along the sleeves (``plan_arms``) and turned back to their real pose over the first
+  steps, so the sleeves are carried onto the arms by collision instead of being cut by them;
+- if any garment point is still inside the body, the body grows from ``grow_from`` of its radius to full
+  size over ``grow_steps`` steps (each part scaled toward its axis; Houdini Vellum Drape does the same),
+  pushing the cloth out the way it came in rather than teleporting points through the body.
+- the paper instead pushes such points out and pins them; pinning them for good would hold the garment
+  unnaturally, so when growth is disabled (grow_steps = 0) pushed points are pinned only for the first
+  ``PIN_STEPS`` steps and then released.
+
+Points at rest cost almost nothing: a point that moved less than ``REST_MOVE`` since it was last found
+outside the (static) body, and was not in contact, cannot be inside it by more than that, so its
+collision test is skipped.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from tryon.body.types import Body
+from tryon.garment.model import GarmentModel
+from tryon.sim.align import ArmPlan, align_garment, plan_arms
+from tryon.sim.bodystate import BodyCollider, _rotation
+from tryon.sim.collide import relevant_parts
+from tryon.sim.constraints import satisfy_springs
+from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
+from tryon.sim.metrics import penetration_metrics, strain_metrics
+from tryon.sim.settings import SimSettings
+
+# m: a point that moved less than this since its last collision test (and was not in contact) is not
+# tested again: the body is static, so it is still outside the offset body, i.e. >= margin - 0.1 mm
+# clear of the real one.
+REST_MOVE = 1e-4
+# m: how far beyond the aligned garment's bounding box a body part must be to be never tested (the
+# garment can fall or slide a little; a part further than this cannot be reached before rest).
+PART_REACH = 0.15
+# Steps for which points pushed out at alignment stay pinned when growth is off (see module doc).
+PIN_STEPS = 5
+# Final projection rounds (constraints then collision, no integration) after the loop, so that the
+# garment at rest satisfies both as well as it can.
+POLISH_ROUNDS = 10
+# Degrees per step the arms are turned back from the sleeve pose (slow enough that the arm surface
+# moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).
+ARM_DEG_PER_STEP = 1.0
+
+# Inverse-mass factor of points in contact during the constraint passes (see the loop).
+CONTACT_WEIGHT = 0.2
+
+FrameCallback = Callable[[int, np.ndarray], bool]
+
+
+@dataclass
+class TryOnResult:
+    """vertices (n, 3) full mesh, m; strain (n,) per full vertex; coarse (k, 3) simulated positions;
+    metrics dict (steps, sim_seconds, wall_seconds, rest_reached, penetrating_vertices,
+    max_penetration_mm, max_strain, strain_by_kind, ...)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    strain: np.ndarray
+    coarse: np.ndarray
+    metrics: dict = field(default_factory=dict)
+
+
+class _ArmSchedule:
+    """Turns the arms from the sleeve pose back to rest over ``steps`` steps."""
+
+    def __init__(self, body: Body, collider: BodyCollider, plan, settings: SimSettings):
+        self.collider = collider
+        self.parts = {}
+        for side, angle, sign in (("l", plan.left, 1.0), ("r", plan.right, -1.0)):
+            if angle == 0.0 or f"upper_arm_{side}" not in body.parts:
+                continue
+            k_up = body.parts.index(f"upper_arm_{side}")
+            ks = [k_up] + ([body.parts.index(f"forearm_{side}")] if f"forearm_{side}" in body.parts else [])
+            self.parts[side] = (body.part_axes[k_up, 0].copy(), sign * angle, ks)
+        biggest = max((abs(a) for _, a, _ in self.parts.values()), default=0.0)
+        self.steps = int(np.ceil(np.degrees(biggest) / ARM_DEG_PER_STEP)) if self.parts else 0
+
+    def apply(self, step: int) -> None:
+        fraction = 1.0 - min(1.0, step / self.steps) if self.steps else 0.0
+        turns = {}
+        for pivot, angle, ks in self.parts.values():
+            rot = _rotation(np.array([0.0, 0.0, 1.0]), angle * fraction)
+            for k in ks:
+                turns[k] = (pivot, rot)
+        self.collider.pose_arms(turns)
+
+
+def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings(),
+          on_frame: FrameCallback | None = None, initial: np.ndarray | None = None) -> TryOnResult:
+    """Drape ``model`` on ``body``; see the module doc. ``initial`` (k, 3) replaces the alignment
+    (tests and stress scenes start from given positions)."""
+    t_start = time.perf_counter()
+    dt = float(settings.time_step)
+    limits = settings.limits_array()
+    compression = settings.compression_array()
+    springs = np.ascontiguousarray(model.springs, dtype=np.int64)
+    rest = np.ascontiguousarray(model.rest, dtype=np.float64)
+    kind = np.ascontiguousarray(model.kind, dtype=np.int64)
+    mass = np.ascontiguousarray(model.mass, dtype=np.float64)
+    inv_mass = np.where(mass > 0, 1.0 / np.where(mass > 0, mass, 1.0), 0.0)
+
+    collider = BodyCollider(body, settings.collision_margin)
+    if initial is None:
+        x = align_garment(body, model)
+        plan = plan_arms(body, x, model.meta.category)
+    else:
+        x = np.array(initial, dtype=np.float64)
+        plan = ArmPlan(0.0, 0.0)
+    arms = _ArmSchedule(body, collider, plan, settings)
+    lo, hi = x.min(axis=0), x.max(axis=0)
+    parts = relevant_parts(body.maps, lo, hi, PART_REACH)
+    if arms.steps:
+        arms.apply(0)
+        turned = [k for _, _, ks in arms.parts.values() for k in ks]  # the sleeves are around them
+        parts = np.union1d(parts, turned).astype(np.int64)
+
+    # --- tangled start: grow the body, or (growth off) push out and pin for a few steps
+    tangled = bool((collider.depth(x, parts, offset=True) > 0).any())
+    grow_steps = settings.grow_steps if tangled else 0
+    pinned_until = 0
+    if grow_steps:
+        collider.set_scale(settings.grow_from)
+    x_prev = x.copy()
+    contact = np.zeros(len(x), dtype=np.bool_)
+    active = np.ones(len(x), dtype=np.bool_)
+    if tangled and not grow_steps:
+        collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 1.0, contact)
+        x_prev[:] = x
+        saved_inv_mass = inv_mass.copy()
+        inv_mass[contact] = 0.0
+        pinned_until = PIN_STEPS
+    x_checked = x.copy()
+
+    startup = max(grow_steps, arms.steps)
+    rest_run = 0
+    rest_reached = False
+    step = 0
+    stopped = False
+    energy = 0.0
+    collided = 0
+    for step in range(1, settings.max_steps + 1):
+        changing = step <= startup
+        if grow_steps and step <= grow_steps + 1:
+            s = settings.grow_from + (1.0 - settings.grow_from) * min(1.0, step / grow_steps)
+            collider.set_scale(s)
+        if arms.steps and step <= arms.steps + 1:
+            arms.apply(step)
+        if pinned_until and step == pinned_until:
+            inv_mass[:] = saved_inv_mass
+        verlet_step(x, x_prev, inv_mass, dt, settings.gravity, settings.air_drag, settings.max_speed)
+        # points in contact count as heavier in the constraints, so hanging cloth hangs from them
+        # instead of dragging them into the body (mass scaling; the collision would fight it)
+        w_eff = np.where(contact, inv_mass * CONTACT_WEIGHT, inv_mass)
+        satisfy_springs(x, w_eff, springs, rest, kind, limits, compression, settings.passes)
+        if changing:
+            active[:] = True
+        else:
+            moved = np.einsum("ij,ij->i", x - x_checked, x - x_checked) > REST_MOVE * REST_MOVE
+            np.logical_or(moved, contact, out=active)
+        collided = collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset,
+                                    settings.friction, contact)
+        x_checked[active] = x[active]
+        energy = kinetic_energy_per_kg(x, x_prev, mass, dt)
+        if not np.isfinite(energy):
+            raise FloatingPointError(f"simulation diverged at step {step}")
+        if step > startup and step >= settings.min_steps and energy < settings.rest_energy:
+            rest_run += 1
+            if rest_run >= settings.rest_steps:
+                rest_reached = True
+        else:
+            rest_run = 0
+        if on_frame is not None and on_frame(step, x) is False:
+            stopped = True
+            break
+        if rest_reached:
+            break
+
+    # --- make sure the body is at full size and pose, then polish (constraints + collision)
+    if collider.scale != 1.0:
+        collider.set_scale(1.0)
+    if arms.steps:
+        arms.apply(arms.steps)
+    if pinned_until and step < pinned_until:
+        inv_mass[:] = saved_inv_mass
+    active[:] = True
+    for _ in range(POLISH_ROUNDS):
+        satisfy_springs(x, inv_mass, springs, rest, kind, limits, compression, settings.passes)
+        x_prev[:] = x
+        collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, contact)
+
+    # --- full mesh: follow the coarse one, then push it out of the offset body too
+    full = np.ascontiguousarray(model.expand(x))
+    full_prev = full.copy()
+    full_contact = np.zeros(len(full), dtype=np.bool_)
+    ones = np.ones(len(full))
+    all_active = np.ones(len(full), dtype=np.bool_)
+    full_parts = relevant_parts(body.maps, full.min(axis=0), full.max(axis=0), 0.01)
+    collider.collide(full, full_prev, ones, all_active, full_parts, settings.contact_offset, 0.0, full_contact)
+
+    # --- metrics
+    depth = collider.depth(full, full_parts, offset=False)
+    spring_strain_, per_vertex, by_kind = strain_metrics(x, model, limits)
+    wall = time.perf_counter() - t_start
+    metrics = {
+        "steps": int(step),
+        "sim_seconds": float(step * dt),
+        "wall_seconds": float(wall),
+        "rest_reached": bool(rest_reached),
+        "stopped": bool(stopped),
+        **penetration_metrics(depth),
+        "max_strain": float(spring_strain_.max()) if len(spring_strain_) else 0.0,
+        "strain_by_kind": by_kind,
+        "kinetic_energy_per_kg": float(energy),
+        "grown": bool(grow_steps),
+        "arm_turn_deg": [float(np.degrees(plan.left)), float(np.degrees(plan.right))],
+        "parts_tested": [body.parts[k] for k in parts],
+        "last_step_contacts": int(collided),
+    }
+    return TryOnResult(vertices=full, faces=model.faces, strain=per_vertex, coarse=x, metrics=metrics)

@@ -1,0 +1,72 @@
+"""Simulation settings: every knob of one try-on, in SI units, with the reason for its default."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Settings of one drape.
+
+    time_step: s. Default 0.02 s: position-based Verlet with strain limits is stable at the paper's
+        0.05 s too (allowed up to 0.1 s), but a smaller step lets the collision catch fast cloth and gives
+        a smoother drape for about the same wall time to rest (fewer passes needed per step).
+    passes: constraint (strain-limit) passes per step (paper: several).
+    simplification: B, kept / original garment vertices of the simulated coarse mesh (paper: 20-30 %);
+        used by the caller to pick the cached model variant.
+    max_steps: hard step limit.
+    gravity: m/s^2, along -y.
+    air_drag: 1/s, linear drag on velocity (v *= 1 - air_drag * dt each step): about 1 s relaxation,
+        enough to damp swinging without visibly slowing the fall.
+    collision_margin: m, how far the body is offset outward along its normals (paper 3.3): 4 mm keeps the
+        coarse cloth's triangles (2-3 cm edges, sagging < 2.3 mm over a 5 cm arm) out of the real body.
+    contact_offset: m, lambda of eq. 4: where a pushed point lands beyond the offset surface.
+    friction: fraction of the tangential velocity removed at each contact (0..1), so garments stay on
+        shoulders instead of sliding off a 40-degree slope.
+    rest_energy: J/kg (= m^2/s^2): the run stops when the mean kinetic energy per kilogram of cloth,
+        sum(m v^2 / 2) / sum(m), stays under this for ``rest_steps`` steps; 5e-5 J/kg = an rms speed of 1 cm/s.
+    rest_steps: consecutive steps under ``rest_energy`` needed to call the garment at rest.
+    min_steps: steps always simulated (the growth phase plus a settling margin).
+    grow_steps: steps over which the body grows from ``grow_from`` of its radius to full size when the
+        aligned garment starts tangled with it (0 disables growing).
+    grow_from: initial radial scale of every body part during growth (0..1).
+    strain_limit: maximum strain (l / l0 - 1) per spring type (structural, shear, bending), after Provot:
+        woven cloth stretches ~10 % along the threads, more on the bias (shear), bending springs span two
+        edges and only keep a fold from collapsing.
+    compression: fraction of a spring's compression (l < l0) corrected per pass, per type. Structural and
+        shear springs go back to their natural length (paper eq. 2-3); bending springs only a little, so
+        the cloth can still buckle and fold (a hard compression limit on them makes cloth a plate).
+    max_speed: m/s, per-particle speed clamp; a guard that keeps any scene bounded (gravity alone gives
+        ~4 m/s after a 0.8 m fall, so it never acts on a normal drape).
+    seed: random seed for anything random (stress scenes).
+    """
+
+    time_step: float = 0.02
+    passes: int = 8
+    simplification: float = 0.3
+    max_steps: int = 400
+    gravity: float = 9.81
+    air_drag: float = 1.0
+    collision_margin: float = 0.004
+    contact_offset: float = 0.0005
+    friction: float = 0.4
+    rest_energy: float = 5e-5
+    rest_steps: int = 5
+    min_steps: int = 30
+    grow_steps: int = 20
+    grow_from: float = 0.5
+    strain_limit: tuple[float, float, float] = (0.10, 0.15, 0.30)
+    compression: tuple[float, float, float] = (1.0, 1.0, 0.1)
+    max_speed: float = 10.0
+    seed: int = 0
+
+    def limits_array(self) -> np.ndarray:
+        """(3,) float64 strain limits by spring kind."""
+        return np.asarray(self.strain_limit, dtype=np.float64)
+
+    def compression_array(self) -> np.ndarray:
+        """(3,) float64 compression correction fractions by spring kind."""
+        return np.asarray(self.compression, dtype=np.float64)

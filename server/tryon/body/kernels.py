@@ -74,3 +74,42 @@ def hull_perimeter_2d(points: np.ndarray) -> float:
     for i in range(m - 1):
         total += np.sqrt((hull[i + 1, 0] - hull[i, 0]) ** 2 + (hull[i + 1, 1] - hull[i, 1]) ** 2)
     return total
+
+
+@njit(cache=True)
+def section_points_2d(vertices: np.ndarray, edges: np.ndarray, point: np.ndarray, normal: np.ndarray,
+                      basis: np.ndarray, eps: float) -> np.ndarray:
+    """(k, 2) in-plane coordinates (along ``basis`` rows (2, 3)) of the points where the plane through
+    ``point`` with unit ``normal`` cuts the mesh edges (e, 2): edge crossings, and edge ends within ``eps``
+    of the plane. Points may repeat (harmless for a hull)."""
+    n_e = edges.shape[0]
+    out = np.empty((2 * n_e, 2))
+    k = 0
+    for e in range(n_e):
+        i, j = edges[e, 0], edges[e, 1]
+        di = 0.0
+        dj = 0.0
+        for c in range(3):
+            di += (vertices[i, c] - point[c]) * normal[c]
+            dj += (vertices[j, c] - point[c]) * normal[c]
+        on_i = abs(di) <= eps
+        on_j = abs(dj) <= eps
+        if on_i or on_j:
+            for v, on in ((i, on_i), (j, on_j)):
+                if on:
+                    for r in range(2):
+                        s = 0.0
+                        for c in range(3):
+                            s += (vertices[v, c] - point[c]) * basis[r, c]
+                        out[k, r] = s
+                    k += 1
+        elif di * dj < 0.0:
+            t = di / (di - dj)
+            for r in range(2):
+                s = 0.0
+                for c in range(3):
+                    p = vertices[i, c] + t * (vertices[j, c] - vertices[i, c])
+                    s += (p - point[c]) * basis[r, c]
+                out[k, r] = s
+            k += 1
+    return out[:k]

@@ -49,50 +49,79 @@ const CATEGORY_ICONS = {
 };
 const CATEGORY_COLORS = { top: '#b5523b', bottom: '#3f5f8a', dress: '#7a4f7f' };
 
+/** Entries that differ only by size ("T-shirt S", "T-shirt M") become one row with size chips. */
+function groupGarments(list) {
+  const groups = new Map();
+  for (const g of list) {
+    const base = g.size && g.name.endsWith(` ${g.size}`) ? g.name.slice(0, -g.size.length - 1) : g.name;
+    const key = `${g.category}|${base}`;
+    if (!groups.has(key)) groups.set(key, { name: base, category: g.category, entries: [] });
+    groups.get(key).entries.push(g);
+  }
+  const order = ['XXS', 'XS', 'S', 'M', 'L', 'XL', 'XXL', 'XXXL'];
+  const rank = (size) => { const i = order.indexOf(String(size).toUpperCase()); return i < 0 ? 99 : i; };
+  for (const group of groups.values()) group.entries.sort((a, b) => rank(a.size) - rank(b.size));
+  return [...groups.values()];
+}
+
 function renderGarments(list) {
   const box = $('garments');
   box.replaceChildren();
   if (!list.length) {
     const p = document.createElement('p');
     p.className = 'muted';
-    p.textContent = 'The catalogue is empty: ingest a garment with `tryon ingest` first.';
+    p.textContent = 'The catalogue is empty: add garments with `tryon ingest` first.';
     box.append(p);
     return;
   }
-  for (const g of list) {
-    const button = document.createElement('button');
-    button.type = 'button';
-    button.className = 'garment';
-    button.setAttribute('role', 'radio');
-    button.setAttribute('aria-checked', 'false');
-    button.dataset.id = g.id;
-    const color = CATEGORY_COLORS[g.category] || '#8a6f5a';
+  for (const group of groupGarments(list)) {
+    const row = document.createElement('div');
+    row.className = 'garment';
+    row.dataset.ids = group.entries.map((g) => g.id).join(' ');
+    const color = CATEGORY_COLORS[group.category] || '#8a6f5a';
     const swatch = document.createElement('span');
     swatch.className = 'swatch';
     swatch.style.background = `${color}22`;
-    swatch.innerHTML = `<svg viewBox="0 0 24 24" fill="${color}">${CATEGORY_ICONS[g.category] || CATEGORY_ICONS.top}</svg>`;
+    swatch.innerHTML = `<svg viewBox="0 0 24 24" fill="${color}" aria-hidden="true">${CATEGORY_ICONS[group.category] || CATEGORY_ICONS.top}</svg>`;
     const text = document.createElement('span');
     const name = document.createElement('div');
     name.className = 'name';
-    name.textContent = g.name;
+    name.textContent = group.name;
     const sub = document.createElement('div');
     sub.className = 'sub';
-    const vertices = g.vertices ?? g.vertex_count;
-    sub.textContent = [g.category, vertices ? `${Number(vertices).toLocaleString()} vertices` : null].filter(Boolean).join(' · ');
+    sub.textContent = group.category;
     text.append(name, sub);
-    const size = document.createElement('span');
-    size.className = 'size';
-    size.textContent = g.size || '—';
-    size.title = 'Size';
-    button.append(swatch, text, size);
-    button.addEventListener('click', () => selectGarment(g.id));
-    box.append(button);
+    const sizes = document.createElement('span');
+    sizes.className = 'sizes';
+    for (const g of group.entries) {
+      const chip = document.createElement('button');
+      chip.type = 'button';
+      chip.className = 'size';
+      chip.setAttribute('role', 'radio');
+      chip.setAttribute('aria-checked', 'false');
+      chip.dataset.id = g.id;
+      chip.textContent = g.size || 'one size';
+      chip.title = `${g.name}: ${Number(g.vertices).toLocaleString()} vertices, ${Number(g.coarse_vertices).toLocaleString()} simulated`;
+      chip.setAttribute('aria-label', `${group.name}, size ${g.size || 'one size'}`);
+      chip.addEventListener('click', (e) => { e.stopPropagation(); selectGarment(g.id); });
+      sizes.append(chip);
+    }
+    row.append(swatch, text, sizes);
+    // Clicking the row keeps the chosen size of this garment, else takes the middle one.
+    row.addEventListener('click', () => {
+      if (group.entries.some((g) => g.id === state.garmentId)) return;
+      selectGarment(group.entries[Math.floor((group.entries.length - 1) / 2)].id);
+    });
+    box.append(row);
   }
 }
 
 function selectGarment(id) {
   state.garmentId = id;
-  for (const b of $('garments').querySelectorAll('.garment')) b.setAttribute('aria-checked', String(b.dataset.id === id));
+  for (const row of $('garments').querySelectorAll('.garment')) {
+    row.classList.toggle('selected', row.dataset.ids.split(' ').includes(id));
+  }
+  for (const chip of $('garments').querySelectorAll('.size')) chip.setAttribute('aria-checked', String(chip.dataset.id === id));
   updateTryOnButton();
 }
 
@@ -125,7 +154,7 @@ async function refreshBody() {
     state.bodyRequests++;
     const mesh = flatMesh(body.mesh ?? body);
     stage.setBody(mesh.vertices, mesh.faces);
-    form.showAchieved(body.achieved || {});
+    form.showAchieved(body.measurements?.estimated || body.achieved || {});
     $('body-status').textContent = describeBody(body);
     if (state.state === 'done') {  // the fitted garment belongs to the previous body
       stage.clearGarment();
@@ -142,9 +171,9 @@ async function refreshBody() {
 }
 
 function describeBody(body) {
-  const a = body.achieved || {};
+  const a = body.measurements?.achieved || body.achieved || {};
   const parts = ['chest', 'waist', 'hips'].filter((k) => Number.isFinite(a[k])).map((k) => `${k} ${a[k].toFixed(1)}`);
-  return parts.length ? `Body built: ${parts.join(', ')} cm` : '';
+  return parts.length ? `Your body as built: ${parts.join(' · ')} cm` : '';
 }
 
 // ---- try-on ------------------------------------------------------------------------------------
@@ -284,7 +313,10 @@ async function start() {
     }, scheduleBody);
     state.garments = Array.isArray(garments) ? garments : (garments.garments || garments.items || []);
     renderGarments(state.garments);
-    if (state.garments.length) selectGarment(state.garments[0].id);
+    if (state.garments.length) {
+      const first = groupGarments(state.garments)[0].entries;
+      selectGarment(first[Math.floor((first.length - 1) / 2)].id);
+    }
     state.state = 'ready';
     updateTryOnButton();
     await refreshBody();

@@ -28,12 +28,15 @@ export function normaliseRanges(raw) {
       }
       if (def === undefined || def === null) def = defaults?.[name];
       if (required === undefined) required = requiredNames ? requiredNames.includes(name) : true;
-      return { name, min: Number(min), max: Number(max), default: def ?? null, required, unit: v.unit || unit };
+      const u = v.unit === 'degrees' ? '°' : (v.unit || unit);
+      return { name, min: Number(min), max: Number(max), default: def ?? null, required, unit: u,
+        description: v.description, estimate: estimates[name] ?? null };
     });
   };
   const m = raw.measurements ?? raw.measurement_ranges ?? {};
   const p = raw.pose ?? raw.pose_ranges ?? {};
   const defaults = raw.defaults ?? {};
+  const estimates = raw.estimated_defaults ?? {};
   return {
     measurements: section(m, defaults.measurements ?? raw.measurement_defaults, 'cm', REQUIRED),
     pose: section(p, defaults.pose ?? raw.pose_defaults, '°', null),
@@ -80,10 +83,11 @@ class Field {
     container.append(wrap);
     this.wrap = wrap; this.slider = slider; this.number = number;
 
-    const start = spec.default ?? (spec.min + spec.max) / 2;
+    const start = spec.default ?? spec.estimate ?? (spec.min + spec.max) / 2;
     slider.value = start;
     number.value = this.auto ? '' : fmt(start);
-    number.placeholder = 'auto';
+    number.placeholder = spec.estimate != null ? fmt(spec.estimate) : 'auto';
+    if (spec.description) label.title = spec.description;
     this.refreshAuto();
     slider.addEventListener('input', () => {
       this.auto = false;
@@ -129,7 +133,7 @@ class Field {
   }
 }
 
-function fmt(v) { return Number.isInteger(v) ? String(v) : Number(v).toFixed(1); }
+function fmt(v) { const x = Number(v); return Number.isInteger(x) ? String(x) : x.toFixed(1); }
 
 export class MeasurementForm {
   constructor(ranges, containers, onChange) {

@@ -1,7 +1,409 @@
-"""Routes for ws (filled in by its issue)."""
+"""``WS /ws/tryon``: a live try-on, streamed while the garment drapes (SPEC section 6).
+
+Protocol (one try-on per connection):
+
+1. the client sends one JSON text message: the same body as ``POST /api/tryon`` plus an optional
+   ``fps`` (frames per second of wall time it wants, 1-60, default 30);
+2. the server answers one JSON ``{"type": "init", ...}``: the garment's full-mesh ``faces`` and
+   ``vertex_count``, the ``body`` mesh, the garment's catalogue entry and the frame ``encoding``;
+3. then binary frames, each the FULL mesh's vertex positions: an 8-byte header (little-endian uint32
+   frame number, counting from 0, then uint32 simulation step) followed by ``vertex_count * 3``
+   little-endian float32 x, y, z in metres (``8 + 12 * vertex_count`` bytes). The last frame is the
+   final state;
+4. then one JSON ``{"type": "done", "metrics": {...}, "strain": [...], "cached": bool, ...}`` and a
+   normal close (1000).
+
+Any failure (not JSON, a bad field, an unknown garment, a failed simulation) is one JSON
+``{"type": "error", "reason": "..."}`` followed by a normal close. A full server sends the error and
+closes with 1013 (try again later).
+
+Flow control: the simulation runs on a pool thread; its ``on_frame`` hands at most ``fps`` frames per
+second to the event loop (``loop.call_soon_threadsafe``) into a latest-frame slot, expanding coarse ->
+full only for those. The sender coroutine sends the slot's content when the socket is free, so a slow
+client gets fewer frames instead of a queue (intermediate frames are dropped, the final one always goes
+out). When the client goes away the run stops at its next step.
+"""
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+import asyncio
+import json
+import struct
+import threading
+import time
+from typing import Any
+
+import numpy as np
+from fastapi import APIRouter, HTTPException, WebSocket, WebSocketDisconnect
+from pydantic import Field, ValidationError
+from starlette.websockets import WebSocketState
+
+from tryon.api.pool import CachedTryOn, PoolFull, RunGuard, get_pool, get_result_cache, request_key
 
 router = APIRouter(tags=["ws"])
+
+FRAME_HEADER = struct.Struct("<II")  # frame number, simulation step
+CLOSE_NORMAL = 1000
+CLOSE_TRY_AGAIN_LATER = 1013  # RFC 6455 registry: "Try Again Later"
+# Seconds to wait for the client's request before giving up on the connection.
+REQUEST_TIMEOUT_S = 30.0
+
+
+def encoding(vertex_count: int) -> dict:
+    """How a binary frame is laid out; sent in the init message."""
+    return {
+        "type": "float32",
+        "byte_order": "little",
+        "header_bytes": FRAME_HEADER.size,
+        "header": ["frame:uint32", "step:uint32"],
+        "layout": "xyz per vertex, metres",
+        "components": 3,
+        "bytes_per_frame": FRAME_HEADER.size + 12 * vertex_count,
+    }
+
+
+def encode_frame(frame: int, step: int, vertices: np.ndarray) -> bytes:
+    """One binary frame: header + (n, 3) positions as little-endian float32."""
+    return FRAME_HEADER.pack(frame, max(int(step), 0)) + np.ascontiguousarray(vertices, dtype="<f4").tobytes()
+
+
+def validation_reason(error: ValidationError) -> str:
+    """A pydantic error in words, naming each bad field."""
+    parts = []
+    for e in error.errors():
+        where = ".".join(str(x) for x in e.get("loc", ())) or "request"
+        parts.append(f"{where}: {e.get('msg', 'invalid')}")
+    return "invalid request: " + "; ".join(parts)
+
+
+# -- the simulation side (runs on a pool thread) --------------------------------------------------------
+_live_request_model = None
+
+
+def live_request_model():
+    """``POST /api/tryon``'s body plus ``fps``, the frame rate the client wants (built on first use)."""
+    global _live_request_model
+    if _live_request_model is None:
+        from tryon.api.schemas.tryon import TryOnRequest
+
+        class LiveTryOnRequest(TryOnRequest):
+            fps: int = Field(30, ge=1, le=60, description="frames per second of wall time to send, 1/s")
+
+        _live_request_model = LiveTryOnRequest
+    return _live_request_model
+
+
+def cache_key(request: Any) -> str:
+    """The result-cache key: garment id + measurements + pose + every other setting (not ``fps``)."""
+    data = request.model_dump(mode="json", exclude={"fps"})
+    return request_key(data.pop("garment_id"), data.pop("measurements", {}), data.pop("pose", {}), data)
+
+
+def mesh_lists(vertices: np.ndarray, faces: np.ndarray, decimals: int = 4) -> dict:
+    """SPEC's JSON mesh (metres rounded to ``decimals``: 0.1 mm at 4)."""
+    return {"vertices": np.round(np.asarray(vertices, float), decimals).tolist(),
+            "faces": np.asarray(faces, dtype=np.int64).tolist()}
+
+
+def init_message(body: Any, model: Any, sim_settings: Any) -> dict:
+    meta = model.meta
+    n = int(len(model.vertices))
+    return {
+        "type": "init",
+        "vertex_count": n,
+        "face_count": int(len(model.faces)),
+        "faces": np.asarray(model.faces, dtype=np.int64).tolist(),
+        "body": {**mesh_lists(body.vertices, body.faces), "achieved": body.achieved},
+        "garment": {"id": meta.id, "name": meta.name, "category": meta.category, "size": meta.size,
+                    "vertices": meta.vertices, "faces": meta.faces, "coarse_vertices": meta.coarse_vertices},
+        "max_steps": int(getattr(sim_settings, "max_steps", 0)),
+        "time_step": float(getattr(sim_settings, "time_step", 0.0)),
+        "encoding": encoding(n),
+    }
+
+
+def done_message(result: Any, guard: RunGuard) -> dict:
+    metrics = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in dict(result.metrics).items()}
+    return {
+        "type": "done",
+        "metrics": metrics,
+        "strain": np.round(np.asarray(result.strain, float), 4).tolist(),
+        "stopped_by": guard.stopped_by,
+        "timed_out": guard.stopped_by == "wall_limit",
+    }
+
+
+def prepare(app: Any, request: Any):
+    """(body, garment model, SimSettings) for a validated request; KeyError for an unknown garment."""
+    from tryon.api.deps import get_catalogue
+    from tryon.api.schemas.bodies import to_body_params
+    from tryon.body.build import build_body
+    from tryon.sim.settings import SimSettings
+
+    catalogue = get_catalogue(_RequestLike(app))
+    if catalogue.get(request.garment_id) is None:
+        raise HTTPException(404, f"no garment with id {request.garment_id!r}")
+    settings_in = getattr(request, "settings", None)
+    sim_settings = SimSettings(**settings_in.model_dump()) if settings_in is not None else SimSettings()
+    model = catalogue.model(request.garment_id, sim_settings.simplification)
+    body = build_body(*to_body_params(request.measurements, request.pose))
+    return body, model, sim_settings
+
+
+class _RequestLike:
+    """What ``tryon.api.deps`` needs of a request (``.app``) outside a request."""
+
+    def __init__(self, app: Any):
+        self.app = app
+
+
+def run_live(app: Any, request: Any, session: LiveSession, guard: RunGuard):
+    """Build the body, load the garment, send init, drape; returns (result, done message) or None."""
+    guard.start()
+    if guard.cancelled.is_set():  # the client left while this job waited for a worker
+        return None
+    from tryon.sim.run import drape
+
+    body, model, sim_settings = prepare(app, request)
+    session.offer_init(init_message(body, model, sim_settings), model)
+    result = drape(body, model, sim_settings, guard)
+    return result, done_message(result, guard)
+
+
+def failure_reason(error: BaseException) -> str:
+    if isinstance(error, HTTPException):
+        return str(error.detail)
+    if isinstance(error, (KeyError, LookupError)):
+        return f"not found: {error}"
+    if isinstance(error, ValueError):
+        return f"cannot run this try-on: {error}"
+    return f"the simulation failed ({type(error).__name__}: {error})"
+
+
+class LiveSession:
+    """The state shared by one connection's simulation thread and its sender coroutine.
+
+    The thread writes through ``call_soon_threadsafe`` only; the loop owns every field below.
+    """
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, fps: int):
+        self.loop = loop
+        self.interval_s = 1.0 / fps
+        self.cancelled = threading.Event()  # read by the simulation thread's RunGuard
+        self.wake = asyncio.Event()
+        self.init: dict | None = None
+        self.latest: bytes | None = None  # the latest-frame slot
+        self.finished = False
+        self.frames_sent = 0
+        self.frames_offered = 0
+        self.bytes_sent = 0
+        self.first_frame_at: float | None = None
+        self.started_at = time.monotonic()
+        # simulation-thread side
+        self._next_offer_at = 0.0
+        self._frame_no = 0
+        self._model: Any = None
+
+    # -- called on the simulation thread ---------------------------------------------------------
+    def offer_init(self, message: dict, model: Any) -> None:
+        self._model = model
+        self.loop.call_soon_threadsafe(self._set_init, message)
+
+    def on_frame(self, step: int, coarse: np.ndarray) -> bool:
+        """Hand a frame over when one is due (at most ``fps`` per second); never blocks."""
+        now = time.monotonic()
+        if now < self._next_offer_at or self._model is None:
+            return True
+        self._next_offer_at = now + self.interval_s
+        data = encode_frame(self._frame_no, step, self._model.expand(coarse))
+        self._frame_no += 1
+        self.loop.call_soon_threadsafe(self._put_frame, data)
+        return True
+
+    def final_frame(self, step: int, vertices: np.ndarray) -> bytes:
+        data = encode_frame(self._frame_no, step, vertices)
+        self._frame_no += 1
+        return data
+
+    # -- called on the event loop ------------------------------------------------------------------
+    def _set_init(self, message: dict) -> None:
+        self.init = message
+        self.wake.set()
+
+    def _put_frame(self, data: bytes) -> None:
+        self.latest = data  # replaces an unsent frame: a slow client never gets a backlog
+        self.frames_offered += 1
+        self.wake.set()
+
+    def finish(self, last_frame: bytes | None) -> None:
+        if last_frame is not None:
+            self.latest = last_frame
+            self.frames_offered += 1
+        self.finished = True
+        self.wake.set()
+
+    def stop(self) -> None:
+        self.cancelled.set()
+        self.finished = True
+        self.wake.set()
+
+
+async def _sender(ws: WebSocket, session: LiveSession) -> None:
+    """Send init, then the latest frame whenever one is due and the socket is free, until finished."""
+    init_sent = False
+    last_sent = 0.0
+    try:
+        while True:
+            await session.wake.wait()
+            session.wake.clear()
+            if session.cancelled.is_set():
+                return
+            if not init_sent and session.init is not None:
+                await ws.send_text(json.dumps(session.init, separators=(",", ":")))
+                init_sent = True
+            if init_sent and session.latest is not None:
+                wait = last_sent + session.interval_s - time.monotonic()
+                if wait > 0 and not session.finished:
+                    await asyncio.sleep(wait)  # a newer frame may replace this one meanwhile
+                data, session.latest = session.latest, None
+                await ws.send_bytes(data)
+                last_sent = time.monotonic()
+                if session.first_frame_at is None:
+                    session.first_frame_at = last_sent
+                session.frames_sent += 1
+                session.bytes_sent += len(data)
+            if session.finished and session.latest is None:
+                return
+    except (WebSocketDisconnect, RuntimeError, OSError):
+        session.stop()
+
+
+async def _watch_disconnect(ws: WebSocket, session: LiveSession) -> None:
+    """Read until the client goes away, then stop the simulation (messages after the request are ignored)."""
+    try:
+        while True:
+            message = await ws.receive()
+            if message["type"] == "websocket.disconnect":
+                break
+    except (WebSocketDisconnect, RuntimeError, OSError):
+        pass
+    session.stop()
+
+
+async def _send_error(ws: WebSocket, reason: str, code: int = CLOSE_NORMAL) -> None:
+    """One JSON error message, then close with ``code`` (quietly if the client is already gone)."""
+    try:
+        await ws.send_text(json.dumps({"type": "error", "reason": reason}))
+        await ws.close(code=code, reason=reason[:120])
+    except (WebSocketDisconnect, RuntimeError, OSError):
+        pass
+
+
+async def _close(ws: WebSocket) -> None:
+    if ws.client_state == WebSocketState.CONNECTED:
+        try:
+            await ws.close(code=CLOSE_NORMAL)
+        except (WebSocketDisconnect, RuntimeError, OSError):
+            pass
+
+
+async def _replay(ws: WebSocket, cached: CachedTryOn) -> None:
+    """Serve a cached try-on: init, the final frame, done with ``cached: true``."""
+    await ws.send_text(json.dumps(cached.extra["init"], separators=(",", ":")))
+    frame = encode_frame(0, cached.metrics.get("steps", 0), cached.vertices)
+    await ws.send_bytes(frame)
+    done = {**cached.extra["done"], "cached": True, "frames_sent": 1, "bytes_sent": len(frame)}
+    done.pop("time_to_first_frame_s", None)
+    await ws.send_text(json.dumps(done, separators=(",", ":")))
+    await ws.close(code=CLOSE_NORMAL)
+
+
+@router.websocket("/ws/tryon")
+async def tryon_ws(ws: WebSocket) -> None:
+    """One live try-on; see the module docstring for the protocol."""
+    await ws.accept()
+    app = ws.app
+    try:
+        raw = await asyncio.wait_for(ws.receive(), timeout=REQUEST_TIMEOUT_S)
+    except asyncio.TimeoutError:
+        await _send_error(ws, f"no request received within {REQUEST_TIMEOUT_S:.0f} s")
+        return
+    except (WebSocketDisconnect, RuntimeError):
+        return
+    if raw["type"] == "websocket.disconnect":
+        return
+    text = raw.get("text")
+    if text is None:
+        await _send_error(ws, "expected one JSON text message with the try-on request, got binary data")
+        return
+    try:
+        payload = json.loads(text)
+    except json.JSONDecodeError as e:
+        await _send_error(ws, f"the request is not valid JSON: {e.msg} at line {e.lineno} column {e.colno}")
+        return
+    if not isinstance(payload, dict):
+        await _send_error(ws, "the request must be a JSON object with garment_id, measurements, pose, settings")
+        return
+    try:
+        request = live_request_model().model_validate(payload)
+    except ValidationError as e:
+        await _send_error(ws, validation_reason(e))
+        return
+
+    cache = get_result_cache(app)
+    key = cache_key(request)
+    cached = cache.get(key)
+    if cached is not None and "init" in cached.extra:
+        try:
+            await _replay(ws, cached)
+        except (WebSocketDisconnect, RuntimeError, OSError):
+            pass
+        return
+
+    pool = get_pool(app)
+    session = LiveSession(asyncio.get_running_loop(), request.fps)
+    guard = pool.guard(cancelled=session.cancelled, on_frame=session.on_frame)
+    try:
+        future = pool.submit(run_live, app, request, session, guard)
+    except PoolFull as e:
+        await _send_error(ws, str(e), code=CLOSE_TRY_AGAIN_LATER)
+        return
+
+    sender = asyncio.create_task(_sender(ws, session))
+    watcher = asyncio.create_task(_watch_disconnect(ws, session))
+    try:
+        try:
+            outcome = await asyncio.wrap_future(future)
+        except asyncio.CancelledError:
+            session.stop()
+            future.cancel()
+            raise
+        except Exception as e:  # the simulation failed: tell the client in words
+            session.stop()
+            await sender
+            await _send_error(ws, failure_reason(e))
+            return
+        if session.cancelled.is_set():
+            return  # client gone: nothing to send, nothing to cache (the run was cut short)
+        result, done = outcome
+        session.finish(session.final_frame(done["metrics"].get("steps", 0), result.vertices))
+        await sender
+        if session.cancelled.is_set():
+            return
+        done = {**done, "cached": False, "frames_sent": session.frames_sent,
+                "time_to_first_frame_s": round((session.first_frame_at or time.monotonic()) - session.started_at, 4),
+                "bytes_sent": session.bytes_sent}
+        if guard.stopped_by is None:
+            cache.put(key, CachedTryOn(vertices=np.asarray(result.vertices, np.float32),
+                                       strain=np.asarray(result.strain, np.float32),
+                                       metrics=done["metrics"], extra={"init": session.init, "done": done}))
+        try:
+            await ws.send_text(json.dumps(done, separators=(",", ":")))
+        except (WebSocketDisconnect, RuntimeError, OSError):
+            return
+        await _close(ws)
+    finally:
+        session.stop()
+        for task in (sender, watcher):
+            if not task.done():
+                task.cancel()

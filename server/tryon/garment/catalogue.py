@@ -172,8 +172,8 @@ class Catalogue:
         if existing is not None:
             return existing, False
         directory = self.models / gid
+        self._store_source(sha, ext, data)  # kept so that other simplification degrees can be made
         if not (directory / "meta.json").exists():
-            self._store_source(sha, ext, data)
             meta = GarmentMeta(
                 id=gid, name=name, category=category, size=size, units=units, units_guessed=False,
                 simplification=float(simplify), source_sha256=sha, source_name=filename, vertices=0,
@@ -183,16 +183,7 @@ class Catalogue:
         meta = json.loads((directory / "meta.json").read_text())
         # name/category/size are the uploader's words for this entry, not part of the prepared model
         meta.update(name=name, category=category, size=size)
-        with self._connect() as db:
-            db.execute("BEGIN IMMEDIATE")
-            cur = db.execute(
-                "INSERT OR IGNORE INTO garments (id, name, category, size, units, requested_units, "
-                "simplification, density, source_sha256, source_ext, meta, created) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                (gid, name, category, size, meta["units"], units, float(simplify), float(density), sha, ext,
-                 json.dumps(meta), time.time()),
-            )
-            created = cur.rowcount == 1
+        created = self._insert_row(gid, name, category, size, meta, units, simplify, density, sha, ext)
         return self.get(gid), created
 
     def delete(self, garment_id: str) -> bool:
@@ -221,6 +212,19 @@ class Catalogue:
         db = sqlite3.connect(self.db_path, timeout=SQLITE_TIMEOUT_S, isolation_level=None)
         db.row_factory = sqlite3.Row
         return _Closing(db)
+
+    def _insert_row(self, gid, name, category, size, meta, units, simplify, density, sha, ext) -> bool:
+        """Add the index row in one transaction; False if another ingestion added it first."""
+        with self._connect() as db:
+            db.execute("BEGIN IMMEDIATE")
+            cur = db.execute(
+                "INSERT OR IGNORE INTO garments (id, name, category, size, units, requested_units, "
+                "simplification, density, source_sha256, source_ext, meta, created) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (gid, name, category, size, meta["units"], units, float(simplify), float(density), sha, ext,
+                 json.dumps(meta), time.time()),
+            )
+            return cur.rowcount == 1
 
     def _row(self, garment_id: str):
         with self._connect() as db:

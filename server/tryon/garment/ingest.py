@@ -8,6 +8,7 @@ drop degenerate/duplicate faces and specks, orient y up, convert to metres. Ever
 from __future__ import annotations
 
 import io
+import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import PurePosixPath, PureWindowsPath
@@ -44,8 +45,9 @@ REFUSED_FORMATS = {
 MIN_COMPONENT_AREA_FRACTION = 0.02
 # Faces whose area is below this fraction of the mean face area are degenerate (slivers with no area).
 DEGENERATE_AREA_FRACTION = 1e-6
-# More than this fraction of the vertices used by no face means the faces were cut off (a truncated file).
-MAX_UNUSED_VERTEX_FRACTION = 0.5
+# More than this fraction of the vertices used by no face means faces were cut off (a truncated file);
+# exporters leave a few stray vertices at most.
+MAX_UNUSED_VERTEX_FRACTION = 0.2
 # A panel is flat when its thickness (smallest principal extent) is under 1% of its size.
 FLAT_PANEL_RATIO = 0.01
 
@@ -101,7 +103,7 @@ def load_garment(data: bytes, filename: str, units: str = "auto", max_faces: int
     if ext == "obj":
         _refuse_truncated_obj(data)
     vertices, faces = _read(data, ext, max_faces)
-    unused = 1.0 - len(np.unique(faces)) / len(vertices)
+    unused = _unused_fraction(data, ext, vertices, faces)
     if unused > MAX_UNUSED_VERTEX_FRACTION:
         raise GarmentError(
             f"{unused:.0%} of the vertices belong to no face: the file looks truncated (faces missing)"
@@ -152,6 +154,20 @@ def _read(data: bytes, ext: str, max_faces: int) -> tuple[np.ndarray, np.ndarray
     # trimesh keeps vertices apart at UV and normal seams unless told: weld by position only.
     mesh.merge_vertices(merge_tex=True, merge_norm=True)
     return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def _unused_fraction(data: bytes, ext: str, vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Fraction of the file's distinct vertex positions that no face uses. trimesh's OBJ reader drops
+    unused vertices, so for OBJ the ``v`` lines are counted from the text."""
+    used = len(np.unique(vertices[np.unique(faces)], axis=0))
+    if ext != "obj":
+        return 1.0 - used / max(len(np.unique(vertices, axis=0)), 1)
+    rows = re.findall(rb"(?m)^v[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)", data)
+    try:
+        total = len(np.unique(np.array(rows, dtype=np.float64), axis=0)) if rows else used
+    except ValueError:
+        return 0.0  # unparsable numbers: trimesh read them somehow; do not guess
+    return 1.0 - used / max(total, used, 1)
 
 
 def _refuse_truncated_obj(data: bytes) -> None:

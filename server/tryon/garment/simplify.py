@@ -32,6 +32,9 @@ from numba import njit
 # A collapse may turn a changed face's normal by at most this much (degrees): beyond it the coarse
 # surface folds (90 degrees would be a flip); 60 degrees keeps the sleeves and hem round.
 MAX_TURN_DEG = 60.0
+# A coarse face must face the same side as the original surface at its corners: cosine between its
+# normal and the mean original vertex normal of its corners at least this (0: never flipped).
+MIN_ORIGINAL_COS = 0.0
 # Triangle quality 4 sqrt(3) area / sum of squared edges (1 equilateral, 0.87 a quad's half); a collapse
 # may not create a face worse than this unless the face was already worse.
 MIN_QUALITY = 0.12
@@ -58,9 +61,11 @@ def collapse_with_parents(faces: np.ndarray, n_vertices: int, B: float, vertices
     vf_start, vf_list = _vertex_faces(faces, n_vertices)
     fixed, bnext, bprev, loop_id, loop_count, loop_min = _boundary(faces, n_vertices, B, guard)
     target = int(math.floor(B * n_vertices))
+    vnorm = _vertex_normals(pos, faces) if guard else pos
     fv, alive, parent = _collapse_kernel(
-        faces, n_vertices, target, pos, guard, vf_start, vf_list, fixed, bnext, bprev, loop_id,
-        loop_count, loop_min, math.cos(math.radians(MAX_TURN_DEG)), MIN_QUALITY, SCRATCH_FACES,
+        faces, n_vertices, target, pos, vnorm, guard, vf_start, vf_list, fixed, bnext, bprev, loop_id,
+        loop_count, loop_min, math.cos(math.radians(MAX_TURN_DEG)), MIN_ORIGINAL_COS, MIN_QUALITY,
+        SCRATCH_FACES,
     )
     coarse_orig = fv[alive]
     kept = np.unique(coarse_orig).astype(np.int32)
@@ -68,6 +73,17 @@ def collapse_with_parents(faces: np.ndarray, n_vertices: int, B: float, vertices
     remap[kept] = np.arange(len(kept))
     root = _roots(parent)
     return kept, remap[coarse_orig].astype(np.int32), root.astype(np.int32)
+
+
+def _vertex_normals(pos: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(n, 3) area-weighted unit vertex normals of the original mesh (zero where undefined)."""
+    tri = pos[faces]
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # length = 2 area: area weighting
+    vn = np.zeros_like(pos)
+    for c in range(3):
+        np.add.at(vn, faces[:, c], fn)
+    length = np.linalg.norm(vn, axis=1, keepdims=True)
+    return np.ascontiguousarray(vn / np.where(length > 0, length, 1.0))
 
 
 def _vertex_faces(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -189,8 +205,8 @@ def _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, gu
 
 
 @njit(cache=True)
-def _collapse_kernel(faces, n, target, pos, guard, vf_start, vf_list, fixed, bnext, bprev, loop_id,
-                     loop_count, loop_min, cos_turn, min_quality, scratch):
+def _collapse_kernel(faces, n, target, pos, vnorm, guard, vf_start, vf_list, fixed, bnext, bprev, loop_id,
+                     loop_count, loop_min, cos_turn, cos_original, min_quality, scratch):
     """Sequential collapse (each collapse depends on the previous ones: no parallelism)."""
     nf = faces.shape[0]
     fv = faces.copy()
@@ -260,6 +276,13 @@ def _collapse_kernel(faces, n, target, pos, guard, vf_start, vf_list, fixed, bne
                         lo = math.sqrt(ox * ox + oy * oy + oz * oz)
                         ln = math.sqrt(nx_ * nx_ + ny_ * ny_ + nz_ * nz_)
                         if ln == 0.0 or ox * nx_ + oy * ny_ + oz * nz_ < cos_turn * lo * ln:
+                            ok = False
+                            break
+                        mx = vnorm[p0, 0] + vnorm[p1, 0] + vnorm[p2, 0]
+                        my = vnorm[p0, 1] + vnorm[p1, 1] + vnorm[p2, 1]
+                        mz = vnorm[p0, 2] + vnorm[p1, 2] + vnorm[p2, 2]
+                        lm = math.sqrt(mx * mx + my * my + mz * mz)
+                        if mx * nx_ + my * ny_ + mz * nz_ < cos_original * lm * ln:
                             ok = False
                             break
                         qn = _quality(pos, p0, p1, p2, nx_, ny_, nz_)

@@ -1,0 +1,168 @@
+"""Triangle collapse with mark recovery: B respected, shape, holes and orientation kept, re-attachment."""
+
+import math
+
+import numpy as np
+import pytest
+import scipy.sparse
+import scipy.sparse.csgraph
+
+from tryon.garment.generate import garment_mesh
+from tryon.garment.ingest import CleanMesh
+from tryon.garment.prepare import prepare, triangle_areas
+from tryon.garment.simplify import _vertex_normals, collapse_faces, collapse_with_parents
+
+
+def boundary_loops(faces: np.ndarray, n: int) -> list[int]:
+    """Vertex counts of the boundary loops, sorted."""
+    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    u, c = np.unique(e, axis=0, return_counts=True)
+    b = u[c == 1]
+    if len(b) == 0:
+        return []
+    g = scipy.sparse.coo_matrix((np.ones(len(b)), (b[:, 0], b[:, 1])), shape=(n, n))
+    _, label = scipy.sparse.csgraph.connected_components(g, directed=False)
+    return sorted(np.bincount(np.unique(label[np.unique(b)], return_inverse=True)[1]).tolist())
+
+
+def flat_grid(n: int, spacing: float = 0.01):
+    xs, ys = np.meshgrid(np.arange(n + 1), np.arange(n + 1))
+    v = np.column_stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)]) * spacing
+    f = []
+    for j in range(n):
+        for i in range(n):
+            a, b = j * (n + 1) + i, j * (n + 1) + i + 1
+            f += [[a, b, b + n + 1], [a, b + n + 1, a + n + 1]]
+    return v, np.array(f)
+
+
+@pytest.fixture(scope="module")
+def tshirt():
+    m = garment_mesh("tshirt", "M")
+    return np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
+
+
+@pytest.fixture(scope="module")
+def tshirt_model(tshirt):
+    v, f = tshirt
+    mesh = CleanMesh(vertices=v, faces=f.astype(np.int32), units="m", units_guessed=False)
+    return prepare(mesh, id="t", name="t", category="top", size="M", source_sha256="", source_name="t.obj",
+                   simplification=0.3, density=0.15)
+
+
+@pytest.mark.parametrize("B", [0.2, 0.3, 0.5])
+def test_degree_B_respected_and_kept_are_original_vertices(tshirt, B):
+    v, f = tshirt
+    kept, coarse = collapse_faces(f, len(v), B, v)
+    n = len(v)
+    assert len(kept) <= math.floor(B * n) + 2 - 0  # each collapse removes two vertices
+    assert len(kept) >= math.floor(B * n) - 2
+    assert kept.dtype == np.int32 and coarse.dtype == np.int32
+    assert len(np.unique(kept)) == len(kept) and kept.min() >= 0 and kept.max() < n
+    assert np.array_equal(np.unique(coarse), np.arange(len(kept)))  # every kept vertex is used
+
+
+def test_paper_rule_without_geometry_reaches_B():
+    v, f = flat_grid(30)
+    kept, coarse = collapse_faces(f, len(v), 0.25)
+    assert len(kept) <= 0.25 * len(v) + 2
+    assert len(coarse) > 0
+
+
+def test_B_one_keeps_everything(tshirt):
+    v, f = tshirt
+    kept, coarse = collapse_faces(f, len(v), 1.0, v)
+    assert len(kept) == len(v) and len(coarse) == len(f)
+
+
+def test_mark_recovery_spreads_kept_vertices_evenly():
+    v, f = flat_grid(40, spacing=0.01)
+    kept, _ = collapse_faces(f, len(v), 0.3, v)
+    # distance from each original vertex to the nearest kept one: with 30% kept evenly, about
+    # 1/sqrt(0.3) = 1.8 spacings apart, so nobody should be more than ~3 spacings from a kept vertex
+    d = np.linalg.norm(v[:, None, :2] - v[kept][None, :, :2], axis=2).min(axis=1)
+    assert d.max() <= 0.03 + 1e-9
+    assert d.mean() < 0.01
+
+
+def test_no_degenerate_duplicate_or_flipped_faces(tshirt):
+    v, f = tshirt
+    kept, coarse = collapse_faces(f, len(v), 0.3, v)
+    cv = v[kept]
+    assert (coarse[:, 0] != coarse[:, 1]).all() and (coarse[:, 1] != coarse[:, 2]).all()
+    assert (coarse[:, 0] != coarse[:, 2]).all()
+    assert len(np.unique(np.sort(coarse, axis=1), axis=0)) == len(coarse)
+    assert triangle_areas(cv, coarse).min() > 1e-7  # m^2: no zero-area face
+    # each coarse face faces the same way as the original surface at its corners
+    vn = _vertex_normals(v, f)[kept]
+    n = np.cross(cv[coarse[:, 1]] - cv[coarse[:, 0]], cv[coarse[:, 2]] - cv[coarse[:, 0]])
+    assert (np.einsum("ij,ij->i", n, vn[coarse].sum(axis=1)) > 0).all()
+    # manifold and consistently wound: every edge at most twice, once in each direction
+    directed = np.concatenate([coarse[:, [0, 1]], coarse[:, [1, 2]], coarse[:, [2, 0]]])
+    assert len(np.unique(directed, axis=0)) == len(directed)
+
+
+def test_openings_stay_open(tshirt):
+    v, f = tshirt
+    before = boundary_loops(f, len(v))
+    kept, coarse = collapse_faces(f, len(v), 0.3, v)
+    after = boundary_loops(coarse, len(kept))
+    assert len(before) == len(after) == 4  # neck, hem, two cuffs
+    for b, a in zip(before, after):
+        assert math.ceil(math.sqrt(0.3) * b) <= a <= b
+
+
+def test_coarse_mesh_keeps_the_shape(tshirt, tshirt_model):
+    v, _ = tshirt
+    cv = tshirt_model.coarse_vertices
+    assert np.allclose(cv.min(axis=0), v.min(axis=0), atol=0.02)
+    assert np.allclose(cv.max(axis=0), v.max(axis=0), atol=0.02)
+    # every original vertex lies within 1.5 cm of the coarse surface
+    assert np.abs(tshirt_model.attach_offset).max() < 0.015
+
+
+def test_expand_reproduces_the_rest_mesh(tshirt_model):
+    m = tshirt_model
+    full = m.expand(m.coarse_vertices)
+    assert np.abs(full - m.vertices).max() < 1e-6  # m (target: 1 mm)
+    kept = m.coarse_index
+    assert np.allclose(m.attach_offset[kept], 0.0)
+    assert np.allclose(np.sort(m.attach_bary[kept], axis=1), [0, 0, 1])
+    # attach faces are really faces containing the kept vertex
+    corner = m.coarse_index[m.coarse_faces[m.attach_face[kept]]]
+    assert (corner == kept[:, None]).any(axis=1).all()
+    # barycentric coordinates stay near the face (nearest face chosen)
+    assert m.attach_bary.min() > -1.0 and m.attach_bary.max() < 2.0
+
+
+def test_expand_follows_a_rigid_motion(tshirt_model):
+    m = tshirt_model
+    c, s = np.cos(0.4), np.sin(0.4)
+    rot = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    moved = m.coarse_vertices @ rot.T + [0.1, 0.2, 0.3]
+    assert np.allclose(m.expand(moved), m.vertices @ rot.T + [0.1, 0.2, 0.3], atol=1e-9)
+
+
+def test_masses_sum_to_density_times_area(tshirt, tshirt_model):
+    v, f = tshirt
+    area = triangle_areas(v, f).sum()
+    assert tshirt_model.mass.sum() == pytest.approx(0.15 * area, rel=1e-9)
+    assert (tshirt_model.mass > 0).all()
+    assert len(tshirt_model.mass) == len(tshirt_model.coarse_index)
+
+
+def test_model_contract_types(tshirt_model):
+    m = tshirt_model
+    for name in ("faces", "coarse_index", "coarse_faces", "springs", "attach_face"):
+        assert getattr(m, name).dtype == np.int32, name
+    assert m.kind.dtype == np.int8
+    assert set(m.meta.springs) == {"structural", "shear", "bending"}
+    assert all(c > 0 for c in m.meta.springs.values())
+    assert m.springs.max() < len(m.coarse_index)
+
+
+def test_parents_point_to_kept_vertices(tshirt):
+    v, f = tshirt
+    kept, _, root = collapse_with_parents(f, len(v), 0.3, v)
+    assert np.isin(root, kept).all()
+    assert np.array_equal(root[kept], kept)

@@ -108,13 +108,14 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     belly = np.clip(W / P - 0.85, 0.0, 0.3)  # a waist large for the hips is a belly: deeper in front
     a_w, f_w, b_w = 0.165 * W, (0.125 + 0.2 * belly) * W, 0.110 * W
     a_c, f_c, b_c = 0.170 * C, 0.125 * C, 0.120 * C
-    cz_w = -0.85 * b_h + b_w  # lumbar curve: the back at the waist 15 % of the buttock depth forward
-    cz_c = -0.95 * b_h + b_c  # shoulder blades almost in line with the buttocks
+    cz_w = -0.72 * b_h + b_w  # lumbar curve: the back at the waist 28 % of the buttock depth forward
+    cz_c = -0.92 * b_h + b_c  # shoulder blades almost in line with the buttocks
     cz_ac = cz_c - 0.25 * b_c  # shoulders sit back
     torso = np.array([
         _pole(y_c, cz=0.1 * b_h),
-        _station(y_c + 0.2 * (y_h - y_c), 0.62 * a_h, 0.55 * f_h, 0.65 * b_h, wf=SQUARE, wb=SQUARE),
-        _station(y_c + 0.55 * (y_h - y_c), 0.92 * a_h, 0.86 * f_h, 0.92 * b_h, wf=SQUARE, wb=SQUARE),
+        # below the hips the thighs carry the width: the torso closes towards the crotch
+        _station(y_c + 0.2 * (y_h - y_c), 0.45 * a_h, 0.55 * f_h, 0.65 * b_h, wf=SQUARE, wb=SQUARE),
+        _station(y_c + 0.55 * (y_h - y_c), 0.80 * a_h, 0.86 * f_h, 0.92 * b_h, wf=SQUARE, wb=SQUARE),
         _station(y_h, a_h, f_h, b_h, wf=0.8, wb=0.8),
         _station(0.5 * (y_h + y_w), 0.5 * (a_h + a_w), 0.5 * (f_h + f_w), 0.5 * (b_h + b_w),
                  cz=0.5 * cz_w, wf=0.8, wb=0.8),
@@ -210,7 +211,7 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     thigh = np.array([
         _pole(-0.5 * r_t),
         _ring(-0.3 * r_t, 0.6 * r_t, sa=0.85),
-        _ring(0.0, 0.88 * r_t, sa=0.85, sb=1.05),
+        _ring(0.0, r_t, sa=0.85, sf=0.8, sb=0.95),  # inside the torso at hip level, flush at its side
         _ring(s_g, r_t, sa=0.9, sf=1.0, sb=1.1),
         _ring(s_g + 0.45 * (l_th - s_g), 0.82 * r_t, sa=0.92),
         _ring(l_th - 0.06 * hs, 0.66 * r_t, sa=0.95),

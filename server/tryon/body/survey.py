@@ -17,7 +17,9 @@ import time
 import numpy as np
 
 from tryon.body.build import DEFAULT_RESOLUTION, build_body
+from tryon.body.measure import horizontal_girth, mesh_edges
 from tryon.body.params import Measurements, Pose, check_measurements
+from tryon.body.types import PART_NAMES
 
 
 def read_people(path: str, all_measurements: bool) -> list[Measurements]:
@@ -59,6 +61,11 @@ def main(argv: list[str] | None = None) -> None:
         times.append(time.perf_counter() - t0)
         for name, value in body.requested.items():
             errors.setdefault(name, []).append(abs(body.achieved[name] - value))
+        # a tape at hip level goes round the thighs too: they must stay inside the torso's section there
+        with_thighs = np.isin(body.face_part, [PART_NAMES.index(p) for p in ("torso", "thigh_l", "thigh_r")])
+        edges = mesh_edges(body.faces[with_thighs])
+        tape = horizontal_girth(body.vertices, edges, body.levels["hips"]) * 100.0
+        errors.setdefault("hips incl. thighs", []).append(abs(tape - body.requested["hips"]))
     print(f"{len(people)} people, {refused} refused, resolution {args.resolution}, pose {pose}, "
           f"{len(body.vertices)} vertices")
     for name, errs in errors.items():

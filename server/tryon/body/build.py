@@ -138,10 +138,19 @@ def body_layout_reference():
     return body_layout(REFERENCE, Pose())
 
 
-def _homogeneous_world(stations: np.ndarray, rotation: np.ndarray, origin: np.ndarray) -> np.ndarray:
+def _homogeneous_world(stations: np.ndarray, rotation: np.ndarray, origin: np.ndarray,
+                       tilt: np.ndarray | None = None, pivot: np.ndarray | None = None) -> np.ndarray:
     """(n, 8, 4) homogeneous control sections moved into the world (NURBS are affine invariant, so
-    moving the control points moves the surface)."""
+    moving the control points moves the surface); sections first turned by ``tilt`` (n,) radians about
+    the local z axis through ``pivot``."""
     pw = nurbs.ring_controls(*stations.T)
+    if tilt is not None and np.any(tilt):
+        c, s = np.cos(tilt)[:, None], np.sin(tilt)[:, None]
+        w = pw[..., 3]
+        x = pw[..., 0] - pivot[0] * w
+        y = pw[..., 1] - pivot[1] * w
+        pw[..., 0] = c * x - s * y + pivot[0] * w
+        pw[..., 1] = s * x + c * y + pivot[1] * w
     out = np.empty_like(pw)
     out[..., :3] = pw[..., :3] @ rotation.T + pw[..., 3:4] * origin
     out[..., 3] = pw[..., 3]
@@ -178,7 +187,7 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
     for shape in SHAPE_NAMES:
         part = layout.parts[shape]
         stations = _fit_girths(part.stations, part.measured, targets, g.ring[shape])
-        pw = _homogeneous_world(stations, part.rotation, part.origin)
+        pw = _homogeneous_world(stations, part.rotation, part.origin, part.tilt, part.pivot)
         pts = nurbs.evaluate_tube(pw, g.rows[shape], g.ring[shape])
         shape_points[shape] = np.concatenate([pts[0, :1], pts[1:-1].reshape(-1, 3), pts[-1, :1]])
         shape_axes[shape] = np.stack([pts[0, 0], pts[-1, 0]])

@@ -42,12 +42,16 @@ class PartShape:
     stations: (n, 8) float64, columns y, a, f, b, cx, cz, wf, wb (metres, weights unitless).
     rotation: (3, 3) local -> world; origin: (3,) metres. world = rotation @ local + origin.
     measured: measurement name -> station index whose section is that girth (scaled to it exactly).
+    tilt: (n,) radians each station's section is turned about the local z axis through ``pivot`` (3,),
+    local metres: the feet stay flat on the floor when the legs are spread.
     """
 
     stations: np.ndarray
     rotation: np.ndarray
     origin: np.ndarray
     measured: dict
+    tilt: np.ndarray | None = None
+    pivot: np.ndarray | None = None
 
 
 def _station(y, a, f, b, cz=0.0, wf=ROUND, wb=ROUND, cx=0.0):
@@ -101,13 +105,14 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     y_ax = 0.750 * H
     y_ac = 0.818 * H
     y_nb = 0.843 * H
-    y_tp = 0.852 * H
+    y_tp = 0.855 * H
     r_n = N / (2.0 * np.pi)
 
-    a_h, f_h, b_h = 0.170 * P, 0.095 * P, 0.150 * P
     belly = np.clip(W / P - 0.85, 0.0, 0.3)  # a waist large for the hips is a belly: deeper in front
+    a_h, f_h, b_h = 0.170 * P, (0.095 + 0.2 * belly) * P, 0.150 * P  # ... down to the hip level
     a_w, f_w, b_w = 0.165 * W, (0.125 + 0.2 * belly) * W, 0.110 * W
     a_c, f_c, b_c = 0.170 * C, 0.125 * C, 0.120 * C
+    t_belly = min(0.5 + 1.5 * belly, 0.9)  # a belly hangs: the front below the navel stays full
     cz_w = -0.72 * b_h + b_w  # lumbar curve: the back at the waist 28 % of the buttock depth forward
     cz_c = -0.92 * b_h + b_c  # shoulder blades almost in line with the buttocks
     cz_ac = cz_c - 0.25 * b_c  # shoulders sit back
@@ -117,7 +122,7 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
         _station(y_c + 0.2 * (y_h - y_c), 0.45 * a_h, 0.55 * f_h, 0.65 * b_h, wf=SQUARE, wb=SQUARE),
         _station(y_c + 0.55 * (y_h - y_c), 0.80 * a_h, 0.86 * f_h, 0.92 * b_h, wf=SQUARE, wb=SQUARE),
         _station(y_h, a_h, f_h, b_h, wf=0.8, wb=0.8),
-        _station(0.5 * (y_h + y_w), 0.5 * (a_h + a_w), 0.5 * (f_h + f_w), 0.5 * (b_h + b_w),
+        _station(0.5 * (y_h + y_w), 0.5 * (a_h + a_w), f_h + t_belly * (f_w - f_h), 0.5 * (b_h + b_w),
                  cz=0.5 * cz_w, wf=0.8, wb=0.8),
         _station(y_w, a_w, f_w, b_w, cz=cz_w, wf=0.8, wb=0.8),
         _station(0.5 * (y_w + y_ch), 0.49 * (a_w + a_c), 0.48 * (f_w + f_c), 0.5 * (b_w + b_c),
@@ -125,7 +130,10 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
         _station(y_ch, a_c, f_c, b_c, cz=cz_c, wf=0.8, wb=SQUARE),
         _station(y_ax, a_c, 0.92 * f_c, b_c, cz=cz_c, wf=0.8, wb=SQUARE),
         _station(y_ac, 0.5 * S, 0.55 * f_c, 0.62 * b_c, cz=cz_ac, wf=SQUARE, wb=SQUARE),
-        _station(y_nb, 1.5 * r_n, 1.2 * r_n, 1.2 * r_n, cz=cz_ac + 0.01, wf=SQUARE, wb=SQUARE),
+        # trapezius: the shoulder line rises from the acromion to the side of the neck
+        _station(y_ac + 0.55 * (y_nb - y_ac), 0.25 * S + 0.65 * r_n, 0.275 * f_c + 0.6 * r_n,
+                 0.31 * b_c + 0.6 * r_n, cz=cz_ac + 0.005, wf=SQUARE, wb=SQUARE),
+        _station(y_nb, 1.3 * r_n, 1.15 * r_n, 1.15 * r_n, cz=cz_ac + 0.01, wf=SQUARE, wb=SQUARE),
         _pole(y_tp, cz=cz_ac + 0.01),
     ])
     torso_measured = {"hips": 3, "waist": 5, "chest": 7, "shoulder_width": 9}
@@ -240,7 +248,8 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
         "upper_arm": PartShape(upper_arm, rot_ua, joint, {"upper_arm": 3}),
         "forearm": PartShape(forearm, rot_fa, elbow, {}),
         "thigh": PartShape(thigh, rot_leg, hip_joint, {"thigh": 3}),
-        "shin": PartShape(shin, rot_leg, knee, {}),
+        "shin": PartShape(shin, rot_leg, knee, {}, tilt=np.array([0, 0, 0, 0, 0, -0.5, -1, -1, -1]) * gamma,
+                          pivot=np.array([0.0, l_sh - 0.075 * hs, 0.0])),
     }
     landmarks = {
         "acromion": acromion, "shoulder_joint": joint, "elbow": elbow, "wrist": wrist,

@@ -76,6 +76,11 @@ class MeshBuilder:
         self.points: list[np.ndarray] = []
         self.count = 0
         self.faces: list[np.ndarray] = []
+        self.part_starts: list[int] = [0]
+
+    def new_part(self) -> None:
+        """Start a part (a sleeve, a leg) whose winding is matched to the parts before it."""
+        self.part_starts.append(len(self.faces))
 
     def add(self, pts: np.ndarray) -> np.ndarray:
         """Add (m, 3) points, return their ids."""
@@ -96,11 +101,21 @@ class MeshBuilder:
 
     def mesh(self) -> trimesh.Trimesh:
         v = np.concatenate(self.points)
-        f = np.concatenate(self.faces)
-        f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
-        mesh = trimesh.Trimesh(vertices=v, faces=f, process=False)
+        n = len(v)
+        parts = []
+        seen = np.zeros(0, dtype=np.int64)  # directed edge keys of the parts so far
+        bounds = [*self.part_starts, len(self.faces)]
+        for s, e in zip(bounds[:-1], bounds[1:]):
+            f = np.concatenate(self.faces[s:e])
+            f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+            keys = (f[:, [0, 1, 2]] * n + f[:, [1, 2, 0]]).ravel()
+            if np.isin(keys, seen).any():  # a mirrored part: same directed edge as its neighbour
+                f = f[:, ::-1]
+                keys = (f[:, [0, 1, 2]] * n + f[:, [1, 2, 0]]).ravel()
+            seen = np.concatenate([seen, keys])
+            parts.append(f)
+        mesh = trimesh.Trimesh(vertices=v, faces=np.concatenate(parts), process=False)
         mesh.remove_unreferenced_vertices()  # the crotch point was added twice, then merged
-        trimesh.repair.fix_winding(mesh)  # mirrored parts were built with the other winding
         # outward: normals point away from the vertical axis through the garment on average
         centre = v.mean(axis=0)
         radial = mesh.triangles_center - centre
@@ -204,6 +219,7 @@ def build_top(spec: TopSpec) -> trimesh.Trimesh:
                 pit = armpit[n_half]
             # armhole loop: armpit, up the front, shoulder point (shared), down the back
             root = np.array([pit, *up_front[:-1], up_front[-1], *up_back[:-1][::-1]])
+            mb.new_part()
             _build_sleeve(mb, root, side, spec)
     return mb.mesh()
 
@@ -320,6 +336,7 @@ def build_trousers(waist_girth: float, hip_girth: float, thigh_girth: float, kne
     leg_nodes = (np.concatenate([k[: q + 1], k[h + q + 1:]]), k[q: h + q])  # right, left
     leg_rows = max(3, int(round((Y_CROTCH - y_hem) / SPACING)))
     for leg_side, nodes in zip((-1, +1), leg_nodes):
+        mb.new_part()
         prev = crotch[nodes]
         for l_ in range(1, leg_rows + 1):
             y = Y_CROTCH - (Y_CROTCH - y_hem) * l_ / leg_rows

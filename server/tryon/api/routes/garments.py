@@ -91,7 +91,7 @@ async def upload_garment(
     while chunk := await file.read(UPLOAD_CHUNK):
         data += chunk
         if len(data) > settings.max_upload_bytes:
-            raise HTTPException(status.HTTP_413_REQUEST_ENTITY_TOO_LARGE,
+            raise HTTPException(413,
                                 f"file: larger than the limit of {settings.max_upload_bytes:,} bytes")
     try:
         meta, created = await run_in_threadpool(

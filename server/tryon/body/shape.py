@@ -22,7 +22,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from tryon.body.nurbs import ELLIPSE_WEIGHT
+from tryon.body.kernels import hull_perimeter_2d
+from tryon.body.nurbs import ELLIPSE_WEIGHT, ring_controls, ring_matrix, sample_rings
 from tryon.body.params import Measurements, Pose, complete
 
 # Station table columns.
@@ -67,6 +68,17 @@ def _ring(y, r, sa=1.0, sf=1.0, sb=1.0, cz=0.0, wf=ROUND, wb=ROUND):
     return (y, r * sa, r * sf, r * sb, 0.0, cz, wf, wb)
 
 
+def fitted_section(a: float, f: float, b: float, wf: float, wb: float, girth: float) -> tuple[float, float, float]:
+    """(a, f, b) scaled so that the section's convex hull perimeter is ``girth`` (m), measured on a fine
+    sampling. Placing the limbs against sections of the right size; ``build.py`` then makes the girth
+    exact for the mesh's own sampling."""
+    one = np.ones(1)
+    ctrl = ring_controls(0 * one, a * one, f * one, b * one, 0 * one, 0 * one, wf * one, wb * one)
+    pts = sample_rings(ctrl, ring_matrix(129))[0]
+    k = girth / hull_perimeter_2d(np.ascontiguousarray(pts[:, [0, 2]]))
+    return a * k, f * k, b * k
+
+
 def rot_z(angle: float) -> np.ndarray:
     c, s = np.cos(angle), np.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
@@ -109,9 +121,9 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     r_n = N / (2.0 * np.pi)
 
     belly = np.clip(W / P - 0.85, 0.0, 0.3)  # a waist large for the hips is a belly: deeper in front
-    a_h, f_h, b_h = 0.170 * P, (0.095 + 0.2 * belly) * P, 0.150 * P  # ... down to the hip level
-    a_w, f_w, b_w = 0.165 * W, (0.125 + 0.2 * belly) * W, 0.110 * W
-    a_c, f_c, b_c = 0.170 * C, 0.125 * C, 0.120 * C
+    a_h, f_h, b_h = fitted_section(0.170 * P, (0.095 + 0.2 * belly) * P, 0.150 * P, 0.8, 0.8, P)  # belly down to here
+    a_w, f_w, b_w = fitted_section(0.165 * W, (0.125 + 0.2 * belly) * W, 0.110 * W, 0.8, 0.8, W)
+    a_c, f_c, b_c = fitted_section(0.170 * C, 0.125 * C, 0.120 * C, 0.8, SQUARE, C)
     t_belly = min(0.5 + 1.5 * belly, 0.9)  # a belly hangs: the front below the navel stays full
     cz_w = -0.72 * b_h + b_w  # lumbar curve: the back at the waist 28 % of the buttock depth forward
     cz_c = -0.92 * b_h + b_c  # shoulder blades almost in line with the buttocks
@@ -205,11 +217,12 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     ])
 
     # ---- legs (left leg, local frames) ------------------------------------------------------------------
-    r_t = T / (2.0 * np.pi)
+    r_t = fitted_section(0.9, 1.0, 1.1, ROUND, ROUND, T)[0] / 0.9  # the thigh section below: (0.9, 1, 1.1) r_t
     r_k = 0.62 * r_t  # knee
     r_c = 0.60 * r_t  # calf
     y_k = 0.275 * H
-    hip_joint = np.array([0.5 * a_h, y_h, 0.0])
+    # hip joint: the thigh's section at hip level (half-width 0.85 r_t) stays 1 cm inside the hips' side
+    hip_joint = np.array([min(0.5 * a_h, a_h - 0.85 * r_t - 0.01), y_h, 0.0])
     gamma = np.radians(pose.leg_spread)
     rot_leg = rot_z(np.pi + gamma)
     d_leg = rot_leg[:, 1]

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import struct
 import threading
 import time
@@ -41,6 +42,7 @@ from starlette.websockets import WebSocketState
 from tryon.api.pool import CachedTryOn, PoolFull, RunGuard, get_pool, get_result_cache, request_key
 
 router = APIRouter(tags=["ws"])
+log = logging.getLogger(__name__)
 
 FRAME_HEADER = struct.Struct("<II")  # frame number, simulation step
 CLOSE_NORMAL = 1000
@@ -322,6 +324,16 @@ async def _replay(ws: WebSocket, cached: CachedTryOn) -> None:
 async def tryon_ws(ws: WebSocket) -> None:
     """One live try-on; see the module docstring for the protocol."""
     await ws.accept()
+    try:
+        await _serve(ws)
+    except (WebSocketDisconnect, asyncio.CancelledError):
+        raise
+    except Exception as e:  # a bug, not the client's fault: still answer in words, then close
+        log.exception("live try-on failed")
+        await _send_error(ws, f"internal error ({type(e).__name__}): {e}")
+
+
+async def _serve(ws: WebSocket) -> None:
     app = ws.app
     try:
         raw = await asyncio.wait_for(ws.receive(), timeout=REQUEST_TIMEOUT_S)

@@ -1,0 +1,122 @@
+"""Issue 6, in-process parts: the bounded pool, the run guard (wall-clock limit, cancel), the result cache,
+the frame encoding. The end-to-end tests through a real server are in ``test_ws.py``."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from tryon.api.pool import (
+    CachedTryOn,
+    PoolFull,
+    ResultCache,
+    RunGuard,
+    SimPool,
+    busy_response_headers,
+    request_key,
+)
+from tryon.api.routes.ws import FRAME_HEADER, encode_frame, encoding
+
+
+def test_pool_refuses_at_once_when_full_and_frees_slots():
+    pool = SimPool(workers=1, queue=1, wall_limit_s=5.0)
+    release = threading.Event()
+    try:
+        running = pool.submit(release.wait, 5.0)
+        waiting = pool.submit(lambda: "second")
+        t0 = time.monotonic()
+        with pytest.raises(PoolFull) as info:
+            pool.submit(lambda: "third")
+        assert time.monotonic() - t0 < 0.05  # refused at once, not after a wait
+        assert info.value.capacity == 2
+        assert busy_response_headers(info.value) == {"Retry-After": str(info.value.retry_after_s)}
+        stats = pool.stats()
+        assert (stats["running"], stats["waiting"], stats["refused"]) == (1, 1, 1)
+        release.set()
+        assert running.result(timeout=5) is True
+        assert waiting.result(timeout=5) == "second"
+        deadline = time.monotonic() + 2
+        while pool.stats()["running"] + pool.stats()["waiting"] and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert pool.submit(lambda: 3).result(timeout=5) == 3  # slots came back
+        assert pool.stats()["completed"] == 3
+    finally:
+        release.set()
+        pool.shutdown()
+
+
+def test_pool_counts_failures_and_cancelled_waiters():
+    pool = SimPool(workers=1, queue=1, wall_limit_s=5.0)
+    release = threading.Event()
+    try:
+        blocker = pool.submit(release.wait, 5.0)
+        waiter = pool.submit(lambda: None)
+        assert waiter.cancel()  # a waiting job can be cancelled (the client left before it started)
+        assert pool.stats()["waiting"] == 0
+        release.set()
+        blocker.result(timeout=5)
+        with pytest.raises(ZeroDivisionError):
+            pool.submit(lambda: 1 / 0).result(timeout=5)
+        stats = pool.stats()
+        assert stats["cancelled"] == 1 and stats["failed"] == 1
+    finally:
+        release.set()
+        pool.shutdown()
+
+
+def test_run_guard_stops_past_the_wall_limit_and_when_cancelled():
+    guard = RunGuard(wall_limit_s=0.05)
+    x = np.zeros((4, 3))
+    assert guard(0, x) is True
+    time.sleep(0.06)
+    assert guard(1, x) is False and guard.stopped_by == "wall_limit"
+
+    cancel = threading.Event()
+    seen = []
+    guard = RunGuard(10.0, cancelled=cancel, on_frame=lambda step, c: seen.append(step))
+    assert guard(0, x) and guard(1, x)
+    cancel.set()
+    assert guard(2, x) is False and guard.stopped_by == "cancelled"
+    assert seen == [0, 1]
+
+    guard = RunGuard(10.0, on_frame=lambda step, c: step < 3)
+    assert [guard(s, x) for s in range(5)] == [True, True, True, False, False]
+    assert guard.stopped_by == "callback"
+
+
+def test_request_key_is_canonical():
+    m = {"height": 170, "chest": 96.0, "waist": 80, "hips": 100}
+    a = request_key("g1", m, {"arm_angle": 30}, {"time_step": 0.02})
+    assert a == request_key("g1", dict(reversed(list(m.items()))), {"arm_angle": 30.0}, {"time_step": 0.02})
+    assert a != request_key("g2", m, {"arm_angle": 30}, {"time_step": 0.02})
+    assert a != request_key("g1", {**m, "hips": 100.5}, {"arm_angle": 30}, {"time_step": 0.02})
+    assert a != request_key("g1", m, {"arm_angle": 31}, {"time_step": 0.02})
+    assert a != request_key("g1", m, {"arm_angle": 30}, {"time_step": 0.01})
+
+
+def test_result_cache_is_a_bounded_lru():
+    cache = ResultCache(2)
+    item = lambda k: CachedTryOn(vertices=np.full((2, 3), k, np.float32), strain=np.zeros(2, np.float32),
+                                 metrics={"k": k})
+    cache.put("a", item(1))
+    cache.put("b", item(2))
+    assert cache.get("a").metrics == {"k": 1}  # a is now the most recent
+    cache.put("c", item(3))  # evicts b
+    assert cache.get("b") is None and cache.get("c").metrics == {"k": 3} and len(cache) == 2
+    assert cache.stats()["hits"] == 2 and cache.stats()["misses"] == 1
+    off = ResultCache(0)
+    off.put("a", item(1))
+    assert off.get("a") is None
+
+
+def test_frame_encoding_roundtrip():
+    v = np.random.default_rng(0).normal(size=(5, 3))
+    data = encode_frame(7, 42, v)
+    assert len(data) == encoding(5)["bytes_per_frame"] == FRAME_HEADER.size + 5 * 12
+    frame, step = FRAME_HEADER.unpack_from(data)
+    assert (frame, step) == (7, 42)
+    back = np.frombuffer(data, dtype="<f4", offset=FRAME_HEADER.size).reshape(-1, 3)
+    np.testing.assert_allclose(back, v, rtol=1e-6, atol=1e-7)

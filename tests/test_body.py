@@ -112,6 +112,30 @@ def test_waist_larger_than_chest_is_kept(bodies):
     assert body.achieved["waist"] > body.achieved["hips"] + 9.0
 
 
+def test_thighs_stay_inside_the_hip_tape(bodies):
+    """A tape at hip level goes round the thighs too: they must not bulge out of the torso's section."""
+    for m, body in bodies:
+        keep = np.isin(body.face_part, [PART_NAMES.index(p) for p in ("torso", "thigh_l", "thigh_r")])
+        union = trimesh.Trimesh(body.vertices, body.faces[keep], process=False)
+        lines = trimesh.intersections.mesh_plane(union, [0.0, 1.0, 0.0], [0.0, body.levels["hips"] + 1e-9, 0.0])
+        tape = ConvexHull(lines.reshape(-1, 3)[:, [0, 2]]).area * 100.0
+        assert abs(tape - m.hips) < GIRTH_TOL_CM, (m, tape)
+
+
+def test_default_pose_keeps_the_arms_off_the_torso():
+    """In the default A-pose no forearm or hand vertex, and no upper-arm vertex below the ribs (half-way
+    from chest to waist level), is inside the torso, even for a large belly (near the armpit the arm of a
+    large chest touches the torso, as it does on real people)."""
+    for m in SPREAD:
+        body = build_body(m, resolution=12)
+        torso = part_faces(body, "torso")
+        for name in ("forearm_l", "upper_arm_l"):
+            pts = body.vertices[np.unique(part_faces(body, name))]
+            if name == "upper_arm_l":
+                pts = pts[pts[:, 1] < 0.5 * (body.levels["chest"] + body.levels["waist"])]
+            assert (winding_number(body.vertices, torso, pts) < 0.5).all(), (m, name)
+
+
 def test_optional_measurements_are_honoured():
     m = Measurements(height=180.0, chest=104.0, waist=92.0, hips=103.0, shoulder_width=42.0, arm_length=63.0,
                      inseam=86.0, neck=39.0, thigh=64.0, upper_arm=35.0)

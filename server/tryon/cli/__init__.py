@@ -10,9 +10,9 @@ import argparse
 import sys
 
 from tryon import __version__
-from tryon.cli import ingest, serve
+from tryon.cli import bench, ingest, serve
 
-COMMANDS = [serve, ingest]
+COMMANDS = [serve, ingest, bench]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,60 @@
+"""``tryon bench``: the service's speed and accuracy measured on this machine in one run.
+
+Sections (one module each): the paper's tables 1-3 (``tables``), run time against error and the default
+settings (``pareto``), the paper's simplification against quadric edge collapse (``simplify_compare``),
+peer engines (``peers``: Taichi, Newton), the stability stress summary (``stability``), and scaling
+(``scaling``). Each runs isolated: a failure is reported with its reason and the others still run.
+``report`` writes bench.json, bench.md and the PNG plots.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+from tryon.bench.common import Context, machine, run_section
+from tryon.bench.report import now, write_report
+
+
+def sections():
+    """(name, title, function) of every section, in report order."""
+    from tryon.bench import pareto, peers, scaling, simplify_compare, stability, tables
+
+    return [
+        ("table1", "Paper table 1: simplification and collision time", tables.table1),
+        ("table2", "Paper table 2: inside-triangle tests", tables.table2),
+        ("table3", "Paper table 3: pipeline stages", tables.table3),
+        ("pareto", "Run time against error", pareto.run),
+        ("simplify", "Simplification compared", simplify_compare.run),
+        ("peers", "Peer engines", peers.run),
+        ("stability", "Stability stress", stability.run),
+        ("scaling", "Scaling", scaling.run),
+    ]
+
+
+def run_bench(out_dir: Path | str = "bench-results", quick: bool = False, stress: bool = False,
+              only: list[str] | None = None, log=print) -> tuple[dict, int]:
+    """Run the benchmark into ``out_dir``; returns (report dict, exit code). The exit code is 1 when a
+    section failed (our code raised), 0 otherwise (skipped optional peers are not failures)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    ctx = Context(out_dir=out, quick=quick, stress=stress, log=log)
+    started = now()
+    info = machine()
+    t0 = time.perf_counter()
+    done = []
+    for name, title, fn in sections():
+        if only and name not in only:
+            continue
+        done.append(run_section(name, title, fn, ctx))
+    mode = "quick" if quick else "full"
+    if stress:
+        mode += " + stress"
+    cmd = "tryon bench" + (" --quick" if quick else "") + (" --stress" if stress else "")
+    report = write_report(out, done, {
+        "started": started, "mode": mode, "command": cmd, "seconds": time.perf_counter() - t0,
+        "machine": info, "argv": sys.argv,
+    })
+    failed = [s.name for s in done if s.status == "failed"]
+    return report, 1 if failed else 0

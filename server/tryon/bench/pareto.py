@@ -1,0 +1,147 @@
+"""Run time against error (SPEC section 7), and the default settings picked from it.
+
+For a grid of settings (time step, constraint passes, simplification degree B) the main garment is
+draped on the size M body; each drape's error is the RMS distance over the full-mesh vertices to a
+reference drape of the same scene with a 10x smaller time step and 10x more passes (at the finest B of
+the grid). Wall time, penetration and max strain sit beside each point. The default is the fastest
+setting within ``TOLERANCE_MM`` of the reference.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from tryon.bench.common import Context, Section, Table, fmt
+from tryon.bench.report import plot_xy
+from tryon.bench.scenes import default_body, main_entry, prepared
+
+TOLERANCE_MM = 5.0  # RMS error a default may have against the reference (the issue's criterion), mm
+GRID = {
+    False: {"time_step": (0.02, 0.03, 0.04), "passes": (4, 8, 16), "simplification": (0.2, 0.3)},
+    # quick: two points and a cheap reference (0.002 s, 40 passes, B = 0.2), ~20 s on this machine
+    True: {"time_step": (0.02,), "passes": (2, 4), "simplification": (0.2,)},
+}
+
+
+def scaled(settings, time_step: float, passes: int, simplification: float):
+    """``settings`` with a time step and pass count; settings counted in steps (limits, start-up, rest
+    detection) are rescaled so that they mean the same simulated time as at the default step."""
+    from tryon.sim.settings import SimSettings
+
+    base = SimSettings()
+    k = base.time_step / time_step
+
+    def steps(n):
+        return max(1, int(math.ceil(n * k)))
+
+    return replace(settings, time_step=time_step, passes=passes, simplification=simplification,
+                   max_steps=steps(base.max_steps), min_steps=steps(base.min_steps),
+                   grow_steps=steps(base.grow_steps) if base.grow_steps else 0, rest_steps=steps(base.rest_steps))
+
+
+def drape_full(ctx: Context, body, entry, settings):
+    from tryon.sim.run import drape
+
+    model, _ = prepared(ctx, entry, settings.simplification)
+    res = drape(body, model, settings)
+    return res, model
+
+
+def reference(ctx: Context):
+    """(TryOnResult, settings) of the reference drape of the main garment (built once per run): 10x
+    smaller time step and 10x more passes than the grid's finest, at its finest B."""
+    from tryon.sim.settings import SimSettings
+
+    def make():
+        grid = GRID[ctx.quick]
+        s = scaled(SimSettings(), min(grid["time_step"]) / 10, max(grid["passes"]) * 10, max(grid["simplification"]))
+        ctx.log(f"[bench]   reference drape: dt {s.time_step} s, {s.passes} passes, B {s.simplification}")
+        res, _ = drape_full(ctx, default_body(ctx), main_entry(), s)
+        return res, s
+
+    return ctx.cached("reference", make)
+
+
+def rms_mm(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))) * 1e3)
+
+
+def run(ctx: Context, sec: Section) -> None:
+    from tryon.sim.settings import SimSettings
+
+    grid = GRID[ctx.quick]
+    body = default_body(ctx)
+    entry = main_entry()
+    base = SimSettings()
+    ref, ref_settings = reference(ctx)
+    points = []
+    for dt, passes, b in itertools.product(grid["time_step"], grid["passes"], grid["simplification"]):
+        s = scaled(base, dt, passes, b)
+        res, model = drape_full(ctx, body, entry, s)
+        m = res.metrics
+        points.append({
+            "time_step": dt, "passes": passes, "simplification": b, "coarse_vertices": len(model.coarse_index),
+            "wall_s": m["wall_seconds"], "steps": m["steps"], "rms_mm": rms_mm(res.vertices, ref.vertices),
+            "max_penetration_mm": m["max_penetration_mm"], "penetrating_vertices": m["penetrating_vertices"],
+            "max_strain": m["max_strain"], "rest_reached": m["rest_reached"],
+        })
+    within = [p for p in points if p["rms_mm"] <= TOLERANCE_MM]
+    pick = min(within, key=lambda p: p["wall_s"]) if within else min(points, key=lambda p: p["rms_mm"])
+    current = next((p for p in points if p["time_step"] == base.time_step and p["passes"] == base.passes
+                    and abs(p["simplification"] - base.simplification) < 1e-9), None)
+    rm = ref.metrics
+    sec.data = {
+        "garment": entry["name"], "tolerance_mm": TOLERANCE_MM, "points": points, "pick": pick,
+        "pick_within_tolerance": bool(within), "current_default": current,
+        "reference": {"time_step": ref_settings.time_step, "passes": ref_settings.passes,
+                      "simplification": ref_settings.simplification, "wall_s": rm["wall_seconds"],
+                      "steps": rm["steps"], "rest_reached": rm["rest_reached"],
+                      "max_penetration_mm": rm["max_penetration_mm"], "max_strain": rm["max_strain"]},
+    }
+    pareto = _pareto_front(points)
+    sec.tables.append(Table(
+        f"Settings grid on {entry['name']} (error: RMS over full-mesh vertices vs the reference)",
+        ["time step s", "passes", "B", "coarse vertices", "wall s", "steps", "RMS error mm", "max penetration mm",
+         "max strain", "rest", "Pareto"],
+        [[p["time_step"], p["passes"], p["simplification"], p["coarse_vertices"], fmt(p["wall_s"]), p["steps"],
+          fmt(p["rms_mm"]), fmt(p["max_penetration_mm"]), fmt(p["max_strain"]), fmt(p["rest_reached"]),
+          "*" if id(p) in pareto else ""] for p in sorted(points, key=lambda q: q["wall_s"])],
+        note=(f"Reference: time step {ref_settings.time_step} s, {ref_settings.passes} passes, B "
+              f"{ref_settings.simplification}, {rm['steps']} steps, {fmt(rm['wall_seconds'])} s. Step-counted "
+              "settings (start-up, rest detection, limit) are rescaled to the same simulated time."),
+    ))
+    verdict = "within" if within else "none within; closest"
+    sec.headline.append(
+        f"default pick ({verdict} {TOLERANCE_MM:g} mm RMS of the reference, fastest): time step "
+        f"{pick['time_step']} s, {pick['passes']} passes, B = {pick['simplification']}: {fmt(pick['wall_s'])} s "
+        f"to rest, {fmt(pick['rms_mm'])} mm RMS"
+        + (f" (current default {base.time_step} s / {base.passes} / {base.simplification}: "
+           f"{fmt(current['wall_s'])} s, {fmt(current['rms_mm'])} mm)" if current else "")
+    )
+    series = {}
+    labels = {}
+    for b in sorted({p["simplification"] for p in points}):
+        pts = [p for p in points if p["simplification"] == b]
+        series[f"B = {b}"] = ([p["wall_s"] for p in pts], [p["rms_mm"] for p in pts], "o")
+        labels[f"B = {b}"] = [f"{p['time_step']}/{p['passes']}" for p in pts]
+    front = sorted((p for p in points if id(p) in pareto), key=lambda p: p["wall_s"])
+    series["Pareto front"] = ([p["wall_s"] for p in front], [p["rms_mm"] for p in front], "k--")
+    series[f"{TOLERANCE_MM:g} mm"] = ([min(p["wall_s"] for p in points), max(p["wall_s"] for p in points)],
+                                     [TOLERANCE_MM, TOLERANCE_MM], "r:")
+    sec.plots.append(plot_xy(ctx.out_dir, "pareto.png", series, "wall time to rest (s)",
+                             "RMS error vs reference (mm)", f"Run time against error ({entry['name']})",
+                             logx=True, labels=labels, highlight=(pick["wall_s"], pick["rms_mm"], "pick")))
+
+
+def _pareto_front(points: list[dict]) -> set:
+    """ids of the points no other point beats on both wall time and error."""
+    front = set()
+    for p in points:
+        if not any(q["wall_s"] <= p["wall_s"] and q["rms_mm"] <= p["rms_mm"] and q is not p
+                   and (q["wall_s"] < p["wall_s"] or q["rms_mm"] < p["rms_mm"]) for q in points):
+            front.add(id(p))
+    return front

@@ -1,0 +1,103 @@
+"""Scaling: time per step against the garment's vertex count (a skirt-like tube around the size M body's
+hips, 1k to 50k vertices, simulated at full resolution) and against the body's mesh resolution (the main
+garment on bodies from coarse to fine)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tryon.bench.common import Context, Section, Table, fmt, median_seconds
+from tryon.bench.report import plot_xy
+from tryon.bench.scenes import default_body, main_entry, prepared
+
+GARMENT_SIZES = {False: (1_000, 3_000, 10_000, 25_000, 50_000), True: (1_000, 4_000)}
+BODY_RESOLUTIONS = {False: (10, 20, 30, 45, 60), True: (15, 30)}
+STEPS_TIMED = {False: 15, True: 5}
+WARMUP_STEPS = 10  # steps before timing: the tube starts falling and touching the hips
+
+
+def tube_model(n_vertices: int, body):
+    """A tube ``n_vertices`` strong, 3 cm outside the body's hips, from the waist down to mid-thigh."""
+    from tryon.sim.scenes import cloth_tube
+
+    hips_girth = body.achieved.get("hips", 100.0) / 100.0  # m
+    radius = hips_girth / (2 * math.pi) + 0.03
+    top = body.levels.get("waist", 1.05)
+    length = 0.45
+    ratio = 2 * math.pi * radius / length  # around / along, for square-ish cells
+    n_around = max(8, int(round(math.sqrt(n_vertices * ratio))))
+    n_along = max(2, int(round(n_vertices / n_around)))
+    model = cloth_tube(radius, top, top - length, n_around=n_around, n_along=n_along)
+    # centre the tube on the torso axis
+    torso = body.parts.index("torso")
+    axis = body.part_axes[torso]
+    shift = np.array([axis[:, 0].mean(), 0.0, axis[:, 2].mean()])
+    from dataclasses import replace
+
+    return replace(model, vertices=model.vertices + shift)
+
+
+def per_step_ms(body, model, steps: int, x0=None) -> float:
+    from tryon.bench.ours_cloth import Stepper
+    from tryon.sim.settings import SimSettings
+
+    stepper = Stepper(body, model, SimSettings(), x0)
+    for _ in range(WARMUP_STEPS):
+        stepper.step()
+    return median_seconds(stepper.step, steps, warmup=0) * 1e3
+
+
+def run(ctx: Context, sec: Section) -> None:
+    from tryon.body.build import build_body
+    from tryon.body.params import Measurements, Pose
+    from tryon.bench.scenes import BODY_M
+    from tryon.sim.align import align_garment
+
+    steps = STEPS_TIMED[ctx.quick]
+    body = default_body(ctx)
+    garment_rows = []
+    for n in GARMENT_SIZES[ctx.quick]:
+        model = tube_model(n, body)
+        ms = per_step_ms(body, model, steps)
+        garment_rows.append({"vertices": len(model.vertices), "springs": len(model.springs), "ms_per_step": ms,
+                             "us_per_vertex": ms * 1e3 / len(model.vertices)})
+    body_rows = []
+    entry = main_entry()
+    model, _ = prepared(ctx, entry)
+    for res in BODY_RESOLUTIONS[ctx.quick]:
+        m = Measurements(**BODY_M)
+        b = default_body(ctx, res)
+        build_ms = median_seconds(lambda: build_body(m, Pose(), res), 3, 0) * 1e3
+        x0 = align_garment(b, model)
+        ms = per_step_ms(b, model, steps, x0)
+        body_rows.append({"resolution": res, "body_vertices": len(b.vertices), "body_faces": len(b.faces),
+                          "build_ms": build_ms, "ms_per_step": ms})
+    sec.data = {"garment": garment_rows, "body": body_rows, "body_garment": entry["name"]}
+    sec.tables.append(Table(
+        "Time per step against garment vertices (tube around the hips, simulated at full resolution)",
+        ["vertices", "springs", "ms per step", "us per vertex"],
+        [[r["vertices"], r["springs"], fmt(r["ms_per_step"]), fmt(r["us_per_vertex"])] for r in garment_rows],
+        note=f"Median of {steps} steps after {WARMUP_STEPS}; default settings (8 passes); single thread.",
+    ))
+    sec.tables.append(Table(
+        f"Time per step against body resolution ({entry['name']}, {len(model.coarse_index)} simulated vertices)",
+        ["resolution", "body vertices", "body faces", "body build ms", "ms per step"],
+        [[r["resolution"], r["body_vertices"], r["body_faces"], fmt(r["build_ms"]), fmt(r["ms_per_step"])]
+         for r in body_rows],
+    ))
+    g = garment_rows
+    slope = np.polyfit(np.log([r["vertices"] for r in g]), np.log([r["ms_per_step"] for r in g]), 1)[0]
+    sec.data["garment_exponent"] = float(slope)
+    sec.headline.append(
+        f"scaling: {fmt(g[0]['ms_per_step'])} ms per step at {g[0]['vertices']} garment vertices, "
+        f"{fmt(g[-1]['ms_per_step'])} ms at {g[-1]['vertices']} (time ~ vertices^{slope:.2f})"
+    )
+    sec.plots.append(plot_xy(
+        ctx.out_dir, "scaling.png",
+        {"garment vertices (body res. default)": ([r["vertices"] for r in g], [r["ms_per_step"] for r in g], "o-"),
+         f"body vertices ({entry['name']})": ([r["body_vertices"] for r in body_rows],
+                                              [r["ms_per_step"] for r in body_rows], "s-")},
+        "vertices", "ms per step", "Time per step", logx=True, logy=True,
+    ))

@@ -1,0 +1,28 @@
+"""``tryon bench``: measure speed and accuracy on this machine (see ``tryon.bench``)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("bench", help="benchmark: paper tables, run time vs error, peers, stability, scaling")
+    p.add_argument("--quick", action="store_true", help="small version (under two minutes)")
+    p.add_argument("--stress", action="store_true", help="run the long stability stress test")
+    p.add_argument("--out", type=Path, default=Path("bench-results"), help="output directory (default bench-results/)")
+    p.add_argument("--only", nargs="+", metavar="SECTION", default=None,
+                   help="run only these sections (table1 table2 table3 pareto simplify peers stability scaling)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from tryon.bench import run_bench
+
+    report, code = run_bench(args.out, quick=args.quick, stress=args.stress, only=args.only)
+    for s in report["sections"]:
+        for h in s["headline"]:
+            print(h)
+    print(f"wrote {args.out / 'bench.json'}, {args.out / 'bench.md'}"
+          + ("" if code == 0 else " (some sections failed: see bench.md)"))
+    return code

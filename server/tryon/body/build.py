@@ -21,7 +21,7 @@ from tryon.body.kernels import face_vertex_normals
 from tryon.body.maps import build_part_maps
 from tryon.body.measure import horizontal_breadth, horizontal_girth, hull_perimeter, mesh_edges, section_girth
 from tryon.body.params import Measurements, Pose, complete
-from tryon.body.shape import A, B, F, SHAPE_NAMES, body_layout, station_params
+from tryon.body.shape import A, B, F, MEASURED_STATIONS, SHAPE_NAMES, body_layout, station_params
 from tryon.body.types import PART_NAMES, Body
 
 # Grid intervals across the front half of the torso; every part's grid follows from it (``GRID``).
@@ -55,15 +55,14 @@ GIRTHS = {"chest": "torso", "waist": "torso", "hips": "torso", "neck": "head", "
 class Grid:
     """Everything that depends on the resolution only (cached).
 
-    ring[shape] (n_ring, 8), rows[shape] (n_v, n_stations): the basis matrices (``nurbs.py``);
-    row_of[shape]: station index -> mesh row of each measured station; faces (f, 3) int32 and
-    face_part (f,) int16 of the whole body; part_vertices: (start, stop) of each part's vertices;
-    part_faces: (start, stop) of each part's faces; part_edges: each part's unique edges (e, 2), indices
-    local to the part's vertices; incidence: sparse (n, f) vertex-face matrix."""
+    ring[shape] (n_ring, 8), rows[shape] (n_v, n_stations): the basis matrices (``nurbs.py``), the
+    rows including every measured station; faces (f, 3) int32 and face_part (f,) int16 of the whole body
+    (read-only, shared by every body of this resolution); part_vertices / part_faces: (start, stop) of
+    each part's vertices / faces; part_edges: each part's unique edges (e, 2), indices local to the
+    part's vertices."""
 
     ring: dict
     rows: dict
-    row_of: dict
     faces: np.ndarray
     face_part: np.ndarray
     part_vertices: tuple
@@ -97,18 +96,16 @@ def tube_faces(n_v: int, n_ring: int) -> np.ndarray:
 def grid(resolution: int) -> Grid:
     """Basis matrices and topology for ``resolution`` (built once per resolution)."""
     params = station_params()
-    ring, rows, row_of = {}, {}, {}
-    layout = body_layout_reference()
+    ring, rows = {}, {}
     for shape in SHAPE_NAMES:
         gu, gv = GRID[shape]
         n_u = max(4, round(gu * resolution)) + 1
         n_v = max(6, round(gv * resolution)) + 1
         t = params[shape]
-        measured = tuple(sorted(layout.parts[shape].measured.values()))
+        measured = sorted(MEASURED_STATIONS.get(shape, {}).values())
         v = nurbs.sample_params(n_v, tuple(t[i] for i in measured))
         ring[shape] = nurbs.ring_matrix(n_u)
         rows[shape] = nurbs.station_matrix(t, tuple(v))
-        row_of[shape] = {i: int(np.flatnonzero(v == t[i])[0]) for i in measured}
     faces, face_part, part_vertices, part_faces, part_edges = [], [], [], [], []
     n_vert = n_face = 0
     for k, name in enumerate(PART_NAMES):
@@ -128,14 +125,8 @@ def grid(resolution: int) -> Grid:
     face_part = np.concatenate(face_part)
     for arr in (faces, face_part):
         arr.setflags(write=False)
-    return Grid(ring, rows, row_of, faces, face_part, tuple(part_vertices), tuple(part_faces),
+    return Grid(ring, rows, faces, face_part, tuple(part_vertices), tuple(part_faces),
                 tuple(part_edges))
-
-
-@lru_cache(maxsize=1)
-def body_layout_reference():
-    from tryon.body.shape import REFERENCE
-    return body_layout(REFERENCE, Pose())
 
 
 def _homogeneous_world(stations: np.ndarray, rotation: np.ndarray, origin: np.ndarray,

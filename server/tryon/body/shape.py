@@ -32,6 +32,15 @@ Y, A, F, B, CX, CZ, WF, WB = range(8)
 # The six distinct part shapes; the right limbs are mirror images of the left ones.
 SHAPE_NAMES = ("head", "torso", "upper_arm", "forearm", "thigh", "shin")
 
+# Station index (in the tables of ``body_layout``) of each section the body is measured on; the mesh
+# has a row exactly there. shoulder_width is a breadth (the torso's width at acromion level), the others girths.
+MEASURED_STATIONS = {
+    "torso": {"hips": 3, "waist": 5, "chest": 7, "shoulder_width": 9},
+    "head": {"neck": 2},
+    "upper_arm": {"upper_arm": 3},
+    "thigh": {"thigh": 3},
+}
+
 ROUND = ELLIPSE_WEIGHT  # corner weight of an elliptic section
 SQUARE = 0.85  # corner weight of a squarer section (torso, shoulders): flatter sides, fuller corners
 
@@ -148,7 +157,6 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
         _station(y_nb, 1.3 * r_n, 1.15 * r_n, 1.15 * r_n, cz=cz_ac + 0.01, wf=SQUARE, wb=SQUARE),
         _pole(y_tp, cz=cz_ac + 0.01),
     ])
-    torso_measured = {"hips": 3, "waist": 5, "chest": 7, "shoulder_width": 9}
 
     # ---- head and neck (world frame) --------------------------------------------------------------------
     hh = 0.13 * H  # chin to vertex
@@ -169,7 +177,6 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
         _station(y_chin + 0.88 * hh, 0.057 * hsz, 0.060 * hsz, 0.075 * hsz, cz=cz_f),
         _pole(H, cz=cz_f - 0.01 * hsz),
     ])
-    head_measured = {"neck": 2}
 
     # ---- arms (left arm, local frames, axis along local +y) ---------------------------------------------
     r_u = U / (2.0 * np.pi)
@@ -256,11 +263,11 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     eye = np.eye(3)
     zero = np.zeros(3)
     parts = {
-        "head": PartShape(head, eye, zero, head_measured),
-        "torso": PartShape(torso, eye, zero, torso_measured),
-        "upper_arm": PartShape(upper_arm, rot_ua, joint, {"upper_arm": 3}),
+        "head": PartShape(head, eye, zero, MEASURED_STATIONS["head"]),
+        "torso": PartShape(torso, eye, zero, MEASURED_STATIONS["torso"]),
+        "upper_arm": PartShape(upper_arm, rot_ua, joint, MEASURED_STATIONS["upper_arm"]),
         "forearm": PartShape(forearm, rot_fa, elbow, {}),
-        "thigh": PartShape(thigh, rot_leg, hip_joint, {"thigh": 3}),
+        "thigh": PartShape(thigh, rot_leg, hip_joint, MEASURED_STATIONS["thigh"]),
         "shin": PartShape(shin, rot_leg, knee, {}, tilt=np.array([0, 0, 0, 0, 0, -0.5, -1, -1, -1]) * gamma,
                           pivot=np.array([0.0, l_sh - 0.075 * hs, 0.0])),
     }

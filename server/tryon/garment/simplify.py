@@ -36,8 +36,10 @@ MAX_TURN_DEG = 60.0
 # normal and the mean original vertex normal of its corners at least this (0: never flipped).
 MIN_ORIGINAL_COS = 0.0
 # Triangle quality 4 sqrt(3) area / sum of squared edges (1 equilateral, 0.87 a quad's half); a collapse
-# may not create a face worse than this unless the face was already worse.
-MIN_QUALITY = 0.12
+# may not create a face worse than this unless the face was already worse. When no collapse passes any
+# more and B is not reached yet, the scan goes on with the looser ``MIN_QUALITY_FALLBACK``.
+MIN_QUALITY = 0.3
+MIN_QUALITY_FALLBACK = 0.12
 # Neighbourhood scratch size (faces around the three vertices of a collapse); a collapse touching more
 # is skipped (never happens on garment meshes, whose vertex valence is < 20).
 SCRATCH_FACES = 4096
@@ -65,7 +67,7 @@ def collapse_with_parents(faces: np.ndarray, n_vertices: int, B: float, vertices
     fv, alive, parent = _collapse_kernel(
         faces, n_vertices, target, pos, vnorm, guard, vf_start, vf_list, fixed, bnext, bprev, loop_id,
         loop_count, loop_min, math.cos(math.radians(MAX_TURN_DEG)), MIN_ORIGINAL_COS, MIN_QUALITY,
-        SCRATCH_FACES,
+        MIN_QUALITY_FALLBACK, SCRATCH_FACES,
     )
     coarse_orig = fv[alive]
     kept = np.unique(coarse_orig).astype(np.int32)
@@ -206,7 +208,8 @@ def _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, gu
 
 @njit(cache=True)
 def _collapse_kernel(faces, n, target, pos, vnorm, guard, vf_start, vf_list, fixed, bnext, bprev, loop_id,
-                     loop_count, loop_min, cos_turn, cos_original, min_quality, scratch):
+                     loop_count, loop_min, cos_turn, cos_original, min_quality, min_quality_fallback,
+                     scratch):
     """Sequential collapse (each collapse depends on the previous ones: no parallelism)."""
     nf = faces.shape[0]
     fv = faces.copy()
@@ -341,6 +344,9 @@ def _collapse_kernel(faces, n, target, pos, vnorm, guard, vf_start, vf_list, fix
                 collapsed += 1
                 break
         if collapsed == 0:
+            if min_quality > min_quality_fallback:
+                min_quality = min_quality_fallback
+                continue
             break  # every remaining collapse would spoil the mesh: B cannot be reached
         pass_id += 1  # mark recovery: clear every mark and scan again
     return fv, alive, parent

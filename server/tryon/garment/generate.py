@@ -249,11 +249,17 @@ def _build_sleeve(mb: MeshBuilder, root: np.ndarray, side: int, spec: TopSpec) -
     root_pts = np.concatenate(mb.points)[root]
     m = len(root)
     phi = 2 * np.pi * np.arange(m) / m  # 0 underarm, pi over-arm; front (z > 0) first
-    start = float((joint[1] - root_pts[:, 1].mean()) / math.cos(alpha))
+    r_top, r_end = spec.sleeve_top_girth / (2 * np.pi), spec.sleeve_end_girth / (2 * np.pi)
+    # The first ring sits where its under-arm point is level with the armpit (root[0]): starting higher
+    # would pull the under-arm seam up into the armpit and fold the cloth there.
+    start = float((joint[1] - r_top * math.sin(alpha) - root_pts[0, 1]) / math.cos(alpha))
+    # ... and outside the armpit: move the arm axis out if the first ring's under-arm point would be
+    # inside it (a wide size on the standard shoulder joint)
+    under_x = side * (joint[0] * side + start * math.sin(alpha) - r_top * math.cos(alpha))
+    joint = joint + [side * max(0.0, abs(root_pts[0, 0]) + 0.005 - abs(under_x)), 0.0, 0.0]
     length = spec.sleeve_end - start
     rows = max(3, int(round(length / SPACING)))
     blend = max(1.0, 0.09 / (length / rows))  # rows over which the armhole turns into a circle (9 cm)
-    r_top, r_end = spec.sleeve_top_girth / (2 * np.pi), spec.sleeve_end_girth / (2 * np.pi)
     prev = root
     for l_ in range(1, rows + 1):
         t = l_ / rows
@@ -383,7 +389,7 @@ def garment_mesh(kind: str, size: str) -> trimesh.Trimesh:
             girths=[(0.52, s["hips"] + 0.50), (Y_HIP, s["hips"] + 0.08), (Y_WAIST, s["waist"] + 0.08),
                     (1.16, s["chest"] + 0.06), (Y_ARMPIT, s["chest"] + 0.06)],
             shoulder_half=SHOULDER_HALF[size] - 0.03, neck_drop_front=0.11, neck_drop_back=0.04,
-            armhole_angle_deg=50.0, sleeve_end=None, **neck))
+            armhole_angle_deg=44.0, sleeve_end=None, **neck))
     if kind == "skirt":  # A-line to just above the knee, sits at the waist
         return build_skirt([(0.52, s["hips"] + 0.30), (Y_HIP, s["hips"] + 0.06), (1.01, s["waist"] + 0.02)],
                            spacing=0.8 * SPACING)  # a small garment: a finer grid keeps >= 2,000 vertices

@@ -38,7 +38,8 @@ def grid_edges(n: int) -> np.ndarray:
 class FrameProbe:
     """Accumulates the scene's accuracy figures over frames (called outside the timed region).
 
-    max_stretch: largest structural edge length / rest - 1 over all frames (rest = SIDE / (n - 1)).
+    max_stretch: largest structural edge length / rest - 1 over all frames (rest = SIDE / (n - 1));
+    final_stretch: the same at the last frame.
     max_penetration_mm: deepest particle inside the sphere, mm (0 if never inside).
     """
 
@@ -48,6 +49,7 @@ class FrameProbe:
         self.max_stretch = 0.0
         self.max_penetration = 0.0
         self.final = None
+        self.final_stretch = 0.0
 
     def __call__(self, x: np.ndarray) -> None:
         x = np.asarray(x, dtype=np.float64).reshape(-1, 3)
@@ -55,6 +57,7 @@ class FrameProbe:
         stretch = np.sqrt(np.einsum("ij,ij->i", d, d)).max() / self.rest - 1.0
         depth = RADIUS - np.sqrt(np.einsum("ij,ij->i", x, x)).min()
         self.max_stretch = max(self.max_stretch, float(stretch))
+        self.final_stretch = float(stretch)
         self.max_penetration = max(self.max_penetration, float(depth))
         self.final = x
 
@@ -69,6 +72,7 @@ class FrameProbe:
             "first_frame_ms": float(frame_seconds[0] * 1e3),
             "frames": len(frame_seconds),
             "max_stretch": self.max_stretch,
+            "final_stretch": self.final_stretch,
             "max_penetration_mm": self.max_penetration * 1e3,
             # the cloth still lies on the ball when some particle is within 2 cm of its surface
             "on_sphere_at_end": bool(r.min() < RADIUS + 0.02),

@@ -1,14 +1,14 @@
-"""Our engine on the peer scenes: the same step as ``tryon.sim.run.drape`` (Verlet, strain-limit passes,
-body collision via the cylinder maps), driven frame by frame.
+"""Our engine on the peer scenes: ``tryon.sim.run.drape`` itself (Verlet, strain-limit passes, body
+collision via the cylinder maps), timed frame by frame through its ``on_frame`` callback.
 
-``drape`` itself is not used for the cloth-on-ball scene: it only tests the body parts within reach of
-the aligned garment (the ball is 30 cm below the cloth) and stops at rest, while the peers run a fixed
-number of frames. The ball is a body of one part (an icosphere), built with ``build_part_maps``.
+The peers run a fixed number of frames, so the rest stop is pushed past the last step; the ball is a body
+of one part (an icosphere) built with ``build_part_maps``.
 """
 
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
@@ -43,51 +43,49 @@ def sphere_body(radius: float = RADIUS):
     )
 
 
-class Stepper:
-    """The simulation step of ``drape`` on given state arrays; ``step()`` advances one time step."""
+@contextmanager
+def reach(metres: float):
+    """Let ``drape`` test body parts up to ``metres`` from the garment's start (it tests only those within
+    ``run.PART_REACH`` of the aligned garment: right for a garment put on a body, too short for a cloth
+    dropped from 30 cm above a ball)."""
+    from tryon.sim import run as sim_run
 
-    def __init__(self, body, model, settings, x0: np.ndarray | None = None):
-        from tryon.sim.bodystate import BodyCollider
+    saved = sim_run.PART_REACH
+    sim_run.PART_REACH = max(saved, metres)
+    try:
+        yield
+    finally:
+        sim_run.PART_REACH = saved
 
-        self.s = settings
-        self.x = np.array(model.coarse_vertices if x0 is None else x0, dtype=np.float64)
-        self.x_prev = self.x.copy()
-        self.x_checked = self.x.copy()
-        mass = np.ascontiguousarray(model.mass, dtype=np.float64)
-        self.mass = mass
-        self.inv_mass = np.where(mass > 0, 1.0 / np.where(mass > 0, mass, 1.0), 0.0)
-        self.springs = np.ascontiguousarray(model.springs, dtype=np.int64)
-        self.rest = np.ascontiguousarray(model.rest, dtype=np.float64)
-        self.kind = np.ascontiguousarray(model.kind, dtype=np.int64)
-        self.limits = settings.limits_array()
-        self.compression = settings.compression_array()
-        self.collider = BodyCollider(body, settings.collision_margin)
-        self.parts = np.arange(len(body.parts), dtype=np.int64)
-        self.contact = np.zeros(len(self.x), dtype=np.bool_)
-        self.active = np.ones(len(self.x), dtype=np.bool_)
 
-    def step(self, dt: float | None = None) -> None:
-        from tryon.sim.constraints import satisfy_springs
-        from tryon.sim.integrate import verlet_step
+def timed_drape(body, model, settings, initial=None, steps_per_frame: int = 1, probe=None,
+                max_seconds: float = 1e9):
+    """Run ``drape`` for exactly ``settings.max_steps`` steps (no rest stop), timing each frame of
+    ``steps_per_frame`` steps between the ``on_frame`` callbacks (the probe's own time excluded).
+    Returns (frame seconds list, TryOnResult)."""
+    from tryon.sim.run import drape
 
-        s = self.s
-        dt = s.time_step if dt is None else dt
-        verlet_step(self.x, self.x_prev, self.inv_mass, dt, s.gravity, s.air_drag, s.max_speed)
-        satisfy_springs(self.x, self.inv_mass, self.springs, self.rest, self.kind, self.limits, self.compression,
-                        s.passes)
-        d = self.x - self.x_checked
-        moved = np.einsum("ij,ij->i", d, d) > 1e-8  # (1e-4 m)^2, drape's REST_MOVE
-        np.logical_or(moved, self.contact, out=self.active)
-        self.collider.collide(self.x, self.x_prev, self.inv_mass, self.active, self.parts, s.contact_offset,
-                              s.friction, self.contact)
-        self.x_checked[self.active] = self.x[self.active]
+    settings = replace(settings, min_steps=settings.max_steps + 1)
+    frames = []
+    state = {"acc": 0.0, "last": None, "start": None}
 
-    def collide_all(self, x: np.ndarray) -> None:
-        """Collision test of every point of ``x`` (the per-step collision-detection cost, all active)."""
-        active = np.ones(len(x), dtype=np.bool_)
-        contact = np.zeros(len(x), dtype=np.bool_)
-        inv = np.ones(len(x))
-        self.collider.collide(x, x.copy(), inv, active, self.parts, self.s.contact_offset, 0.0, contact)
+    def on_frame(step, x):
+        now = time.perf_counter()
+        if state["last"] is None:
+            state["start"] = now
+        else:
+            state["acc"] += now - state["last"]
+        if step % steps_per_frame == 0 and state["last"] is not None:
+            frames.append(state["acc"])
+            state["acc"] = 0.0
+            if probe is not None:
+                probe(x)
+        keep_going = now - state["start"] < max_seconds
+        state["last"] = time.perf_counter()
+        return keep_going
+
+    result = drape(body, model, settings, on_frame=on_frame, initial=initial)
+    return frames, result
 
 
 def run_sphere(n: int, frames: int, settings=None, substeps: int = 1, max_seconds: float = 1e9) -> dict:
@@ -97,30 +95,23 @@ def run_sphere(n: int, frames: int, settings=None, substeps: int = 1, max_second
 
     t0 = time.perf_counter()
     settings = settings or SimSettings()
-    settings = replace(settings, time_step=FRAME_DT / substeps)
+    # one extra step: the first callback only starts the clock
+    settings = replace(settings, time_step=FRAME_DT / substeps, max_steps=frames * substeps + 1)
     body = sphere_body()
     # cloth_square orders vertices as meshgrid(x, z) (row = z); transpose to the scene's (i = x, j = z).
     model = cloth_square(size=SIDE, n=n, height=HEIGHT)
     order = np.arange(n * n).reshape(n, n).T.ravel()
-    stepper = Stepper(body, model, settings)
     setup = time.perf_counter() - t0
     probe = FrameProbe(n)
-    times = []
-    start = time.perf_counter()
-    for _ in range(frames):
-        if times and time.perf_counter() - start > max_seconds:
-            break
-        t = time.perf_counter()
-        for _ in range(substeps):
-            stepper.step()
-        times.append(time.perf_counter() - t)
-        probe(stepper.x[order])
+    with reach(HEIGHT):
+        times, _ = timed_drape(body, model, settings, initial=model.vertices.copy(), steps_per_frame=substeps,
+                               probe=lambda x: probe(x[order]), max_seconds=max_seconds)
     out = probe.summary(times)
     out.update({
         "engine": "ours", "method": "Verlet + strain-limit passes + cylinder-map collision", "particles": n * n,
         "substeps": substeps, "setup_s": setup,
         "params": {"time_step": settings.time_step, "passes": settings.passes,
-                   "strain_limit": list(settings.strain_limit), "friction": settings.friction,
+                   "strain_limit": list(settings.strain_limit),
                    "collision_margin": settings.collision_margin, "threads": 1, "precision": "f64"},
     })
     return out

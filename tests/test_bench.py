@@ -1,0 +1,100 @@
+"""``tryon bench --quick``: runs once per module and writes the report files with finite numbers.
+
+No timing assertions (the machine is shared); the benchmark's numbers are checked for shape, finiteness
+and the invariants that do not depend on speed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+import zlib
+
+import pytest
+
+from tryon.cli import main
+
+SECTIONS = {"table1", "table2", "table3", "pareto", "simplify", "peers", "stability", "scaling"}
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench")
+    code = main(["bench", "--quick", "--out", str(out)])
+    report = json.loads((out / "bench.json").read_text())
+    return out, code, report
+
+
+def _numbers(value):
+    """Every int/float leaf of a JSON value."""
+    if isinstance(value, bool):
+        return
+    if isinstance(value, (int, float)):
+        yield value
+    elif isinstance(value, dict):
+        for v in value.values():
+            yield from _numbers(v)
+    elif isinstance(value, list):
+        for v in value:
+            yield from _numbers(v)
+
+
+def _section(report, name):
+    return next(s for s in report["sections"] if s["name"] == name)
+
+
+def test_exit_code_and_files(bench):
+    out, code, report = bench
+    failed = {s["name"]: s["error"] for s in report["sections"] if s["status"] == "failed"}
+    assert code == (1 if failed else 0)
+    assert not failed, failed
+    assert (out / "bench.md").read_text().startswith("# tryon bench")
+    assert {s["name"] for s in report["sections"]} == SECTIONS
+
+
+def test_json_numbers_are_finite(bench):
+    _, _, report = bench
+    numbers = list(_numbers(report))
+    assert len(numbers) > 50
+    assert all(math.isfinite(x) for x in numbers)
+
+
+def test_sections_carry_their_figures(bench):
+    _, _, report = bench
+    t1 = _section(report, "table1")["data"]["ours"][0]
+    assert 0 < t1["simplified"] < t1["vertices"]
+    assert t1["collision_ms_full"] > 0 and t1["collision_ms_simplified"] > 0
+    t2 = _section(report, "table2")["data"]
+    assert set(t2["methods"]) == {"angle", "area", "barycentric"}
+    # the three tests decide the same random hits alike (ties on edges aside)
+    assert min(t2["agreement"].values()) > 0.999
+    pareto = _section(report, "pareto")["data"]
+    assert len(pareto["points"]) >= 2 and pareto["pick"] in pareto["points"]
+    assert all(p["rms_mm"] >= 0 for p in pareto["points"])
+    ours = [r for r in _section(report, "peers")["data"]["cloth_on_ball"]["1024"] if r["engine"] == "ours"][0]
+    assert ours["frames"] == 300 and ours["finite"]
+    scaling = _section(report, "scaling")["data"]
+    assert [r["vertices"] for r in scaling["garment"]] == sorted(r["vertices"] for r in scaling["garment"])
+
+
+def _png_ok(data: bytes) -> bool:
+    """Signature, an IHDR chunk with its CRC, positive size, and an IEND at the end."""
+    if not data.startswith(PNG_SIGNATURE):
+        return False
+    length, kind = struct.unpack(">I4s", data[8:16])
+    if kind != b"IHDR" or length != 13:
+        return False
+    ihdr = data[16:29]
+    (crc,) = struct.unpack(">I", data[29:33])
+    width, height = struct.unpack(">II", ihdr[:8])
+    return zlib.crc32(b"IHDR" + ihdr) == crc and width > 0 and height > 0 and data[-8:-4] == b"IEND"
+
+
+def test_plots_are_valid_pngs(bench):
+    out, _, report = bench
+    plots = [p for s in report["sections"] for p in s["plots"]]
+    assert {"pareto.png", "peers.png", "scaling.png"} <= set(plots)
+    for name in plots:
+        assert _png_ok((out / name).read_bytes()), name

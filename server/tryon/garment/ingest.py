@@ -128,7 +128,9 @@ def _read(data: bytes, ext: str, max_faces: int) -> tuple[np.ndarray, np.ndarray
             warnings.simplefilter("ignore")
             loaded = trimesh.load(io.BytesIO(data), file_type=ext, process=False)
     except Exception as exc:  # trimesh raises many types for broken files
-        raise GarmentError(f"could not read the file as {ext.upper()}: it is truncated or not a mesh ({_short(exc)})") from exc
+        raise GarmentError(
+            f"could not read the file as {ext.upper()}: it is truncated or not a mesh ({_short(exc)})"
+        ) from exc
     if isinstance(loaded, trimesh.Scene):
         geoms = [g for g in loaded.dump(concatenate=False) if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
         if not geoms:

@@ -206,7 +206,7 @@ def _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, gu
     return loop_count[loop_id[a]] - removed >= loop_min[loop_id[a]]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # nogil: an upload prepared in a worker thread does not stall the server
 def _collapse_kernel(faces, n, target, pos, vnorm, guard, vf_start, vf_list, fixed, bnext, bprev, loop_id,
                      loop_count, loop_min, cos_turn, cos_original, min_quality, min_quality_fallback,
                      scratch):
@@ -413,7 +413,7 @@ def _closest_sq(V, v, i, j, k):
     return dx * dx + dy * dy + dz * dz
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # nogil: an upload prepared in a worker thread does not stall the server
 def _attach_kernel(vertices, root, faces, start, flist):
     """Nearest coarse face among those around the vertex's root and its neighbours (2 rings); a vertex
     whose root lost every face searches all faces. Independent per vertex."""

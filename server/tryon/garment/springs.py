@@ -125,7 +125,7 @@ def _straight_pairs(vertices, lo, hi, n, cos_limit):
     return _straight_pairs_kernel(vertices, start, nbr, cos_limit)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # nogil: an upload prepared in a worker thread does not stall the server
 def _straight_pairs_kernel(vertices, start, nbr, cos_limit):
     """For each vertex v and neighbour a: the neighbour b minimising cos(a-v-b), kept if below
     ``cos_limit``. Sequential (one output list); cost sum of degree^2."""

@@ -181,6 +181,7 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     # ---- arms (left arm, local frames, axis along local +y) ---------------------------------------------
     r_u = U / (2.0 * np.pi)
     r_d = 1.12 * r_u  # deltoid
+    cap = min(0.95 * r_d, 0.045 * hs)  # the top of the arm reaches just above the acromion, not higher
     r_e = 0.82 * r_u  # elbow
     r_fa = 0.88 * r_u  # forearm, widest
     L1 = 0.56 * L_arm  # acromion to elbow (ANSUR II sample: 0.52-0.60 of the arm, mean 0.56)
@@ -196,8 +197,8 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     l_ua = do + np.sqrt(max(do * do - o @ o + L1 * L1, 1e-9))
     elbow = joint + l_ua * d_ua
     upper_arm = np.array([
-        _pole(-0.95 * r_d),
-        _ring(-0.6 * r_d, 0.8 * r_d),
+        _pole(-cap),
+        _ring(-0.6 * cap, 0.8 * r_d),
         _ring(0.0, r_d, sa=0.95),
         _ring(0.5 * l_ua, r_u, sa=0.9, sf=1.05, sb=1.05),
         _ring(0.85 * l_ua, 0.86 * r_u),

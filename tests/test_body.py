@@ -170,6 +170,15 @@ def test_other_resolutions_are_exact_too():
             assert abs(body.achieved[name] - getattr(m, name)) < 1e-3
 
 
+def test_build_refuses_out_of_range():
+    with pytest.raises(ValueError, match=r"height=120 cm is outside \[140, 210\] cm"):
+        build_body(Measurements(height=120.0, chest=100.0, waist=88.0, hips=100.0))
+    with pytest.raises(ValueError, match="inseam/height"):
+        build_body(Measurements(height=175.0, chest=100.0, waist=88.0, hips=100.0, inseam=100.0))
+    with pytest.raises(ValueError, match="elbow_bend"):
+        build_body(Measurements(height=175.0, chest=100.0, waist=88.0, hips=100.0), Pose(elbow_bend=170.0))
+
+
 def test_default_resolution_is_about_ten_thousand_vertices(average):
     assert 9000 <= len(average.vertices) <= 11000
     assert DEFAULT_RESOLUTION == 30

@@ -20,7 +20,7 @@ from tryon.body import nurbs
 from tryon.body.kernels import face_vertex_normals
 from tryon.body.maps import build_part_maps
 from tryon.body.measure import horizontal_breadth, horizontal_girth, hull_perimeter, mesh_edges, section_girth
-from tryon.body.params import Measurements, Pose, complete
+from tryon.body.params import Measurements, Pose, check_measurements, check_pose, complete
 from tryon.body.shape import A, B, F, MEASURED_STATIONS, SHAPE_NAMES, body_layout, station_params
 from tryon.body.types import PART_NAMES, Body
 
@@ -164,9 +164,13 @@ def _fit_girths(stations: np.ndarray, measured: dict, targets: dict, ring: np.nd
 
 def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_RESOLUTION) -> Body:
     """Build the body for measurements ``m`` (cm) in ``pose`` (degrees); mesh resolution ``resolution``
-    (grid intervals across the front of the torso; ~11.3 * resolution^2 vertices). See the module doc."""
+    (grid intervals across the front of the torso; ~11.3 * resolution^2 vertices). See the module doc.
+    Raises ValueError, naming the field and its range, for measurements or angles out of range."""
     if not MIN_RESOLUTION <= resolution <= MAX_RESOLUTION:
         raise ValueError(f"resolution={resolution} is outside [{MIN_RESOLUTION}, {MAX_RESOLUTION}]")
+    problems = check_measurements(m) + check_pose(pose)
+    if problems:
+        raise ValueError("; ".join(problems))
     full = complete(m)
     g = grid(int(resolution))
     layout = body_layout(full, pose)

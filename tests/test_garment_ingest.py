@@ -186,3 +186,16 @@ def test_too_many_faces_refused(tshirt):
     with pytest.raises(GarmentError, match="more than the limit") as err:
         load_garment(obj_bytes(tshirt.vertices, tshirt.faces), "t.obj", "m", max_faces=1000)
     assert err.value.status == 413
+
+
+def test_short_wide_skirt_is_not_taken_for_z_up():
+    # a 20 cm mini skirt is shallower than it is deep; its hem is horizontal, so it is y up
+    skirt = garment_mesh("skirt", "M")
+    v = skirt.vertices * [1.0, 0.4, 1.0]
+    assert np.ptp(v[:, 1]) < np.ptp(v[:, 2]) / 1.5
+    m = load_garment(obj_bytes(v, skirt.faces), "mini.obj", "m")
+    assert not any("z up" in n for n in m.notes)
+    z_up = np.column_stack([v[:, 0], -v[:, 2], v[:, 1]])
+    m = load_garment(obj_bytes(z_up, skirt.faces), "mini.obj", "m")
+    assert any("z up" in n for n in m.notes)
+    assert np.allclose(m.vertices, v, atol=1e-4)

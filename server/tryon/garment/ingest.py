@@ -48,6 +48,10 @@ DEGENERATE_AREA_FRACTION = 1e-6
 # More than this fraction of the vertices used by no face means faces were cut off (a truncated file);
 # exporters leave a few stray vertices at most.
 MAX_UNUSED_VERTEX_FRACTION = 0.2
+# The largest opening's plane normal within 32 degrees of an axis (cos 0.85) makes that axis "up";
+# the opening counts as a plane if its thickness is under 40% of its second extent.
+LOOP_AXIS_COS = 0.85
+LOOP_FLATNESS = 0.4
 # A panel is flat when its thickness (smallest principal extent) is under 1% of its size.
 FLAT_PANEL_RATIO = 0.01
 
@@ -113,7 +117,7 @@ def load_garment(data: bytes, filename: str, units: str = "auto", max_faces: int
     vertices, faces = _clean(vertices, faces, notes)
     _refuse_sewing_pattern(vertices, faces)
     vertices, faces = _largest_components(vertices, faces, notes)
-    vertices = _orient_y_up(vertices, notes)
+    vertices = _orient_y_up(vertices, faces, notes)
     vertices, units, guessed = _to_metres(vertices, units, notes)
     return CleanMesh(vertices=vertices, faces=faces, units=units, units_guessed=guessed, notes=notes)
 
@@ -275,18 +279,46 @@ def _largest_components(vertices: np.ndarray, faces: np.ndarray, notes: list[str
 # --- orientation and units ------------------------------------------------------------------------
 
 
-def _orient_y_up(vertices: np.ndarray, notes: list[str]) -> np.ndarray:
-    """Rotate a clearly z-up garment to y up.
+def _orient_y_up(vertices: np.ndarray, faces: np.ndarray, notes: list[str]) -> np.ndarray:
+    """Rotate a clearly z-up garment to y up, (x, y, z) -> (x, z, -y) (-90 degrees about x), so that
+    the front (-y in z-up tools such as Blender and 3ds Max) faces +z.
 
-    A garment is thin front to back: y up means depth (z) is the smallest extent. If instead y is the
-    smallest and z is clearly the tallest-looking axis (>= 1.5x y), the file is z up (Blender, 3ds Max):
-    rotate -90 degrees about x, (x, y, z) -> (x, z, -y), so that the front (-y in z-up tools) faces +z.
+    The evidence is the garment's largest opening (hem, waist): it is horizontal when worn, so its
+    plane's normal is the up axis. Without a usable opening, the extents decide: a garment is thin front
+    to back, so y up means z is not the largest extent while y is the smallest.
     """
-    ext = np.ptp(vertices, axis=0)
-    if ext[1] < ext[2] and ext[1] <= ext[0] and ext[2] >= 1.5 * ext[1]:
+    up = _largest_opening_normal(vertices, faces)
+    if up is not None:
+        z_up = abs(up[2]) > LOOP_AXIS_COS and np.ptp(vertices[:, 2]) > np.ptp(vertices[:, 1])
+    else:
+        ext = np.ptp(vertices, axis=0)
+        z_up = ext[1] < ext[2] and ext[1] <= ext[0] and ext[2] >= 1.5 * ext[1]
+    if z_up:
         notes.append("the file is z up: rotated to y up")
         return np.column_stack([vertices[:, 0], vertices[:, 2], -vertices[:, 1]])
     return vertices
+
+
+def _largest_opening_normal(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
+    """Unit normal of the plane of the longest boundary loop, if that loop is roughly planar."""
+    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1).astype(np.int64)
+    n = len(vertices)
+    key, count = np.unique(e[:, 0] * n + e[:, 1], return_counts=True)
+    b = key[count == 1]
+    if len(b) < 3:
+        return None
+    a, c = b // n, b % n
+    graph = scipy.sparse.coo_matrix((np.ones(len(b)), (a, c)), shape=(n, n))
+    _, label = scipy.sparse.csgraph.connected_components(graph, directed=False)
+    length = np.bincount(label[a], weights=np.linalg.norm(vertices[a] - vertices[c], axis=1), minlength=n)
+    loop = np.unique(np.concatenate([a, c])[label[np.concatenate([a, c])] == np.argmax(length)])
+    if len(loop) < 6:
+        return None
+    pts = vertices[loop] - vertices[loop].mean(axis=0)
+    _, spread, vt = np.linalg.svd(pts, full_matrices=False)
+    if spread[2] > LOOP_FLATNESS * spread[1]:
+        return None  # not a plane (a wavy or folded edge): no evidence
+    return vt[2]
 
 
 def _to_metres(vertices: np.ndarray, units: str, notes: list[str]) -> tuple[np.ndarray, str, bool]:

@@ -11,10 +11,11 @@ so the surface row at a station's parameter *is* that station's rational section
 
 Evaluator choice: the basis functions are computed once per sample grid with scipy
 (``BSpline.design_matrix``) and cached; a surface is then ``Bu @ Pw @ Bv^T`` on the homogeneous
-control points, i.e. two small dense matrix products per part, followed by the division by w. For a
-10,000-vertex body that is ~0.1 ms of BLAS work, against milliseconds for scipy's per-point
-evaluation (``NdBSpline`` / ``bisplev`` recompute the basis for every point) and a numba kernel would
-only redo what BLAS already does well. Nothing here loops over points in Python.
+control points, i.e. two small dense matrix products per part, followed by the division by w.
+Measured on the default 10,000-vertex body (all 20 surfaces, 2 shared cores): 0.40 ms including the
+control points, against 1.95 ms for scipy's ``NdBSpline`` evaluating the same surfaces point by point
+(it recomputes the basis at every point). A numba kernel would only redo what BLAS does well here.
+Nothing loops over points in Python.
 """
 
 from __future__ import annotations

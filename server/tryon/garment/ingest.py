@@ -289,7 +289,7 @@ def _orient_y_up(vertices: np.ndarray, faces: np.ndarray, notes: list[str]) -> n
     """
     up = _largest_opening_normal(vertices, faces)
     if up is not None:
-        z_up = abs(up[2]) > LOOP_AXIS_COS and np.ptp(vertices[:, 2]) > np.ptp(vertices[:, 1])
+        z_up = abs(up[2]) > LOOP_AXIS_COS
     else:
         ext = np.ptp(vertices, axis=0)
         z_up = ext[1] < ext[2] and ext[1] <= ext[0] and ext[2] >= 1.5 * ext[1]

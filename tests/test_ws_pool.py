@@ -114,9 +114,8 @@ def test_result_cache_is_a_bounded_lru():
 
 def test_frame_encoding_roundtrip():
     v = np.random.default_rng(0).normal(size=(5, 3))
-    data = encode_frame(7, 42, v)
-    assert len(data) == encoding(5)["bytes_per_frame"] == FRAME_HEADER.size + 5 * 12
-    frame, step = FRAME_HEADER.unpack_from(data)
-    assert (frame, step) == (7, 42)
+    data = encode_frame(7, 42, v, 1.25)
+    assert len(data) == encoding(5)["bytes_per_frame"] == 12 + 5 * 12
+    assert FRAME_HEADER.unpack_from(data) == (7, 42, 1.25)
     back = np.frombuffer(data, dtype="<f4", offset=FRAME_HEADER.size).reshape(-1, 3)
     np.testing.assert_allclose(back, v, rtol=1e-6, atol=1e-7)

@@ -6,10 +6,10 @@ Protocol (one try-on per connection):
    ``fps`` (frames per second of wall time it wants, 1-60, default 30);
 2. the server answers one JSON ``{"type": "init", ...}``: the garment's full-mesh ``faces`` and
    ``vertex_count``, the ``body`` mesh, the garment's catalogue entry and the frame ``encoding``;
-3. then binary frames, each the FULL mesh's vertex positions: an 8-byte header (little-endian uint32
-   frame number, counting from 0, then uint32 simulation step) followed by ``vertex_count * 3``
-   little-endian float32 x, y, z in metres (``8 + 12 * vertex_count`` bytes). The last frame is the
-   final state;
+3. then binary frames, each the FULL mesh's vertex positions: a 12-byte header (little-endian uint32
+   frame number, counting 0, 1, 2, ... over the frames sent; uint32 simulation step; float32 seconds
+   since the request was accepted) followed by ``vertex_count * 3`` little-endian float32 x, y, z in
+   metres (``12 + 12 * vertex_count`` bytes). The last frame is the final state;
 4. then one JSON ``{"type": "done", "metrics": {...}, "strain": [...], "cached": bool, ...}`` and a
    normal close (1000).
 
@@ -21,7 +21,12 @@ Flow control: the simulation runs on a pool thread; its ``on_frame`` hands at mo
 second to the event loop (``loop.call_soon_threadsafe``) into a latest-frame slot, expanding coarse ->
 full only for those. The sender coroutine sends the slot's content when the socket is free, so a slow
 client gets fewer frames instead of a queue (intermediate frames are dropped, the final one always goes
-out). When the client goes away the run stops at its next step.
+out), and no two frames leave less than 1 / fps apart. When the client goes away the run stops at its
+next step; a job still waiting for a worker is skipped.
+
+A request equal to an earlier finished one (garment, measurements, pose, settings; see
+``tryon.api.pool.request_key``) is served from the result cache: init, the final frame, done with
+``"cached": true``.
 """
 
 from __future__ import annotations
@@ -44,7 +49,7 @@ from tryon.api.pool import CachedTryOn, PoolFull, RunGuard, get_pool, get_result
 router = APIRouter(tags=["ws"])
 log = logging.getLogger(__name__)
 
-FRAME_HEADER = struct.Struct("<II")  # frame number, simulation step
+FRAME_HEADER = struct.Struct("<IIf")  # frame number, simulation step, seconds since the request
 CLOSE_NORMAL = 1000
 CLOSE_TRY_AGAIN_LATER = 1013  # RFC 6455 registry: "Try Again Later"
 # Seconds to wait for the client's request before giving up on the connection.
@@ -57,16 +62,22 @@ def encoding(vertex_count: int) -> dict:
         "type": "float32",
         "byte_order": "little",
         "header_bytes": FRAME_HEADER.size,
-        "header": ["frame:uint32", "step:uint32"],
+        "header": ["frame:uint32", "step:uint32", "time_s:float32"],
         "layout": "xyz per vertex, metres",
         "components": 3,
         "bytes_per_frame": FRAME_HEADER.size + 12 * vertex_count,
     }
 
 
-def encode_frame(frame: int, step: int, vertices: np.ndarray) -> bytes:
-    """One binary frame: header + (n, 3) positions as little-endian float32."""
-    return FRAME_HEADER.pack(frame, max(int(step), 0)) + np.ascontiguousarray(vertices, dtype="<f4").tobytes()
+def encode_positions(vertices: np.ndarray) -> bytes:
+    """(n, 3) positions as little-endian float32 bytes (x, y, z per vertex)."""
+    return np.ascontiguousarray(vertices, dtype="<f4").tobytes()
+
+
+def encode_frame(frame: int, step: int, vertices: np.ndarray | bytes, time_s: float = 0.0) -> bytes:
+    """One binary frame: header (frame number, step, seconds since the request) + positions."""
+    payload = vertices if isinstance(vertices, bytes) else encode_positions(vertices)
+    return FRAME_HEADER.pack(frame, max(int(step), 0), time_s) + payload
 
 
 def validation_reason(error: ValidationError) -> str:
@@ -167,7 +178,9 @@ def run_live(app: Any, request: Any, session: LiveSession, guard: RunGuard):
     from tryon.sim.run import drape
 
     body, model, sim_settings = prepare(app, request)
-    session.offer_init(init_message(body, model, sim_settings), model)
+    # serialised here, on the worker: the init message carries two meshes (~0.5 MB of JSON), too much
+    # work for the event loop
+    session.offer_init(json.dumps(init_message(body, model, sim_settings), separators=(",", ":")), model)
     result = drape(body, model, sim_settings, guard)
     return result, done_message(result, guard)
 
@@ -185,7 +198,8 @@ def failure_reason(error: BaseException) -> str:
 class LiveSession:
     """The state shared by one connection's simulation thread and its sender coroutine.
 
-    The thread writes through ``call_soon_threadsafe`` only; the loop owns every field below.
+    The thread hands things over through ``call_soon_threadsafe`` only; the loop owns the fields.
+    The latest-frame slot holds ``(step, positions bytes)``; the sender numbers the frames it sends.
     """
 
     def __init__(self, loop: asyncio.AbstractEventLoop, fps: int):
@@ -193,8 +207,8 @@ class LiveSession:
         self.interval_s = 1.0 / fps
         self.cancelled = threading.Event()  # read by the simulation thread's RunGuard
         self.wake = asyncio.Event()
-        self.init: dict | None = None
-        self.latest: bytes | None = None  # the latest-frame slot
+        self.init: str | None = None  # the init message, as JSON text
+        self.latest: tuple[int, bytes] | None = None  # the latest-frame slot
         self.finished = False
         self.frames_sent = 0
         self.frames_offered = 0
@@ -203,46 +217,38 @@ class LiveSession:
         self.started_at = time.monotonic()
         # simulation-thread side
         self._next_offer_at = 0.0
-        self._frame_no = 0
         self._model: Any = None
 
     # -- called on the simulation thread ---------------------------------------------------------
-    def offer_init(self, message: dict, model: Any) -> None:
+    def offer_init(self, message: str, model: Any) -> None:
         self._model = model
         self.loop.call_soon_threadsafe(self._set_init, message)
 
     def on_frame(self, step: int, coarse: np.ndarray) -> bool:
-        """Hand a frame over when one is due (at most ``fps`` per second); never blocks."""
+        """Hand a frame over when one is due (at most ``fps`` per second); never blocks. Only these
+        frames are expanded to the full mesh."""
         now = time.monotonic()
         if now < self._next_offer_at or self._model is None:
             return True
         self._next_offer_at = now + self.interval_s
-        data = encode_frame(self._frame_no, step, self._model.expand(coarse))
-        self._frame_no += 1
-        self.loop.call_soon_threadsafe(self._put_frame, data)
+        payload = encode_positions(self._model.expand(coarse))
+        self.loop.call_soon_threadsafe(self._put_frame, (step, payload))
         return True
 
-    def final_frame(self, step: int, vertices: np.ndarray) -> bytes:
-        data = encode_frame(self._frame_no, step, vertices)
-        self._frame_no += 1
-        return data
-
     # -- called on the event loop ------------------------------------------------------------------
-    def _set_init(self, message: dict) -> None:
+    def _set_init(self, message: str) -> None:
         self.init = message
         self.wake.set()
 
-    def _put_frame(self, data: bytes) -> None:
-        self.latest = data  # replaces an unsent frame: a slow client never gets a backlog
+    def _put_frame(self, frame: tuple[int, bytes]) -> None:
+        self.latest = frame  # replaces an unsent frame: a slow client never gets a backlog
         self.frames_offered += 1
         self.wake.set()
 
-    def finish(self, last_frame: bytes | None) -> None:
-        if last_frame is not None:
-            self.latest = last_frame
-            self.frames_offered += 1
+    def finish(self, step: int, vertices: np.ndarray) -> None:
+        """The final state: always sent, replacing any frame still waiting."""
+        self._put_frame((step, encode_positions(vertices)))
         self.finished = True
-        self.wake.set()
 
     def stop(self) -> None:
         self.cancelled.set()
@@ -251,9 +257,10 @@ class LiveSession:
 
 
 async def _sender(ws: WebSocket, session: LiveSession) -> None:
-    """Send init, then the latest frame whenever one is due and the socket is free, until finished."""
+    """Send init, then the latest frame whenever one is due (1 / fps after the last one) and the socket
+    is free, until finished."""
     init_sent = False
-    last_sent = 0.0
+    last_sent = -1e9
     try:
         while True:
             await session.wake.wait()
@@ -261,17 +268,21 @@ async def _sender(ws: WebSocket, session: LiveSession) -> None:
             if session.cancelled.is_set():
                 return
             if not init_sent and session.init is not None:
-                await ws.send_text(json.dumps(session.init, separators=(",", ":")))
+                await ws.send_text(session.init)
                 init_sent = True
             if init_sent and session.latest is not None:
                 wait = last_sent + session.interval_s - time.monotonic()
-                if wait > 0 and not session.finished:
+                if wait > 0:
                     await asyncio.sleep(wait)  # a newer frame may replace this one meanwhile
-                data, session.latest = session.latest, None
+                    if session.cancelled.is_set():
+                        return
+                (step, payload), session.latest = session.latest, None
+                now = time.monotonic()
+                data = encode_frame(session.frames_sent, step, payload, now - session.started_at)
                 await ws.send_bytes(data)
-                last_sent = time.monotonic()
+                last_sent = now
                 if session.first_frame_at is None:
-                    session.first_frame_at = last_sent
+                    session.first_frame_at = now
                 session.frames_sent += 1
                 session.bytes_sent += len(data)
             if session.finished and session.latest is None:
@@ -311,7 +322,7 @@ async def _close(ws: WebSocket) -> None:
 
 async def _replay(ws: WebSocket, cached: CachedTryOn) -> None:
     """Serve a cached try-on: init, the final frame, done with ``cached: true``."""
-    await ws.send_text(json.dumps(cached.extra["init"], separators=(",", ":")))
+    await ws.send_text(cached.extra["init"])
     frame = encode_frame(0, cached.metrics.get("steps", 0), cached.vertices)
     await ws.send_bytes(frame)
     done = {**cached.extra["done"], "cached": True, "frames_sent": 1, "bytes_sent": len(frame)}
@@ -398,7 +409,7 @@ async def _serve(ws: WebSocket) -> None:
         if session.cancelled.is_set():
             return  # client gone: nothing to send, nothing to cache (the run was cut short)
         result, done = outcome
-        session.finish(session.final_frame(done["metrics"].get("steps", 0), result.vertices))
+        session.finish(done["metrics"].get("steps", 0), result.vertices)
         await sender
         if session.cancelled.is_set():
             return

@@ -1,0 +1,136 @@
+"""Issue 7: the try-on page in headless Chromium (Playwright) against a real ``tryon serve`` process.
+
+Load the page, pick a garment, change a measurement, try on, wait for the final metrics, check that frames
+arrived and that the canvas shows the garment, toggle the fit map, download the garment, show a server
+error in words, and no console errors. The final state is kept as ``test-artifacts/tryon-final.png``.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from conftest import serve_process
+from tryon.garment.catalogue import Catalogue
+from tryon.garment.generate import garment_mesh, obj_text
+
+pytestmark = pytest.mark.e2e
+
+ROOT = Path(__file__).resolve().parents[1]
+ARTIFACTS = ROOT / "test-artifacts"
+# Chromium's software GL says this about readPixels (our canvas read-back); it is not a page error.
+BENIGN = ("GPU stall due to ReadPixels",)
+
+
+@pytest.fixture(scope="module")
+def shop(tmp_path_factory) -> str:
+    """A server whose catalogue has a T-shirt in S and M and a skirt in M (generated here)."""
+    root = tmp_path_factory.mktemp("page")
+    catalogue = Catalogue(root / "data")
+    for kind, size, name, category in (("tshirt", "S", "T-shirt S", "top"), ("tshirt", "M", "T-shirt M", "top"),
+                                       ("skirt", "M", "A-line skirt M", "bottom")):
+        path = root / f"{kind}-{size}.obj"
+        path.write_text(obj_text(garment_mesh(kind, size), name))
+        catalogue.ingest(path, name=name, category=category, size=size, units="m")
+    with serve_process(root / "data") as url:
+        yield url
+
+
+def canvas_pixels(page) -> np.ndarray:
+    """The WebGL canvas as an (h, w, 3) uint8 array (the renderer keeps its drawing buffer)."""
+    url = page.evaluate("document.querySelector('#viewport canvas').toDataURL('image/png')")
+    data = base64.b64decode(url.split(",", 1)[1])
+    return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
+
+
+def changed_fraction(a: np.ndarray, b: np.ndarray, threshold: int = 24) -> float:
+    return float((np.abs(a.astype(int) - b.astype(int)).max(axis=2) > threshold).mean())
+
+
+@pytest.fixture
+def page(browser, shop):
+    context = browser.new_context(viewport={"width": 1400, "height": 860}, accept_downloads=True)
+    page = context.new_page()
+    page.problems = []
+    page.on("console", lambda m: m.type in ("error", "warning") and not any(b in m.text for b in BENIGN)
+            and page.problems.append(f"console {m.type}: {m.text}"))
+    page.on("pageerror", lambda e: page.problems.append(f"page error: {e}"))
+    page.on("requestfailed", lambda r: page.problems.append(f"request failed: {r.url}"))
+    page.goto(shop + "/")
+    page.wait_for_function("window.tryon && window.tryon.state === 'ready' && window.tryon.bodyRequests > 0",
+                           timeout=60_000)
+    yield page
+    context.close()
+
+
+def test_try_on_in_the_browser(page):
+    # the catalogue: grouped by garment, one chip per size
+    rows = page.locator("#garments .garment")
+    assert rows.count() == 2
+    assert page.locator("#garments .size").count() == 3
+
+    # pick the T-shirt in S, change the chest, wait for the rebuilt body
+    page.get_by_role("radio", name="T-shirt, size S").click()
+    assert page.evaluate("window.tryon.garmentId") == page.locator(".size[aria-checked='true']").get_attribute("data-id")
+    bodies = page.evaluate("window.tryon.bodyRequests")
+    page.fill("#field-chest", "104")
+    page.wait_for_function(f"window.tryon.bodyRequests > {bodies}", timeout=30_000)
+    assert "chest 10" in page.locator("#body-status").inner_text()  # the achieved girth, about 104 cm
+    page.wait_for_timeout(300)
+    before = canvas_pixels(page)
+
+    page.click("#tryon-button")
+    page.wait_for_function("window.tryon.state === 'done' || window.tryon.state === 'error'", timeout=120_000)
+    state = page.evaluate("({s: window.tryon.state, f: window.tryon.framesReceived, e: window.tryon.lastError,"
+                          " n: window.tryon.init && window.tryon.init.vertex_count,"
+                          " m: window.tryon.done && window.tryon.done.metrics})")
+    assert state["s"] == "done", state["e"]
+    assert state["f"] >= 2  # live frames, then the final one
+    assert state["m"]["steps"] > 0
+    metrics = page.locator("#metrics").inner_text()
+    for words in ("Time", "Steps", "Penetration", "Max strain", "Rest reached"):
+        assert words in metrics
+    assert str(state["m"]["steps"]) in metrics
+
+    page.wait_for_timeout(300)
+    dressed = canvas_pixels(page)
+    assert changed_fraction(before, dressed) > 0.01  # the garment is on screen
+
+    page.check("#fitmap-toggle")
+    assert page.locator("#legend").is_visible()
+    assert "%" in page.locator("#legend-max").inner_text()
+    page.wait_for_timeout(300)
+    fitmap = canvas_pixels(page)
+    assert changed_fraction(dressed, fitmap) > 0.002  # the garment's colours changed
+    ARTIFACTS.mkdir(exist_ok=True)
+    page.screenshot(path=str(ARTIFACTS / "tryon-final.png"))
+
+    with page.expect_download() as download:
+        page.click("#download-garment")
+    path = download.value.path()
+    assert download.value.suggested_filename.endswith(".glb")
+    assert Path(path).read_bytes()[:4] == b"glTF"
+    with page.expect_download() as download:
+        page.click("#download-body")
+    assert Path(download.value.path()).read_bytes()[:4] == b"glTF"
+
+    assert page.problems == []
+
+
+def test_server_errors_are_shown_in_words(page):
+    # in range one by one, but not together: the server refuses the body and says why
+    page.fill("#field-chest", "70")
+    page.fill("#field-waist", "150")
+    page.wait_for_selector("#notice:not([hidden])", timeout=30_000)
+    text = page.locator("#notice-text").inner_text()
+    assert "waist" in text.lower() and "implausible" in text.lower()
+    # out of range: marked on the field, and nothing to try on
+    page.fill("#field-height", "500")
+    assert page.get_attribute("#field-height", "aria-invalid") == "true"
+    assert page.locator("#tryon-button").is_disabled()
+    assert [p for p in page.problems if "422" not in p] == []  # the refused request is the only noise

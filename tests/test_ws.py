@@ -1,0 +1,233 @@
+"""Issue 6 end to end: the live try-on over a real WebSocket to a real ``tryon serve`` process.
+
+One server for the module (session scope), with a tiny pool (1 worker, no waiting slot) so that overload
+is easy to reach, and a short wall-clock limit so that "long" simulations are bounded. Each test starts
+from an idle pool (``wait_idle``).
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import struct
+import time
+from dataclasses import dataclass, field
+
+import httpx
+import numpy as np
+import pytest
+from websockets.exceptions import ConnectionClosed
+from websockets.sync.client import connect
+
+from conftest import serve_process
+from tryon.garment.catalogue import Catalogue
+from tryon.garment.generate import garment_mesh, obj_text
+
+pytestmark = pytest.mark.e2e
+
+WALL_LIMIT_S = 4.0  # the server's per-simulation limit (TRYON_SIM_WALL_LIMIT_S)
+BODY = {"height": 170.0, "chest": 96.0, "waist": 82.0, "hips": 100.0}
+SHORT = {"max_steps": 60}  # a quick drape (a few hundred ms)
+LONG = {"max_steps": 100_000}  # runs until stopped (client gone, or the wall-clock limit)
+
+
+@dataclass
+class Live:
+    url: str
+    garment_id: str
+
+    @property
+    def ws(self) -> str:
+        return "ws" + self.url[len("http"):] + "/ws/tryon"
+
+    def health(self) -> dict:
+        return httpx.get(f"{self.url}/api/health", timeout=5).json()
+
+    def wait_idle(self, timeout_s: float = 10.0) -> float:
+        """Seconds until no simulation runs or waits (fails after ``timeout_s``)."""
+        t0 = time.monotonic()
+        while True:
+            sims = self.health()["simulations"]
+            if sims["running"] == 0 and sims["waiting"] == 0:
+                return time.monotonic() - t0
+            assert time.monotonic() - t0 < timeout_s, f"pool still busy: {sims}"
+            time.sleep(0.02)
+
+    def request(self, settings: dict, **body) -> dict:
+        return {"garment_id": self.garment_id, "measurements": {**BODY, **body}, "settings": settings}
+
+
+@dataclass
+class Stream:
+    init: dict | None = None
+    frames: list = field(default_factory=list)  # (frame number, step, server time s, bytes)
+    done: dict | None = None
+    error: dict | None = None
+    close_code: int | None = None
+    close_reason: str = ""
+    started: float = 0.0
+
+    def positions(self, i: int = -1) -> np.ndarray:
+        header = self.init["encoding"]["header_bytes"]
+        return np.frombuffer(self.frames[i][3], dtype="<f4", offset=header).reshape(-1, 3)
+
+
+def run_stream(live: Live, message, max_frames: int | None = None, timeout_s: float = 60.0) -> Stream:
+    """Send ``message`` (dict: as JSON; str/bytes: as is) and record everything until the close."""
+    s = Stream(started=time.monotonic())
+    with connect(live.ws, max_size=None, open_timeout=10) as ws:
+        ws.send(message if isinstance(message, (str, bytes)) else json.dumps(message))
+        try:
+            while True:
+                m = ws.recv(timeout=timeout_s)
+                if isinstance(m, bytes):
+                    frame, step, sent_s = struct.unpack_from("<IIf", m)
+                    s.frames.append((frame, step, sent_s, m))
+                    if max_frames is not None and len(s.frames) >= max_frames:
+                        return s  # leave half way: the context manager closes the socket
+                    continue
+                d = json.loads(m)
+                setattr(s, {"init": "init", "done": "done", "error": "error"}[d["type"]], d)
+        except ConnectionClosed:
+            pass
+        s.close_code = ws.close_code
+        s.close_reason = ws.close_reason or ""
+    return s
+
+
+@pytest.fixture(scope="session")
+def live(tmp_path_factory) -> Live:
+    """A served catalogue with one small generated garment (a size-S T-shirt, ~2,700 vertices)."""
+    root = tmp_path_factory.mktemp("ws")
+    source = root / "test-tee-s.obj"
+    source.write_text(obj_text(garment_mesh("tshirt", "S"), "test tee"))
+    data = root / "data"
+    meta = Catalogue(data).ingest(source, name="Test tee S", category="top", size="S", units="m")
+    env = {"TRYON_SIM_WORKERS": "1", "TRYON_SIM_QUEUE": "0", "TRYON_SIM_WALL_LIMIT_S": str(WALL_LIMIT_S)}
+    with serve_process(data, env=env) as url:
+        server = Live(url, meta.id)
+        # warm-up (numba compiles on first use): a 1-step try-on, not part of any test's timing
+        warm = run_stream(server, server.request({"max_steps": 1}, height=150.0), timeout_s=300)
+        assert warm.done is not None, warm.error
+        yield server
+
+
+def test_full_stream_matches_rest(live: Live):
+    live.wait_idle()
+    request = live.request(SHORT, chest=97.0)
+    s = run_stream(live, {**request, "fps": 60})
+    assert s.error is None and s.close_code == 1000
+    init, done = s.init, s.done
+    n = init["vertex_count"]
+    assert n > 1000 and init["garment"]["id"] == live.garment_id and init["garment"]["category"] == "top"
+    faces = np.asarray(init["faces"])
+    assert faces.shape == (init["face_count"], 3) and faces.min() == 0 and faces.max() == n - 1
+    body = init["body"]
+    assert len(body["vertices"]) > 1000 and np.asarray(body["faces"]).max() == len(body["vertices"]) - 1
+    enc = init["encoding"]
+    assert enc["type"] == "float32" and enc["byte_order"] == "little" and enc["header_bytes"] == 12
+    assert enc["bytes_per_frame"] == 12 + 12 * n
+    assert len(s.frames) >= 3
+    assert all(len(f[3]) == enc["bytes_per_frame"] for f in s.frames)
+    numbers = [f[0] for f in s.frames]
+    steps = [f[1] for f in s.frames]
+    assert numbers == list(range(len(numbers))) and steps == sorted(steps)
+    assert steps[-1] == done["metrics"]["steps"] and done["cached"] is False
+    assert done["frames_sent"] == len(s.frames)
+    assert len(done["strain"]) == n
+    final = s.positions()
+    assert np.isfinite(final).all() and 0.5 < final[:, 1].mean() < 1.6  # on the torso of a 1.7 m body
+
+    r = httpx.post(f"{live.url}/api/tryon", json=request, timeout=120)
+    assert r.status_code == 200, r.text
+    rest = r.json()
+    for key in ("steps", "penetrating_vertices", "rest_reached"):
+        assert rest["metrics"][key] == done["metrics"][key], key
+    assert rest["metrics"]["max_strain"] == pytest.approx(done["metrics"]["max_strain"], abs=1e-4)
+    np.testing.assert_allclose(np.asarray(rest["vertices"]), final, atol=2e-4)  # JSON rounding + float32
+
+    again = run_stream(live, {**request, "fps": 60})  # the same request: from the result cache
+    assert again.done["cached"] is True and len(again.frames) == 1
+    assert again.frames[0][3][12:] == s.frames[-1][3][12:]
+    assert again.done["metrics"] == done["metrics"]
+
+
+def test_frames_respect_the_requested_rate(live: Live):
+    live.wait_idle()
+    fps = 8
+    s = run_stream(live, {**live.request(LONG, chest=98.0), "fps": fps}, max_frames=6)
+    sent = np.array([f[2] for f in s.frames])  # the server's send times (frame header)
+    # at most fps frames per second of wall time (float32 seconds: 1 ms of slack)
+    assert np.diff(sent).min() > 1 / fps - 1e-3, np.diff(sent)
+    assert len(s.frames) == 6 and sent[0] < 5.0
+    live.wait_idle()
+
+
+def test_client_leaving_half_way_stops_the_simulation(live: Live):
+    live.wait_idle()
+    before = live.health()["simulations"]
+    s = run_stream(live, {**live.request(LONG, chest=99.0), "fps": 30}, max_frames=3)
+    assert s.init is not None and len(s.frames) == 3
+    left = time.monotonic()
+    assert live.health()["simulations"]["submitted"] == before["submitted"] + 1
+    freed = live.wait_idle(timeout_s=WALL_LIMIT_S)  # well before the wall-clock limit would stop it
+    assert time.monotonic() - left < 1.5, f"simulation kept running {freed:.2f} s after the client left"
+    # and the worker is free for the next shopper
+    ok = run_stream(live, {**live.request(SHORT, chest=99.5), "fps": 30})
+    assert ok.done is not None
+
+
+@pytest.mark.parametrize("message, words", [
+    ("{not json", "not valid JSON"),
+    ("[1, 2, 3]", "JSON object"),
+    (b"\x00\x01", "binary"),
+    ({"garment_id": "x", "measurements": {**BODY, "height": 500}}, "height"),
+    ({"measurements": BODY}, "garment_id"),
+    ({"garment_id": "x", "measurements": BODY, "fps": 0}, "fps"),
+    ({"garment_id": "nope", "measurements": BODY}, "nope"),
+])
+def test_bad_requests_get_an_error_in_words(live: Live, message, words):
+    live.wait_idle()
+    s = run_stream(live, message, timeout_s=30)
+    assert s.error is not None and words.lower() in s.error["reason"].lower(), s.error
+    assert s.init is None and not s.frames and s.done is None
+    assert s.close_code == 1000
+    assert live.health()["status"] == "ok"  # the server carries on
+
+
+def test_overload_is_refused_at_once_and_health_stays_fast(live: Live):
+    live.wait_idle()
+    with connect(live.ws, max_size=None) as busy:
+        busy.send(json.dumps({**live.request(LONG, chest=101.0), "fps": 30}))
+        assert json.loads(busy.recv(timeout=30))["type"] == "init"
+        busy.recv(timeout=30)  # a first frame: it is simulating now
+        assert live.health()["simulations"]["running"] == 1
+
+        t0 = time.monotonic()
+        refused = run_stream(live, {**live.request(SHORT, chest=102.0), "fps": 30}, timeout_s=10)
+        assert time.monotonic() - t0 < 1.0
+        assert refused.close_code == 1013 and "busy" in refused.error["reason"]
+        r = httpx.post(f"{live.url}/api/tryon", json=live.request(SHORT, chest=102.0), timeout=10)
+        assert r.status_code == 503 and int(r.headers["Retry-After"]) > 0
+
+        latencies = []
+        with httpx.Client(timeout=5) as client:
+            for _ in range(20):
+                t = time.perf_counter()
+                assert client.get(f"{live.url}/api/health").status_code == 200
+                latencies.append(time.perf_counter() - t)
+                time.sleep(0.02)
+        # a few tens of milliseconds while a simulation runs (2 shared cores: some slack on the worst one)
+        assert statistics.median(latencies) < 0.05 and max(latencies) < 0.25, latencies
+    live.wait_idle(timeout_s=3)
+
+
+def test_wall_clock_limit_stops_a_long_simulation_and_says_so(live: Live):
+    live.wait_idle()
+    cached_before = live.health()["result_cache"]["entries"]
+    s = run_stream(live, {**live.request(LONG, chest=103.0), "fps": 2}, timeout_s=WALL_LIMIT_S + 30)
+    assert s.done is not None, s.error
+    assert s.done["timed_out"] is True and s.done["stopped_by"] == "wall_limit"
+    assert s.done["metrics"]["steps"] < LONG["max_steps"]
+    assert WALL_LIMIT_S * 0.9 < time.monotonic() - s.started < WALL_LIMIT_S + 10
+    assert live.health()["result_cache"]["entries"] == cached_before  # a cut-short result is not cached

@@ -61,7 +61,8 @@ class BodyCollider:
         self.cell_rmax = np.empty(len(self.cell_start) - 1)
         self.plain_rmax = np.empty(len(self.cell_start) - 1)
         self.scale = 1.0
-        self.arm_turn = {}
+        # how far beyond its cell each cell's face list reaches around the offset surface, m (>= 0)
+        self.cover = max(0.0, float(m.margin) - self.margin)
         self._pose_vertices = self.rest_vertices
         self._pose_normals = self.rest_normals
         self.update()
@@ -111,12 +112,17 @@ class BodyCollider:
 
     # ------------------------------------------------------------------ queries
 
-    def collide(self, x, x_prev, inv_mass, active, parts, lam, friction, contact) -> int:
-        """Push points ``x`` out of the offset body in place; returns how many moved (see collide_points)."""
+    def collide(self, x, x_prev, inv_mass, active, parts, lam, mu_static, mu_kinetic, contact, x_pred=None,
+                near=0.0, planes=None) -> int:
+        """Push points ``x`` out of the offset body in place; returns how many moved (see collide_points).
+        planes: optional (has_plane (k,), plane_point (k, 3), plane_normal (k, 3)) filled with contact planes."""
+        if planes is None:
+            planes = (np.zeros(len(x), dtype=np.bool_), np.empty((len(x), 3)), np.empty((len(x), 3)))
         return collide_points(
-            x, x_prev, inv_mass, active, parts, self.obb_normals, self.obb_offsets, self.cyl_origin,
+            x, x_prev, x if x_pred is None else x_pred, inv_mass, active, parts, self.obb_normals, self.obb_offsets, self.cyl_origin,
             self.cyl_axes, self.cyl_zrange, self.cyl_shape, self.cell_base, self.cell_start, self.cell_faces,
-            self.cell_rmax, self.offset, self.faces, self.offset_normals, lam, friction, contact,
+            self.cell_rmax, self.offset, self.faces, self.offset_normals, lam, mu_static, mu_kinetic, contact,
+            self.cover, near, planes[0], planes[1], planes[2],
         )
 
     def depth(self, points: np.ndarray, parts: np.ndarray, offset: bool = False) -> np.ndarray:
@@ -133,5 +139,5 @@ class BodyCollider:
         return penetration_depth(
             np.ascontiguousarray(points, dtype=np.float64), parts, self.obb_normals, self.obb_offsets,
             self.cyl_origin, self.cyl_axes, self.cyl_zrange, self.cyl_shape, self.cell_base, self.cell_start,
-            self.cell_faces, rmax, bv, self.faces, fn,
+            self.cell_faces, rmax, bv, self.faces, fn, self.cover,
         )

@@ -229,7 +229,7 @@ def _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces,
 
 @njit(cache=True, nogil=True)
 def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape, cell_base,
-               cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal, scratch, trust):
+               cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal, scratch, trust, cover, near):
     """Is p inside part k of the (offset) body with vertices ``bv`` and face normals ``fn``?
 
     Returns the depth (m, > 0 inside, 0 outside); when inside, ``target`` gets the surface point p must
@@ -238,7 +238,10 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
     trust: m, the deepest radial answer taken without a second opinion. A point cannot have gone deeper
     in one step than it moved, so a deeper radial depth means it came in through another surface (the
     end of a part, the top of a shoulder, where the ray runs along the surface): then the nearest face
-    of the 3 x 3 neighbouring cells gives the way out if it is shorter.
+    of the cell (or of the 3 x 3 block) gives the way out if it is shorter.
+    cover: m, how far beyond its cell a cell's face list reaches (the maps' margin minus the offset).
+    near: m; a point outside but closer than this to the surface along its ray gets a negative depth
+    (minus its distance) and the surface point and normal, for a contact plane.
     """
     if not _in_obb(p[0], p[1], p[2], obb_normals, obb_offsets, k):
         return 0.0
@@ -255,11 +258,11 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
     if lz < z0 or lz > z1:
         return 0.0
     iz = min(int((lz - z0) / (z1 - z0) * n_z), n_z - 1)
-    theta = math.atan2(ly, lx)
-    it = min(int((theta + math.pi) / (2.0 * math.pi) * n_theta), n_theta - 1)
     r = math.sqrt(lx * lx + ly * ly)
+    theta = math.atan2(ly, lx) if r > 1e-9 else 0.0  # on the axis: cast along local x (theta = 0)
+    it = min(int((theta + math.pi) / (2.0 * math.pi) * n_theta), n_theta - 1)
     c = cell_base[k] + it * n_z + iz
-    if r > cell_rmax[c]:
+    if r > cell_rmax[c] + near:
         return 0.0  # beyond every face of the cell: outside this part
     ox = cyl_origin[k, 0] + lz * cyl_axes[k, 2, 0]
     oy = cyl_origin[k, 1] + lz * cyl_axes[k, 2, 1]
@@ -295,6 +298,14 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
     tmp = scratch[2]
     if best_f >= 0:
         if r >= best_t:
+            if r - best_t < near:
+                # outside but close: hand back the surface point as a contact plane (negative depth)
+                target[0] = ox + best_t * rx
+                target[1] = oy + best_t * ry
+                target[2] = oz + best_t * rz
+                for ax in range(3):
+                    normal[ax] = fn[best_f, ax]
+                return best_t - r
             return 0.0
         ray_depth = best_t - r
         target[0] = ox + best_t * rx
@@ -302,15 +313,17 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
         target[2] = oz + best_t * rz
         for ax in range(3):
             normal[ax] = fn[best_f, ax]
-        if ray_depth <= SMALL_DEPTH:
-            return ray_depth
-        # Second opinion: the nearest face of the cell (of the 3 x 3 block when the ray is grazing or
-        # deeper than the point can have gone this step). Near the end of a part (a shoulder top, the
-        # rim of a cap) the radial way out is long and sideways while the real one is short.
         cos = fn[best_f, 0] * rx + fn[best_f, 1] * ry + fn[best_f, 2] * rz
-        reach = 1 if (cos < GRAZING_COS or ray_depth > trust) else 0
-        f, d2 = _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces, bv, faces, q, tmp,
-                              reach)
+        if ray_depth <= SMALL_DEPTH or (cos >= GRAZING_COS and ray_depth <= trust):
+            return ray_depth  # the paper's answer
+        # Second opinion when the ray is grazing or deeper than the point can have gone this step: near
+        # the end of a part (a shoulder top, the rim of a cap) the radial way out is long and sideways
+        # while the real one is short. The cell's own faces cover everything within ``cover`` of it;
+        # only when the nearest of them is farther than that are the 3 x 3 neighbouring cells searched.
+        f, d2 = _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces, bv, faces, q, tmp, 0)
+        if f < 0 or d2 > cover * cover:
+            f, d2 = _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces, bv, faces, q,
+                                  tmp, 1)
         depth = math.sqrt(d2)
         if f >= 0 and depth < ray_depth:
             for ax in range(3):
@@ -332,16 +345,21 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
 
 
 @njit(cache=True, nogil=True)
-def collide_points(x, x_prev, inv_mass, active, parts, obb_normals, obb_offsets, cyl_origin, cyl_axes,
+def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_offsets, cyl_origin, cyl_axes,
                    cyl_zrange, cyl_shape, cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, lam,
-                   friction, contact):
+                   mu_static, mu_kinetic, contact, cover, near, has_plane, plane_point, plane_normal):
     """Push garment points out of the offset body, in place (paper 3.4, eq. 4 plus the fallbacks above).
 
-    x, x_prev (k, 3) m; inv_mass (k,) (0 = pinned, skipped); active (k,) bool: points to test (the
+    x, x_prev (k, 3) m (x_prev: positions at the start of the step; both updated in place); x_pred (k, 3)
+    positions after integration, before the constraints (for friction); inv_mass (k,) (0 = pinned, skipped); active (k,) bool: points to test (the
     caller skips points at rest); parts (q,) int64 part ids to test; bv (n, 3) offset body vertices,
-    faces (f, 3), fn (f, 3) their unit normals; cell_rmax (C,) from ``cell_max_radius`` for ``bv``; lam m (eq. 4's lambda); friction 0..1: fraction of the
-    tangential velocity removed at a contact (and the inward normal velocity is removed entirely).
+    faces (f, 3), fn (f, 3) their unit normals; cell_rmax (C,) from ``cell_max_radius`` for ``bv``;
+    lam m (eq. 4's lambda); mu_static, mu_kinetic: Coulomb friction coefficients (position-based, see
+    the code); the normal velocity is removed (inelastic contact); cover: see ``part_query``.
     contact (k,) bool out: whether each point was moved. Returns the number of points moved.
+    near: m; has_plane (k,) bool, plane_point (k, 3), plane_normal (k, 3) out: the contact plane of each
+    tested point that was pushed or lies within ``near`` of the surface (its last surface point plus
+    lambda, and normal), for ``constraints.solve_constraints``; untested points keep no plane.
     One point at a time, each writing only its own row: safe to split the loop across threads.
     """
     target = np.empty(3)
@@ -350,6 +368,7 @@ def collide_points(x, x_prev, inv_mass, active, parts, obb_normals, obb_offsets,
     moved = 0
     for i in range(x.shape[0]):
         contact[i] = False
+        has_plane[i] = False
         if inv_mass[i] == 0.0 or not active[i]:
             continue
         p = x[i]
@@ -366,34 +385,61 @@ def collide_points(x, x_prev, inv_mass, active, parts, obb_normals, obb_offsets,
                 trust = math.sqrt(mx * mx + my * my + mz * mz) + TRUST_SLACK
                 depth = part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
                                    cyl_shape, cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, target,
-                                   normal, scratch, trust)
+                                   normal, scratch, trust, cover, near)
+                if depth < 0.0:
+                    if not has_plane[i]:
+                        has_plane[i] = True
+                        for ax in range(3):
+                            plane_point[i, ax] = target[ax] + lam * normal[ax]
+                            plane_normal[i, ax] = normal[ax]
+                    continue
                 if depth > 0.0:
                     any_inside = True
                     contact[i] = True
+                    has_plane[i] = True
                     for ax in range(3):
                         p[ax] = target[ax] + lam * normal[ax]
-                    # velocity response: drop the inward normal part, damp the tangential part
-                    vx = p[0] - x_prev[i, 0]
-                    vy = p[1] - x_prev[i, 1]
-                    vz = p[2] - x_prev[i, 2]
-                    vn = vx * normal[0] + vy * normal[1] + vz * normal[2]
-                    tx = vx - vn * normal[0]
-                    ty = vy - vn * normal[1]
-                    tz = vz - vn * normal[2]
-                    vn = max(vn, 0.0)
-                    x_prev[i, 0] = p[0] - ((1.0 - friction) * tx + vn * normal[0])
-                    x_prev[i, 1] = p[1] - ((1.0 - friction) * ty + vn * normal[1])
-                    x_prev[i, 2] = p[2] - ((1.0 - friction) * tz + vn * normal[2])
+                        plane_point[i, ax] = p[ax]
+                        plane_normal[i, ax] = normal[ax]
+                    # Coulomb friction on positions (after Macklin et al. 2014, "Unified particle
+                    # physics"): the tangential part of this step's inertial motion (x_pred - x_prev:
+                    # gravity and momentum, not the springs' corrections, which stand for the cloth's
+                    # tension) is cancelled if it is below mu_s x depth (sticking), else shortened by
+                    # mu_k x depth (sliding).
+                    mx = x_pred[i, 0] - x_prev[i, 0]
+                    my = x_pred[i, 1] - x_prev[i, 1]
+                    mz = x_pred[i, 2] - x_prev[i, 2]
+                    mn = mx * normal[0] + my * normal[1] + mz * normal[2]
+                    tx = mx - mn * normal[0]
+                    ty = my - mn * normal[1]
+                    tz = mz - mn * normal[2]
+                    tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+                    press = depth + lam
+                    if tl <= mu_static * press:
+                        cut = 1.0
+                    else:
+                        cut = min(mu_kinetic * press / tl, 1.0)
+                    p[0] -= cut * tx
+                    p[1] -= cut * ty
+                    p[2] -= cut * tz
             if not any_inside:
                 break
         if contact[i]:
             moved += 1
+            # inelastic contact: the next step starts with the tangential velocity only
+            vx = p[0] - x_prev[i, 0]
+            vy = p[1] - x_prev[i, 1]
+            vz = p[2] - x_prev[i, 2]
+            vn = vx * normal[0] + vy * normal[1] + vz * normal[2]
+            x_prev[i, 0] = p[0] - (vx - vn * normal[0])
+            x_prev[i, 1] = p[1] - (vy - vn * normal[1])
+            x_prev[i, 2] = p[2] - (vz - vn * normal[2])
     return moved
 
 
 @njit(cache=True, nogil=True)
 def penetration_depth(points, parts, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape,
-                      cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn):
+                      cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, cover):
     """Depth (m) of each point inside the body surface ``bv`` (0 outside), (n,) float64: the largest
     depth over the parts (the same inside test as the collision, with the nearest-surface distance)."""
     out = np.zeros(points.shape[0])
@@ -410,7 +456,7 @@ def penetration_depth(points, parts, obb_normals, obb_offsets, cyl_origin, cyl_a
                 continue
             d = part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape,
                            cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal,
-                           scratch, 0.0)
+                           scratch, 0.0, cover, 0.0)
             if d > 0.0:
                 # the true depth is the distance to the nearest surface point, never more than the
                 # distance to the response point

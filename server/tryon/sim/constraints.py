@@ -9,6 +9,100 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, fastmath=True)
+def project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic):
+    """Keep points on the outer side of their contact plane, in place: for each i with has_plane[i],
+    n . (x_i - q_i) >= 0 (q on the offset body surface + lambda, n its outward normal).
+
+    A pushed point loses its normal velocity (x_prev moved along n: inelastic contact) and gets Coulomb friction on positions (Macklin et al. 2014): the tangential
+    part of its motion since x_prev is cancelled if shorter than mu_static * d, else shortened by
+    mu_kinetic * d (so garments stay on shoulders instead of creeping down them).
+    """
+    for i in range(x.shape[0]):
+        if not has_plane[i]:
+            continue
+        nx = plane_normal[i, 0]
+        ny = plane_normal[i, 1]
+        nz = plane_normal[i, 2]
+        d = (x[i, 0] - plane_point[i, 0]) * nx + (x[i, 1] - plane_point[i, 1]) * ny + (x[i, 2] - plane_point[i, 2]) * nz
+        if d >= 0.0:
+            continue
+        x[i, 0] -= d * nx
+        x[i, 1] -= d * ny
+        x[i, 2] -= d * nz
+        mx = x[i, 0] - x_prev[i, 0]
+        my = x[i, 1] - x_prev[i, 1]
+        mz = x[i, 2] - x_prev[i, 2]
+        mn = mx * nx + my * ny + mz * nz
+        # inelastic: the push must not become a velocity away from the body (no bounce)
+        x_prev[i, 0] += mn * nx
+        x_prev[i, 1] += mn * ny
+        x_prev[i, 2] += mn * nz
+        if mu_static <= 0.0:
+            continue
+        tx = mx - mn * nx
+        ty = my - mn * ny
+        tz = mz - mn * nz
+        tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+        if tl <= 1e-15:
+            continue
+        cut = 1.0 if tl <= -mu_static * d else min(-mu_kinetic * d / tl, 1.0)
+        x[i, 0] -= cut * tx
+        x[i, 1] -= cut * ty
+        x[i, 2] -= cut * tz
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def solve_constraints(x, x_prev, inv_mass, springs, rest, kind, limit, compression, passes, has_plane,
+                      plane_point, plane_normal, mu_static, mu_kinetic):
+    """``passes`` Gauss-Seidel passes over the springs (``satisfy_springs``), each followed by the contact
+    planes (``project_planes``), in place.
+
+    Contacts found once per step (the expensive map query) become planes that every pass respects, so
+    springs and contacts converge together instead of undoing each other's work (the way position-based
+    solvers such as NVIDIA Flex handle contacts).
+    """
+    for sweep in range(passes):
+        _spring_pass(x, inv_mass, springs, rest, kind, limit, compression, sweep % 2 == 1)
+        project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _spring_pass(x, inv_mass, springs, rest, kind, limit, compression, backward):
+    n_springs = springs.shape[0]
+    for q in range(n_springs):
+        s = n_springs - 1 - q if backward else q
+        i = springs[s, 0]
+        j = springs[s, 1]
+        wi = inv_mass[i]
+        wj = inv_mass[j]
+        wsum = wi + wj
+        if wsum == 0.0:
+            continue
+        dx = x[i, 0] - x[j, 0]
+        dy = x[i, 1] - x[j, 1]
+        dz = x[i, 2] - x[j, 2]
+        d = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if d < 1e-12:
+            continue
+        k = kind[s]
+        l0 = rest[s]
+        lmax = l0 * (1.0 + limit[k])
+        if d > lmax:
+            excess = d - lmax
+        elif d < l0:
+            excess = (d - l0) * compression[k]
+        else:
+            continue
+        f = excess / (d * wsum)
+        x[i, 0] -= wi * f * dx
+        x[i, 1] -= wi * f * dy
+        x[i, 2] -= wi * f * dz
+        x[j, 0] += wj * f * dx
+        x[j, 1] += wj * f * dy
+        x[j, 2] += wj * f * dz
+
+
+@njit(cache=True, nogil=True, fastmath=True)
 def satisfy_springs(x, inv_mass, springs, rest, kind, limit, compression, passes):
     """Project every spring onto its allowed length range, ``passes`` times, in place.
 
@@ -26,39 +120,8 @@ def satisfy_springs(x, inv_mass, springs, rest, kind, limit, compression, passes
     is. No races: one thread owns the whole loop (parallelism comes from running several try-ons at
     once, each kernel releasing the GIL).
     """
-    n_springs = springs.shape[0]
     for sweep in range(passes):
-        for q in range(n_springs):
-            s = q if sweep % 2 == 0 else n_springs - 1 - q
-            i = springs[s, 0]
-            j = springs[s, 1]
-            wi = inv_mass[i]
-            wj = inv_mass[j]
-            wsum = wi + wj
-            if wsum == 0.0:
-                continue
-            dx = x[i, 0] - x[j, 0]
-            dy = x[i, 1] - x[j, 1]
-            dz = x[i, 2] - x[j, 2]
-            d = math.sqrt(dx * dx + dy * dy + dz * dz)
-            if d < 1e-12:
-                continue
-            k = kind[s]
-            l0 = rest[s]
-            lmax = l0 * (1.0 + limit[k])
-            if d > lmax:
-                excess = d - lmax
-            elif d < l0:
-                excess = (d - l0) * compression[k]
-            else:
-                continue
-            f = excess / (d * wsum)
-            x[i, 0] -= wi * f * dx
-            x[i, 1] -= wi * f * dy
-            x[i, 2] -= wi * f * dz
-            x[j, 0] += wj * f * dx
-            x[j, 1] += wj * f * dy
-            x[j, 2] += wj * f * dz
+        _spring_pass(x, inv_mass, springs, rest, kind, limit, compression, sweep % 2 == 1)
 
 
 @njit(cache=True, nogil=True, fastmath=True)
@@ -98,3 +161,76 @@ def satisfy_springs_numpy(x, inv_mass, springs, rest, kind, limit, compression, 
             x[i] -= inv_mass[i] / wsum * v
             x[j] += inv_mass[j] / wsum * v
     return x
+
+
+# A spring steeper than this (|dy| / length, sin 30 degrees) has an upper and a lower end in the
+# top-down sweep; flatter ones are split by inverse mass (no sideways bias, so no drift).
+STEEP = 0.5
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limit, order):
+    """One sweep of the stretch limits in ``order`` (springs sorted from the top down), moving only the
+    lower end of each too-long steep spring (the upper one if the lower is pinned), in place (in the
+    spirit of follow-the-leader, Mueller et al. 2012); x_prev (k, 3) is adjusted so the move leaves no
+    velocity towards the upper end.
+
+    Garments hang from their top (shoulders, waist): corrected from the support down, each correction
+    sees an already corrected upper end, so a hanging chain of any length is within its limits after
+    one sweep, where mass-weighted Gauss-Seidel needs a number of passes that grows with the square of
+    its length (a sagging, over-stretched hem). Only stretch is limited here (compression is the
+    symmetric passes' job). No races: serial.
+    """
+    for q in range(order.shape[0]):
+        s = order[q]
+        i = springs[s, 0]
+        j = springs[s, 1]
+        if x[i, 1] < x[j, 1]:
+            i, j = j, i  # i is the upper end
+        if inv_mass[j] == 0.0:
+            if inv_mass[i] == 0.0:
+                continue
+            i, j = j, i
+        dx = x[j, 0] - x[i, 0]
+        dy = x[j, 1] - x[i, 1]
+        dz = x[j, 2] - x[i, 2]
+        d = math.sqrt(dx * dx + dy * dy + dz * dz)
+        lmax = rest[s] * (1.0 + limit[kind[s]])
+        if d <= lmax or d < 1e-12:
+            continue
+        f = (d - lmax) / d
+        if abs(dy) >= STEEP * d:
+            # a steep spring: the lower end follows the upper one. The move is not momentum-conserving:
+            # it may stop the lower end's motion away from the upper one but must not fling it towards
+            # it (else the garment climbs), so any velocity left towards the upper end is removed
+            # (inelastic).
+            x[j, 0] -= f * dx
+            x[j, 1] -= f * dy
+            x[j, 2] -= f * dz
+            ux = -dx / d
+            uy = -dy / d
+            uz = -dz / d
+            vu = (x[j, 0] - x_prev[j, 0]) * ux + (x[j, 1] - x_prev[j, 1]) * uy + (x[j, 2] - x_prev[j, 2]) * uz
+            if vu > 0.0:
+                x_prev[j, 0] += vu * ux
+                x_prev[j, 1] += vu * uy
+                x_prev[j, 2] += vu * uz
+        else:
+            # a flat one has no up or down: split by inverse mass, as in eq. 3
+            wi = inv_mass[i]
+            wj = inv_mass[j]
+            wsum = wi + wj
+            a = wi / wsum * f
+            b = wj / wsum * f
+            x[i, 0] += a * dx
+            x[i, 1] += a * dy
+            x[i, 2] += a * dz
+            x[j, 0] -= b * dx
+            x[j, 1] -= b * dy
+            x[j, 2] -= b * dz
+
+
+def top_down_order(x: np.ndarray, springs: np.ndarray) -> np.ndarray:
+    """Spring indices (s,) int64 sorted by the height of their upper end, highest first."""
+    top = np.maximum(x[springs[:, 0], 1], x[springs[:, 1], 1])
+    return np.argsort(-top, kind="stable").astype(np.int64)

@@ -10,6 +10,8 @@ garment modelled on another body):
 - if any garment point is still inside the body, the body grows from ``grow_from`` of its radius to full
   size over ``grow_steps`` steps (each part scaled toward its axis; Houdini Vellum Drape does the same),
   pushing the cloth out the way it came in rather than teleporting points through the body.
+- during these start-up steps gravity is off: a garment held by shoulders or hips would otherwise slide
+  down a body that is not yet its full size. It falls into place once the body is complete.
 - the paper instead pushes such points out and pins them; pinning them for good would hold the garment
   unnaturally, so when growth is disabled (grow_steps = 0) pushed points are pinned only for the first
   ``PIN_STEPS`` steps and then released.
@@ -32,7 +34,9 @@ from tryon.garment.model import GarmentModel
 from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import relevant_parts
-from tryon.sim.constraints import satisfy_springs
+from tryon.sim.constraints import (
+    limit_stretch_downward, project_planes, satisfy_springs, solve_constraints, top_down_order,
+)
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.metrics import penetration_metrics, strain_metrics
 from tryon.sim.settings import SimSettings
@@ -53,6 +57,12 @@ POLISH_ROUNDS = 10
 # moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).
 ARM_DEG_PER_STEP = 1.0
 
+# Steps between re-sorting the springs from the top down for the hanging-stretch sweep (the garment's
+# vertical order changes slowly once it hangs).
+ORDER_REFRESH = 20
+# m: points outside the offset body but closer than this get a contact plane for the step's constraint
+# passes (so the springs cannot pull them in between two collision tests).
+NEAR = 0.005
 # Inverse-mass factor of points in contact during the constraint passes (see the loop).
 CONTACT_WEIGHT = 0.2
 
@@ -136,14 +146,23 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     contact = np.zeros(len(x), dtype=np.bool_)
     active = np.ones(len(x), dtype=np.bool_)
     if tangled and not grow_steps:
-        collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 1.0, contact)
+        collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
         x_prev[:] = x
         saved_inv_mass = inv_mass.copy()
         inv_mass[contact] = 0.0
         pinned_until = PIN_STEPS
     x_checked = x.copy()
+    x_step = x.copy()
+    has_plane = np.zeros(len(x), dtype=np.bool_)
+    planes = (has_plane, np.zeros((len(x), 3)), np.zeros((len(x), 3)))
 
     startup = max(grow_steps, arms.steps)
+    # substeps ("small steps", Macklin et al. 2019): the passes are spread over substeps of the time step,
+    # which converges much further per pass than repeating passes on one large step
+    n_sub = max(1, min(settings.substeps, settings.passes))
+    per_sub = max(1, settings.passes // n_sub)
+    h = dt / n_sub
+    mu_s, mu_k = settings.friction_static, settings.friction_kinetic
     rest_run = 0
     rest_reached = False
     step = 0
@@ -159,20 +178,35 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
             arms.apply(step)
         if pinned_until and step == pinned_until:
             inv_mass[:] = saved_inv_mass
-        verlet_step(x, x_prev, inv_mass, dt, settings.gravity, settings.air_drag, settings.max_speed)
-        # points in contact count as heavier in the constraints, so hanging cloth hangs from them
-        # instead of dragging them into the body (mass scaling; the collision would fight it)
-        w_eff = np.where(contact, inv_mass * CONTACT_WEIGHT, inv_mass)
-        satisfy_springs(x, w_eff, springs, rest, kind, limits, compression, settings.passes)
-        if changing:
-            active[:] = True
-        else:
-            moved = np.einsum("ij,ij->i", x - x_checked, x - x_checked) > REST_MOVE * REST_MOVE
-            np.logical_or(moved, contact, out=active)
-        collided = collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset,
-                                    settings.friction, contact)
-        x_checked[active] = x[active]
-        energy = kinetic_energy_per_kg(x, x_prev, mass, dt)
+        # no gravity while the body grows / the arms turn back: the garment must not slide off a body
+        # that is not yet its full size (the fit phase); it falls once the body is complete
+        gravity = 0.0 if changing else settings.gravity
+        for sub in range(n_sub):
+            verlet_step(x, x_prev, inv_mass, h, gravity, settings.air_drag, settings.max_speed)
+            if sub == 0:
+                # collision (paper 3.3-3.4) on the predicted positions, leaving a contact plane for every
+                # point pushed out or lying within NEAR of the body; the substeps keep to those planes
+                if changing:
+                    active[:] = True
+                else:
+                    moved = np.einsum("ij,ij->i", x - x_checked, x - x_checked) > REST_MOVE * REST_MOVE
+                    np.logical_or(moved, has_plane, out=active)
+                collided = collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset,
+                                            mu_s, mu_k, contact, near=NEAR, planes=planes)
+                x_checked[active] = x[active]
+                # points on the body count as heavier in the springs, so hanging cloth hangs from them
+                # instead of dragging them in (mass scaling)
+                w_eff = np.where(has_plane, inv_mass * CONTACT_WEIGHT, inv_mass)
+            solve_constraints(x, x_prev, w_eff, springs, rest, kind, limits, compression, per_sub, *planes,
+                              mu_s, mu_k)
+            if step % ORDER_REFRESH == 1 and sub == 0:
+                order = top_down_order(x, springs)
+            limit_stretch_downward(x, x_prev, w_eff, springs, rest, kind, limits, order)
+            project_planes(x, x_prev, *planes, mu_s, mu_k)
+        # at rest = the garment's own motion over the whole step (positions, not the solver's internal
+        # velocities, which the strain limits and contact planes keep resetting)
+        energy = kinetic_energy_per_kg(x, x_step, mass, dt)
+        x_step[:] = x
         if not np.isfinite(energy):
             raise FloatingPointError(f"simulation diverged at step {step}")
         if step > startup and step >= settings.min_steps and energy < settings.rest_energy:
@@ -195,10 +229,16 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     if pinned_until and step < pinned_until:
         inv_mass[:] = saved_inv_mass
     active[:] = True
+    order = top_down_order(x, springs)
     for _ in range(POLISH_ROUNDS):
-        satisfy_springs(x, inv_mass, springs, rest, kind, limits, compression, settings.passes)
         x_prev[:] = x
-        collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, contact)
+        collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact,
+                         near=NEAR, planes=planes)
+        solve_constraints(x, x_prev, inv_mass, springs, rest, kind, limits, compression, settings.passes,
+                          *planes, 0.0, 0.0)
+        limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limits, order)
+        project_planes(x, x_prev, *planes, 0.0, 0.0)
+    collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
 
     # --- full mesh: follow the coarse one, then push it out of the offset body too
     full = np.ascontiguousarray(model.expand(x))
@@ -207,7 +247,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     ones = np.ones(len(full))
     all_active = np.ones(len(full), dtype=np.bool_)
     full_parts = relevant_parts(body.maps, full.min(axis=0), full.max(axis=0), 0.01)
-    collider.collide(full, full_prev, ones, all_active, full_parts, settings.contact_offset, 0.0, full_contact)
+    collider.collide(full, full_prev, ones, all_active, full_parts, settings.contact_offset, 0.0, 0.0, full_contact)
 
     # --- metrics
     depth = collider.depth(full, full_parts, offset=False)

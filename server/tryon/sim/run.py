@@ -183,6 +183,10 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         gravity = 0.0 if changing else settings.gravity
         for sub in range(n_sub):
             verlet_step(x, x_prev, inv_mass, h, gravity, settings.air_drag, settings.max_speed)
+            if sub > 0:
+                # friction acts on the inertial motion only (x - x_prev right after the prediction), never
+                # on the springs' corrections (which stand for the cloth's tension)
+                project_planes(x, x_prev, *planes, mu_s, mu_k)
             if sub == 0:
                 # collision (paper 3.3-3.4) on the predicted positions, leaving a contact plane for every
                 # point pushed out or lying within NEAR of the body; the substeps keep to those planes
@@ -198,11 +202,11 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                 # instead of dragging them in (mass scaling)
                 w_eff = np.where(has_plane, inv_mass * CONTACT_WEIGHT, inv_mass)
             solve_constraints(x, x_prev, w_eff, springs, rest, kind, limits, compression, per_sub, *planes,
-                              mu_s, mu_k)
+                              0.0, 0.0)
             if step % ORDER_REFRESH == 1 and sub == 0:
                 order = top_down_order(x, springs)
             limit_stretch_downward(x, x_prev, w_eff, springs, rest, kind, limits, order)
-            project_planes(x, x_prev, *planes, mu_s, mu_k)
+            project_planes(x, x_prev, *planes, 0.0, 0.0)
         # at rest = the garment's own motion over the whole step (positions, not the solver's internal
         # velocities, which the strain limits and contact planes keep resetting)
         energy = kinetic_energy_per_kg(x, x_step, mass, dt)

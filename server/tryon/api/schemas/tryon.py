@@ -1,0 +1,74 @@
+"""Request and response schemas of ``POST /api/tryon`` (and the ``WS /ws/tryon`` request).
+
+Every field has its range (ge / le) and unit; a value out of range is refused (422) naming the field.
+Measurements and pose are the body's own schemas (``tryon.api.schemas.bodies``).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from tryon.api.schemas.bodies import MeasurementsIn, PoseIn
+from tryon.sim.settings import SimSettings
+
+_DEFAULT = SimSettings()
+MeshFormatTryOn = Literal["json", "glb"]
+
+
+class SimSettingsIn(BaseModel):
+    """Simulation settings a client may choose (the rest keep their defaults, see ``SimSettings``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    time_step: float = Field(_DEFAULT.time_step, ge=0.005, le=0.1,
+                             description="time step, s (the paper uses 0.05 s); range [0.005, 0.1]")
+    passes: int = Field(_DEFAULT.passes, ge=1, le=50,
+                        description="constraint passes per time step; range [1, 50]")
+    substeps: int = Field(_DEFAULT.substeps, ge=1, le=16,
+                          description="substeps per time step the passes are spread over; range [1, 16]")
+    simplification: float = Field(_DEFAULT.simplification, ge=0.05, le=1.0,
+                                  description="simplification degree B = simulated / original garment vertices "
+                                              "(the paper: 0.2-0.3); range [0.05, 1]")
+    max_steps: int = Field(_DEFAULT.max_steps, ge=1, le=3000,
+                           description="step limit (the run stops earlier once the garment is at rest); "
+                                       "range [1, 3000]")
+
+    def to_settings(self) -> SimSettings:
+        return SimSettings(time_step=self.time_step, passes=self.passes, substeps=self.substeps,
+                           simplification=self.simplification, max_steps=self.max_steps)
+
+
+class TryOnRequest(BaseModel):
+    """``POST /api/tryon``: a catalogue garment on a body built from measurements and pose."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    garment_id: str = Field(min_length=1, max_length=64, description="catalogue id (GET /api/garments)")
+    measurements: MeasurementsIn = Field(description="body measurements, cm")
+    pose: PoseIn = Field(default_factory=PoseIn, description="pose angles, degrees")
+    settings: SimSettingsIn = Field(default_factory=SimSettingsIn, description="simulation settings")
+
+
+class MeshOut(BaseModel):
+    vertices: list[list[float]] = Field(description="(n, 3) fitted garment vertices, m")
+    faces: list[list[int]] = Field(description="(f, 3) triangles")
+
+
+class TryOnMetricsOut(BaseModel):
+    steps: int = Field(description="time steps simulated")
+    sim_seconds: float = Field(description="simulated time, s")
+    wall_seconds: float = Field(description="wall-clock time of the simulation, s")
+    rest_reached: bool = Field(description="whether the garment came to rest before the step limit")
+    penetrating_vertices: int = Field(description="garment vertices inside the body by more than 2 mm")
+    max_penetration_mm: float = Field(description="deepest garment vertex inside the body, mm")
+    max_strain: float = Field(description="largest spring strain (length / natural length - 1)")
+    strain: list[float] = Field(description="per garment vertex: largest strain of its springs")
+    strain_by_kind: dict[str, dict] = Field(default_factory=dict,
+                                            description="per spring type: max strain, its limit, springs over")
+
+
+class TryOnOut(BaseModel):
+    garment: MeshOut
+    metrics: TryOnMetricsOut

@@ -36,7 +36,7 @@ SHAPE_NAMES = ("head", "torso", "upper_arm", "forearm", "thigh", "shin")
 # has a row exactly there. shoulder_width is a breadth (the torso's width at acromion level), the others girths.
 MEASURED_STATIONS = {
     "torso": {"hips": 3, "waist": 5, "chest": 7, "shoulder_width": 9},
-    "head": {"neck": 2},
+    "head": {"neck": 3},
     "upper_arm": {"upper_arm": 3},
     "thigh": {"thigh": 3},
 }
@@ -137,11 +137,16 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     cz_w = -0.72 * b_h + b_w  # lumbar curve: the back at the waist 28 % of the buttock depth forward
     cz_c = -0.92 * b_h + b_c  # shoulder blades almost in line with the buttocks
     cz_ac = cz_c - 0.25 * b_c  # shoulders sit back
+    # Every part's poles lie on one line perpendicular to its sections: its axis (``part_axes``). Each
+    # section then surrounds the axis, so the part is a radial function r(theta, z) about it, which is
+    # what a cylinder map assumes (SPEC section 4).
+    z_axis = cz_ac + 0.01  # the centre of the neck-base section
     torso = np.array([
-        _pole(y_c, cz=0.1 * b_h),
+        _pole(y_c, cz=z_axis),
         # below the hips the thighs carry the width: the torso closes towards the crotch
-        _station(y_c + 0.2 * (y_h - y_c), 0.45 * a_h, 0.55 * f_h, 0.65 * b_h, wf=SQUARE, wb=SQUARE),
-        _station(y_c + 0.55 * (y_h - y_c), 0.80 * a_h, 0.86 * f_h, 0.92 * b_h, wf=SQUARE, wb=SQUARE),
+        _station(y_c + 0.2 * (y_h - y_c), 0.45 * a_h, 0.55 * f_h, 0.65 * b_h, cz=z_axis, wf=SQUARE, wb=SQUARE),
+        _station(y_c + 0.55 * (y_h - y_c), 0.80 * a_h, 0.86 * f_h, 0.92 * b_h, cz=0.5 * z_axis, wf=SQUARE,
+                 wb=SQUARE),
         _station(y_h, a_h, f_h, b_h, wf=0.8, wb=0.8),
         _station(0.5 * (y_h + y_w), 0.5 * (a_h + a_w), f_h + t_belly * (f_w - f_h), 0.5 * (b_h + b_w),
                  cz=0.5 * cz_w, wf=0.8, wb=0.8),
@@ -155,7 +160,7 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
         _station(y_ac + 0.55 * (y_nb - y_ac), 0.25 * S + 0.65 * r_n, 0.275 * f_c + 0.6 * r_n,
                  0.31 * b_c + 0.6 * r_n, cz=cz_ac + 0.005, wf=SQUARE, wb=SQUARE),
         _station(y_nb, 1.3 * r_n, 1.15 * r_n, 1.15 * r_n, cz=cz_ac + 0.01, wf=SQUARE, wb=SQUARE),
-        _pole(y_tp, cz=cz_ac + 0.01),
+        _pole(y_tp, cz=z_axis),
     ])
 
     # ---- head and neck (world frame) --------------------------------------------------------------------
@@ -164,9 +169,11 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     y_neck = max(y_chin - 0.025 * head_s, y_tp + 0.005)  # below the larynx, above the torso
     cz_n = cz_ac + 0.01
     cz_f = cz_n + 0.025 * head_s  # the skull sits forward of the neck
+    z_head = cz_n
     hsz = head_s
     head = np.array([
-        _pole(y_ac - 0.03, cz=cz_n),
+        _pole(y_ac - 0.03, cz=z_head),
+        _ring(y_ac - 0.03 + 0.4 * 0.018, 0.8 * 1.12 * r_n, cz=cz_n),  # rounded cap (sphere: 0.8 r at 0.4 r)
         _ring(y_ac - 0.012, 1.12 * r_n, cz=cz_n),
         _ring(y_neck, r_n, cz=cz_n),
         _station(y_chin + 0.02 * hh, 0.056 * hsz, 0.085 * hsz, 0.050 * hsz, cz=cz_f),
@@ -175,7 +182,7 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
         _station(y_chin + 0.52 * hh, 0.076 * hsz, 0.095 * hsz, 0.097 * hsz, cz=cz_f),
         _station(y_chin + 0.70 * hh, 0.073 * hsz, 0.086 * hsz, 0.097 * hsz, cz=cz_f),
         _station(y_chin + 0.88 * hh, 0.057 * hsz, 0.060 * hsz, 0.075 * hsz, cz=cz_f),
-        _pole(H, cz=cz_f - 0.01 * hsz),
+        _pole(H, cz=z_head),
     ])
 
     # ---- arms (left arm, local frames, axis along local +y) ---------------------------------------------
@@ -258,7 +265,11 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
         _station(l_sh - 0.075 * hs, 0.032 * hs, 0.034 * hs, 0.034 * hs),  # ankle
         _station(l_sh - 0.045 * hs, 0.041 * hs, 0.090 * hs, 0.050 * hs, cz=0.015 * hs),
         _station(l_sh - 0.018 * hs, 0.046 * hs, 0.170 * hs, 0.058 * hs, cz=0.015 * hs, wf=SQUARE),
-        _pole(l_sh, cz=0.04 * hs),
+        # rounded sole edge, centred on the axis like the pole it closes on (the cubic still folds within
+        # ~5 mm of the sole's pole: no garment reaches under the foot)
+        _station(l_sh - 0.4 * 0.018 * hs, 0.8 * 0.046 * hs, 0.8 * 0.170 * hs + 0.012 * hs,
+                 0.8 * 0.058 * hs - 0.012 * hs, wf=SQUARE),
+        _pole(l_sh),
     ])
 
     eye = np.eye(3)
@@ -269,7 +280,7 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
         "upper_arm": PartShape(upper_arm, rot_ua, joint, MEASURED_STATIONS["upper_arm"]),
         "forearm": PartShape(forearm, rot_fa, elbow, {}),
         "thigh": PartShape(thigh, rot_leg, hip_joint, MEASURED_STATIONS["thigh"]),
-        "shin": PartShape(shin, rot_leg, knee, {}, tilt=np.array([0, 0, 0, 0, 0, -0.5, -1, -1, -1]) * gamma,
+        "shin": PartShape(shin, rot_leg, knee, {}, tilt=np.array([0, 0, 0, 0, 0, -0.5, -1, -1, -1, -1]) * gamma,
                           pivot=np.array([0.0, l_sh - 0.075 * hs, 0.0])),
     }
     landmarks = {

@@ -164,3 +164,9 @@ def fmt(value, digits: int = 3) -> str:
             return f"{v:,.0f}"
         return f"{v:.{digits}g}"
     return str(value)
+
+
+def fmt_range(values, digits: int = 3) -> str:
+    """'a-b' of the smallest and largest of ``values`` (one number when they are equal)."""
+    lo, hi = min(values), max(values)
+    return fmt(lo, digits) if fmt(lo, digits) == fmt(hi, digits) else f"{fmt(lo, digits)}-{fmt(hi, digits)}"

@@ -97,8 +97,12 @@ def plot_peers(out_dir: Path, results: dict, name: str = "peers.png") -> str:
         ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=engine)
         for n, ms, st in pts:
             ax.annotate(f"{st:.0%}", (n, ms), textcoords="offset points", xytext=(4, 4), fontsize=7)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    xs = [p[0] for pts in engines.values() for p in pts]
+    ys = [p[1] for pts in engines.values() for p in pts]
+    if xs and max(xs) / min(xs) >= 10:
+        ax.set_xscale("log")
+    if ys and max(ys) / min(ys) >= 10:
+        ax.set_yscale("log")
     ax.set_xlabel("particles")
     ax.set_ylabel("ms per 1/60 s frame (median)")
     ax.set_title("Cloth dropped on a ball (labels: max stretch)")
@@ -123,9 +127,12 @@ def plot_xy(out_dir: Path, name: str, series: dict, xlabel: str, ylabel: str, ti
                 ax.annotate(t, (x, y), textcoords="offset points", xytext=(3, 3), fontsize=6)
     if highlight is not None:
         ax.plot([highlight[0]], [highlight[1]], "r*", markersize=14, label=highlight[2])
-    if logx:
+    xs_all = [x for xs, _, _ in series.values() for x in xs if x and x > 0]
+    ys_all = [y for _, ys, _ in series.values() for y in ys if y and y > 0]
+    # a log axis only where the values span a decade or more (else its ticks say nothing)
+    if logx and xs_all and max(xs_all) / min(xs_all) >= 10:
         ax.set_xscale("log")
-    if logy:
+    if logy and ys_all and max(ys_all) / min(ys_all) >= 10:
         ax.set_yscale("log")
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)

@@ -35,16 +35,24 @@ SHOULDER_HALF = {"S": 0.185, "M": 0.195, "L": 0.205}
 
 # Landmark heights (m) of a 1.70 m standing person (anthropometric ratios of stature: shoulder 0.82,
 # armpit 0.72, chest 0.73, waist 0.62, hips 0.53, crotch 0.46, knee 0.28).
-Y_NECK_BASE = 1.45
-Y_SHOULDER = 1.40
+Y_NECK_BASE = 1.465  # where the shoulder seam meets the neckline (1.5 cm over the body's 1.45)
+Y_SHOULDER = 1.415  # the shoulder point (1.5 cm over the body's acromion)
 Y_ARMPIT = 1.21
 Y_WAIST = 1.05
 Y_HIP = 0.90
 Y_CROTCH = 0.78
 Y_KNEE = 0.47
 Y_ANKLE = 0.08
-# Shoulder joint centre (m): where the arm's axis starts.
-SHOULDER_JOINT = (0.175, 1.385)
+# Shoulder joint centre (m): where the arm's axis starts (|x|, y), and its depth z.
+SHOULDER_JOINT = (0.16, 1.39)
+ARM_Z = -0.055
+# A sleeve started outside the armpit rejoins the arm's axis within this length along the arm, m.
+SLEEVE_RETURN = 0.2
+# The body's mid-plane is not z = 0 at every height: the neck and shoulders sit behind the chest, the
+# buttocks behind the belly. (y, z of the torso's section centre), m, measured on the service's
+# parametric body (tryon.body) of a 1.70 m person; the legs are centred on z = 0.
+BODY_CENTRE_Z = ((0.0, 0.0), (0.75, 0.0), (0.82, -0.01), (0.9, -0.03), (0.95, -0.02), (1.05, -0.01),
+                 (1.2, -0.02), (1.3, -0.032), (1.38, -0.055), (1.47, -0.05))
 # The A-pose: arms this many degrees out from the torso's side.
 ARM_ANGLE_DEG = 27.0
 # Depth / width of the torso's cross-section ellipse (a chest is about 0.7 as deep as wide).
@@ -62,6 +70,20 @@ def half_axes(girth_m: float, ratio: float = DEPTH_RATIO) -> tuple[float, float]
     """(half-width, half-depth) of an ellipse of the given perimeter and depth/width ratio."""
     a = girth_m / ellipse_perimeter(1.0, ratio)
     return a, a * ratio
+
+
+# |x| of the body's leg axes at heights y, m (thigh 0.10 at 0.7 m, knee 0.11, ankle 0.125).
+LEG_CENTRE_X = ((0.0, 0.47, 0.70), (0.125, 0.11, 0.10))
+# z of the leg axes: the shins lean forward to the ankles (0.04 m ahead at the floor).
+LEG_CENTRE_Z = ((0.0, 0.20), (0.04, 0.0))
+# Height over the crotch point (m) in which the seat's figure eight opens into the hip ellipse.
+SEAT_RISE = 0.10
+
+
+def centre_z(y):
+    """z (m) of the body's mid-plane at height y (``BODY_CENTRE_Z``)."""
+    ys, zs = zip(*BODY_CENTRE_Z)
+    return np.interp(y, ys, zs)
 
 
 def smoothstep(t):
@@ -161,7 +183,7 @@ def build_top(spec: TopSpec) -> trimesh.Trimesh:
     for j in range(rows_low + 1):
         y = y_hem + (y_arm - y_hem) * j / rows_low
         a, b = half_axes(np.interp(y, ys, gs))
-        rings.append(mb.add(np.column_stack([-a * np.cos(theta), np.full(n_ring, y), b * np.sin(theta)])))
+        rings.append(mb.add(np.column_stack([-a * np.cos(theta), np.full(n_ring, y), b * np.sin(theta) + centre_z(y)])))
     for j in range(rows_low):
         mb.strip(rings[j], rings[j + 1], closed=True)
 
@@ -181,8 +203,9 @@ def build_top(spec: TopSpec) -> trimesh.Trimesh:
             y_top = _shoulder_line(x, spec, side)
             y = y_arm + (y_top - y_arm) * u
             z_top = _neck_z(x, spec) * side
-            z = side * np.sqrt((b_arm * np.sin(th)) ** 2 * (1 - u * u) + (np.abs(z_top) * u * u) ** 2)
-            half.append(np.column_stack([x, y, z]))
+            # the depth closes towards the shoulder seam late (1 - u^4): the shoulders are round
+            z = side * np.sqrt((b_arm * np.sin(th)) ** 2 * (1 - u ** 4) + (np.abs(z_top) * u * u) ** 2)
+            half.append(np.column_stack([x, y, z + centre_z(y)]))
         if j < rows_high:
             front_ids = mb.add(half[0])
             back_ids = mb.add(half[1][::-1])  # back runs from the +x side to the -x side
@@ -245,7 +268,7 @@ def _build_sleeve(mb: MeshBuilder, root: np.ndarray, side: int, spec: TopSpec) -
     alpha = math.radians(ARM_ANGLE_DEG)
     d = np.array([side * math.sin(alpha), -math.cos(alpha), 0.0])
     e1 = np.array([side * math.cos(alpha), math.sin(alpha), 0.0])  # towards the over-arm seam
-    joint = np.array([side * SHOULDER_JOINT[0], SHOULDER_JOINT[1], 0.0])
+    joint = np.array([side * SHOULDER_JOINT[0], SHOULDER_JOINT[1], ARM_Z])
     root_pts = np.concatenate(mb.points)[root]
     m = len(root)
     phi = 2 * np.pi * np.arange(m) / m  # 0 underarm, pi over-arm; front (z > 0) first
@@ -253,17 +276,18 @@ def _build_sleeve(mb: MeshBuilder, root: np.ndarray, side: int, spec: TopSpec) -
     # The first ring sits where its under-arm point is level with the armpit (root[0]): starting higher
     # would pull the under-arm seam up into the armpit and fold the cloth there.
     start = float((joint[1] - r_top * math.sin(alpha) - root_pts[0, 1]) / math.cos(alpha))
-    # ... and outside the armpit: move the arm axis out if the first ring's under-arm point would be
-    # inside it (a wide size on the standard shoulder joint)
-    under_x = side * (joint[0] * side + start * math.sin(alpha) - r_top * math.cos(alpha))
-    joint = joint + [side * max(0.0, abs(root_pts[0, 0]) + 0.005 - abs(under_x)), 0.0, 0.0]
+    # ... and outside the armpit: if the first ring's under-arm point would be inside it (a wide size),
+    # start the sleeve's axis that much further out and bring it back onto the arm's axis over
+    # ``SLEEVE_RETURN`` m, so that the sleeve still goes around the arm further down
+    under_x = joint[0] * side + start * math.sin(alpha) - r_top * math.cos(alpha)
+    shift = np.array([side * max(0.0, abs(root_pts[0, 0]) + 0.005 - under_x), 0.0, 0.0])
     length = spec.sleeve_end - start
     rows = max(3, int(round(length / SPACING)))
     blend = max(1.0, 0.09 / (length / rows))  # rows over which the armhole turns into a circle (9 cm)
     prev = root
     for l_ in range(1, rows + 1):
         t = l_ / rows
-        c = joint + (start + length * t) * d
+        c = joint + (start + length * t) * d + shift * max(0.0, 1.0 - length * t / SLEEVE_RETURN)
         r = r_top + (r_end - r_top) * t
         circle = c + r * (-np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * np.array([0.0, 0.0, 1.0]))
         w = smoothstep(l_ / blend)
@@ -286,7 +310,7 @@ def build_skirt(girths: list[tuple[float, float]], spacing: float = SPACING) -> 
     for j in range(rows + 1):
         y = ys[0] + (ys[-1] - ys[0]) * j / rows
         a, b = half_axes(np.interp(y, ys, gs), 0.8)
-        ids = mb.add(np.column_stack([-a * np.cos(theta), np.full(n_ring, y), b * np.sin(theta)]))
+        ids = mb.add(np.column_stack([-a * np.cos(theta), np.full(n_ring, y), b * np.sin(theta) + centre_z(y)]))
         if prev is not None:
             mb.strip(prev, ids, closed=True)
         prev = ids
@@ -329,8 +353,9 @@ def build_trousers(waist_girth: float, hip_girth: float, thigh_girth: float, kne
         y = Y_CROTCH + (Y_WAIST - Y_CROTCH) * j / seat_rows
         g = np.interp(y, [Y_CROTCH, Y_HIP, Y_WAIST], [hip_girth, hip_girth, waist_girth])
         a, b = half_axes(g, 0.8)
-        ellipse = np.column_stack([-a * np.cos(theta), np.full(n_ring, y), b * np.sin(theta)])
-        w = smoothstep((y - Y_CROTCH) / (Y_HIP + 0.04 - Y_CROTCH))
+        ellipse = np.column_stack([-a * np.cos(theta), np.full(n_ring, y), b * np.sin(theta) + centre_z(y)])
+        # the seat rounds out quickly above the crotch point (the buttocks start just above it)
+        w = np.sqrt(smoothstep((y - Y_CROTCH) / SEAT_RISE))
         ids = mb.add((1 - w) * crotch_pts + w * ellipse)
         if j == 0:
             ids[h + q] = ids[q]  # the crotch point: front and back centre are one vertex
@@ -346,13 +371,14 @@ def build_trousers(waist_girth: float, hip_girth: float, thigh_girth: float, kne
         prev = crotch[nodes]
         for l_ in range(1, leg_rows + 1):
             y = Y_CROTCH - (Y_CROTCH - y_hem) * l_ / leg_rows
-            g = np.interp(y, [Y_ANKLE, Y_KNEE, Y_CROTCH], [hem_girth, knee_girth, thigh_girth])
+            # straight from the knee down over the calf (y 0.30), then narrowing to the hem
+            g = np.interp(y, [Y_ANKLE, 0.30, Y_KNEE, Y_CROTCH], [hem_girth, knee_girth, knee_girth, thigh_girth])
             r = g / (2 * np.pi)
-            # the legs part slightly towards the feet; the centre moves out as the leg narrows so the
-            # inner seams do not touch below the crotch
-            xc = x_leg + (r_thigh - r) * 0.6 + 0.015 * (Y_CROTCH - y) / Y_CROTCH
+            # the leg's centre follows the body's legs (slightly apart towards the feet)
+            xc = np.interp(y, (*LEG_CENTRE_X[0], Y_CROTCH), (*LEG_CENTRE_X[1], x_leg))
+            zc = np.interp(y, LEG_CENTRE_Z[0], LEG_CENTRE_Z[1])
             pts = np.column_stack([leg_side * (xc + r * np.cos(psi[nodes])), np.full(len(nodes), y),
-                                   r * np.sin(psi[nodes])])
+                                   r * np.sin(psi[nodes]) + zc])
             ids = mb.add(pts)
             mb.strip(prev, ids, closed=True)
             prev = ids
@@ -372,14 +398,16 @@ def garment_mesh(kind: str, size: str) -> trimesh.Trimesh:
     neck = dict(neck_half=s["neck"] / (2 * np.pi) + 0.02, neck_depth=s["neck"] / (2 * np.pi) + 0.012)
     if kind == "tshirt":  # ease: chest +8 cm, hem +6 cm over the hips, short sleeves to mid upper arm
         return build_top(TopSpec(
-            girths=[(0.75, s["hips"] + 0.06), (Y_WAIST, max(s["waist"] + 0.14, s["chest"] + 0.02)),
+            girths=[(0.75, s["hips"] + 0.10), (0.95, s["hips"] + 0.08),
+                    (Y_WAIST, max(s["waist"] + 0.14, s["chest"] + 0.04)),
                     (1.16, s["chest"] + 0.08), (Y_ARMPIT, s["chest"] + 0.08)],
             shoulder_half=SHOULDER_HALF[size], neck_drop_front=0.08, neck_drop_back=0.02,
-            armhole_angle_deg=40.0, sleeve_end=0.24, sleeve_top_girth=s["upper_arm"] + 0.12,
-            sleeve_end_girth=s["upper_arm"] + 0.08, **neck))
+            armhole_angle_deg=40.0, sleeve_end=0.24, sleeve_top_girth=s["upper_arm"] + 0.14,
+            sleeve_end_girth=s["upper_arm"] + 0.12, **neck))
     if kind == "longsleeve":  # ease: chest +10 cm, sleeves to the wrist
         return build_top(TopSpec(
-            girths=[(0.72, s["hips"] + 0.08), (Y_WAIST, max(s["waist"] + 0.14, s["chest"] + 0.04)),
+            girths=[(0.72, s["hips"] + 0.10), (0.95, s["hips"] + 0.08),
+                    (Y_WAIST, max(s["waist"] + 0.16, s["chest"] + 0.06)),
                     (1.16, s["chest"] + 0.10), (Y_ARMPIT, s["chest"] + 0.10)],
             shoulder_half=SHOULDER_HALF[size], neck_drop_front=0.07, neck_drop_back=0.02,
             armhole_angle_deg=40.0, sleeve_end=0.60, sleeve_top_girth=s["upper_arm"] + 0.12,
@@ -391,13 +419,14 @@ def garment_mesh(kind: str, size: str) -> trimesh.Trimesh:
             shoulder_half=SHOULDER_HALF[size] - 0.03, neck_drop_front=0.11, neck_drop_back=0.04,
             armhole_angle_deg=44.0, sleeve_end=None, **neck))
     if kind == "skirt":  # A-line to just above the knee, sits at the waist
-        return build_skirt([(0.52, s["hips"] + 0.30), (Y_HIP, s["hips"] + 0.06), (1.01, s["waist"] + 0.02)],
+        return build_skirt([(0.52, s["hips"] + 0.30), (Y_HIP, s["hips"] + 0.06), (0.96, s["hips"] + 0.04),
+                            (Y_WAIST, s["waist"] + 0.03)],
                            spacing=0.8 * SPACING)  # a small garment: a finer grid keeps >= 2,000 vertices
     if kind == "trousers":
-        return build_trousers(s["waist"] + 0.02, s["hips"] + 0.08, s["thigh"] + 0.08, s["knee"] + 0.10,
-                              s["knee"] + 0.04, y_hem=0.04)
+        return build_trousers(s["waist"] + 0.03, s["hips"] + 0.08, s["thigh"] + 0.10, s["knee"] + 0.12,
+                              s["knee"] + 0.04, y_hem=0.05)
     if kind == "shorts":
-        return build_trousers(s["waist"] + 0.02, s["hips"] + 0.08, s["thigh"] + 0.10, s["knee"] + 0.14,
+        return build_trousers(s["waist"] + 0.03, s["hips"] + 0.10, s["thigh"] + 0.10, s["knee"] + 0.14,
                               s["knee"] + 0.14, y_hem=0.58)
     raise ValueError(f"unknown garment kind {kind!r}")
 

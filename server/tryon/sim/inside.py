@@ -8,16 +8,18 @@
   u, v >= 0 and u + v <= 1.
 
 All three count points on an edge or at a vertex as inside (relative tolerance ``EPS``), so a ray through
-a shared edge always hits one of the two triangles. Benchmark (``benchmark()``, 2,000,000 ray hits on
-random triangles, about half inside, one core of the dev container, numba 0.68):
+a shared edge always hits one of the two triangles. Benchmark (``benchmark()``: 2,000,000 ray hits on
+random triangles, 1/8 of them inside; one core of the 2-core dev container while other jobs ran, numba
+0.68; all three counted the same 250,293 hits inside):
 
-    barycentric  ~9 ns per test
-    area         ~20 ns per test
-    angle        ~80 ns per test   (6 atan2 + 6 cross products)
+    barycentric  13-18 ns per test
+    area         15-18 ns per test
+    angle        225-233 ns per test   (6 atan2 + 6 square roots)
 
 so ``inside_triangle`` (the default, used by the collision response) is the barycentric test. The paper
-found angle 10 % faster than area; with atan2 instead of its lookup tables the angle test is slower
-here, and both lose to barycentric, which needs no square root or trigonometry.
+found the angle test 10 % faster than the area test; with atan2 (needed for edge points, see above)
+instead of its acos the angle test is an order of magnitude slower here, and the two others, which
+need no trigonometry, are close to the memory bandwidth of loading the triangle.
 """
 
 from __future__ import annotations
@@ -153,7 +155,7 @@ COUNTERS = {"angle": _count_angle, "area": _count_area, "barycentric": _count_ba
 
 def random_hits(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """``n`` random triangles (n, 3, 3) and, per triangle, the hit point (n, 3) of a random ray on its
-    plane (barycentric (u, v) uniform in [-0.5, 1.5]^2, so about a third fall inside)."""
+    plane (barycentric (u, v) uniform in [-0.5, 1.5]^2, so 1/8 of them fall inside)."""
     rng = np.random.default_rng(seed)
     tri = rng.normal(size=(n, 3, 3))
     uv = rng.uniform(-0.5, 1.5, size=(n, 2))

@@ -33,9 +33,9 @@ from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
-from tryon.sim.collide import relevant_parts
+from tryon.sim.collide import relevant_parts, reuse_planes
 from tryon.sim.constraints import (
-    limit_stretch_downward, project_planes, satisfy_springs, solve_constraints, top_down_order,
+    limit_stretch_downward, project_planes, solve_constraints, spring_lengths, top_down_order,
 )
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.metrics import penetration_metrics, strain_metrics
@@ -50,9 +50,12 @@ REST_MOVE = 1e-4
 PART_REACH = 0.15
 # Steps for which points pushed out at alignment stay pinned when growth is off (see module doc).
 PIN_STEPS = 5
-# Final projection rounds (constraints then collision, no integration) after the loop, so that the
-# garment at rest satisfies both as well as it can.
-POLISH_ROUNDS = 10
+# Final projection rounds (collision, then constraints on its contact planes; no integration) after the
+# loop, so that the garment at rest satisfies both: at least MIN, then until no spring is longer than
+# STRAIN_TOLERANCE x its limit length (the accuracy target: within 1 %), at most MAX.
+MIN_POLISH_ROUNDS = 3
+MAX_POLISH_ROUNDS = 60
+STRAIN_TOLERANCE = 1.005
 # Degrees per step the arms are turned back from the sleeve pose (slow enough that the arm surface
 # moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).
 ARM_DEG_PER_STEP = 1.0
@@ -63,6 +66,8 @@ ORDER_REFRESH = 20
 # m: points outside the offset body but closer than this get a contact plane for the step's constraint
 # passes (so the springs cannot pull them in between two collision tests).
 NEAR = 0.005
+# m: a contact plane is reused (no map query) while the point stays this close to where it touched.
+PLANE_REUSE = 0.01
 # Inverse-mass factor of points in contact during the constraint passes (see the loop).
 CONTACT_WEIGHT = 0.2
 
@@ -153,6 +158,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         pinned_until = PIN_STEPS
     x_checked = x.copy()
     x_step = x.copy()
+    reused = np.zeros(len(x), dtype=np.bool_)
     has_plane = np.zeros(len(x), dtype=np.bool_)
     planes = (has_plane, np.zeros((len(x), 3)), np.zeros((len(x), 3)))
 
@@ -193,8 +199,12 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                 if changing:
                     active[:] = True
                 else:
+                    # contacts still near where they touched keep their plane (no map query), points that
+                    # have not moved since their last test and touch nothing are not tested at all
+                    reuse_planes(x, x_prev, *planes, PLANE_REUSE, mu_s, mu_k, contact, reused)
                     moved = np.einsum("ij,ij->i", x - x_checked, x - x_checked) > REST_MOVE * REST_MOVE
                     np.logical_or(moved, has_plane, out=active)
+                    active &= ~reused
                 collided = collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset,
                                             mu_s, mu_k, contact, near=NEAR, planes=planes)
                 x_checked[active] = x[active]
@@ -234,14 +244,21 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         inv_mass[:] = saved_inv_mass
     active[:] = True
     order = top_down_order(x, springs)
-    for _ in range(POLISH_ROUNDS):
+    over_limit = (1.0 + limits[kind]) * STRAIN_TOLERANCE * rest  # lengths a spring must not exceed
+    polish_rounds = 0
+    for polish_rounds in range(1, MAX_POLISH_ROUNDS + 1):
         x_prev[:] = x
+        reuse_planes(x, x_prev, *planes, PLANE_REUSE, 0.0, 0.0, contact, reused)
+        np.logical_not(reused, out=active)
         collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact,
                          near=NEAR, planes=planes)
         solve_constraints(x, x_prev, inv_mass, springs, rest, kind, limits, compression, settings.passes,
                           *planes, 0.0, 0.0)
         limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limits, order)
         project_planes(x, x_prev, *planes, 0.0, 0.0)
+        if polish_rounds >= MIN_POLISH_ROUNDS and not np.any(spring_lengths(x, springs) > over_limit):
+            break
+    active[:] = True
     collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
 
     # --- full mesh: follow the coarse one, then push it out of the offset body too
@@ -271,5 +288,6 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         "arm_turn_deg": [float(np.degrees(plan.left)), float(np.degrees(plan.right))],
         "parts_tested": [body.parts[k] for k in parts],
         "last_step_contacts": int(collided),
+        "polish_rounds": int(polish_rounds),
     }
     return TryOnResult(vertices=full, faces=model.faces, strain=per_vertex, coarse=x, metrics=metrics)

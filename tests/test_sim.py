@@ -1,0 +1,176 @@
+"""Simulation kernels and synthetic drapes: free fall, pins, strain limits, collision, rest."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tryon.sim.bodystate import BodyCollider
+from tryon.sim.constraints import (
+    limit_stretch_downward, satisfy_springs, satisfy_springs_numpy, spring_strain, top_down_order,
+)
+from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
+from tryon.sim.run import drape
+from tryon.sim.scenes import body_from_parts, cloth_square
+from tryon.sim.settings import SimSettings
+
+LIMITS = np.array([0.10, 0.15, 0.30])
+COMPRESSION = np.array([1.0, 1.0, 0.1])
+
+
+@pytest.fixture(scope="module")
+def table():
+    """A 'body' that is one upright cylinder, 0.3 m radius, 1 m tall."""
+    return body_from_parts(np.array([[[0, 0, 0], [0, 1.0, 0]]], float), np.array([0.3]), n_around=48)
+
+
+def test_free_fall_matches_half_g_t_squared():
+    dt, n, g = 0.01, 100, 9.81
+    x = np.zeros((4, 3))
+    x_prev = x.copy()
+    w = np.ones(4)
+    for _ in range(n):
+        verlet_step(x, x_prev, w, dt, g, 0.0, 1e9)
+    t = n * dt
+    # Verlet from rest gives g dt^2 n (n + 1) / 2: g t^2 / 2 plus a first-order start-up term
+    assert np.allclose(x[:, 1], -g * dt * dt * n * (n + 1) / 2, rtol=1e-12)
+    assert np.allclose(x[:, 1], -0.5 * g * t * t, rtol=1.5 / n)
+    assert np.allclose(x[:, [0, 2]], 0.0)
+    v = (x - x_prev) / dt
+    assert np.allclose(v[:, 1], -g * t, rtol=1.5 / n)
+
+
+def test_air_drag_slows_the_fall_and_is_bounded():
+    dt = 0.02
+    x = np.zeros((1, 3))
+    x_prev = x.copy()
+    for _ in range(2000):
+        verlet_step(x, x_prev, np.ones(1), dt, 9.81, 1.0, 1e9)
+    v = (x_prev[0, 1] - x[0, 1]) / dt
+    # terminal speed of v' = g - c v in the discrete scheme: g dt / (1 - (1 - c dt)) = g / c
+    assert v == pytest.approx(9.81, rel=0.02)
+
+
+def test_pinned_points_stay():
+    model = cloth_square(1.0, 11, 1.0)
+    x = model.coarse_vertices.copy()
+    x_prev = x.copy()
+    w = 1.0 / model.mass
+    pinned = np.array([0, 10])
+    w[pinned] = 0.0
+    springs = model.springs.astype(np.int64)
+    kind = model.kind.astype(np.int64)
+    for _ in range(50):
+        verlet_step(x, x_prev, w, 0.02, 9.81, 1.0, 10.0)
+        satisfy_springs(x, w, springs, model.rest, kind, LIMITS, COMPRESSION, 8)
+        limit_stretch_downward(x, x_prev, w, springs, model.rest, kind, LIMITS, top_down_order(x, springs))
+    assert np.array_equal(x[pinned], model.coarse_vertices[pinned])
+    assert x[5, 1] < 0.9  # the rest fell
+
+
+def test_springs_within_limits_after_the_passes():
+    model = cloth_square(0.5, 9, 1.0)
+    rng = np.random.default_rng(0)
+    x = model.coarse_vertices + rng.normal(scale=0.02, size=(len(model.mass), 3))
+    springs = model.springs.astype(np.int64)
+    kind = model.kind.astype(np.int64)
+    satisfy_springs(x, np.ones(len(x)), springs, model.rest, kind, LIMITS, COMPRESSION, 300)
+    strain = spring_strain(x, springs, model.rest)
+    assert np.all(strain <= LIMITS[kind] + 1e-3)
+    structural_or_shear = kind < 2
+    assert np.all(strain[structural_or_shear] >= -1e-3)
+
+
+def test_numba_passes_match_the_numpy_oracle():
+    model = cloth_square(0.3, 5, 1.0)
+    rng = np.random.default_rng(1)
+    x = model.coarse_vertices + rng.normal(scale=0.03, size=(len(model.mass), 3))
+    w = rng.uniform(0.5, 2.0, len(x))
+    w[0] = 0.0
+    springs = model.springs.astype(np.int64)
+    kind = model.kind.astype(np.int64)
+    expected = satisfy_springs_numpy(x, w, springs, model.rest, kind, LIMITS, COMPRESSION, 3)
+    got = x.copy()
+    satisfy_springs(got, w, springs, model.rest, kind, LIMITS, COMPRESSION, 3)
+    assert np.allclose(got, expected, atol=1e-12)
+
+
+def test_hanging_cloth_keeps_its_strain_limit():
+    """A cloth pinned at its top edge: the top-down sweep keeps every spring within its limit."""
+    model = cloth_square(1.0, 21, 1.0)
+    x0 = model.coarse_vertices
+    x = np.stack([x0[:, 0], 1.0 + x0[:, 2], np.zeros(len(x0))], axis=1)
+    x_prev = x.copy()
+    w = 1.0 / model.mass
+    w[x[:, 1] > x[:, 1].max() - 1e-6] = 0.0
+    springs = model.springs.astype(np.int64)
+    kind = model.kind.astype(np.int64)
+    for step in range(200):
+        verlet_step(x, x_prev, w, 0.02, 9.81, 1.0, 10.0)
+        satisfy_springs(x, w, springs, model.rest, kind, LIMITS, COMPRESSION, 4)
+        limit_stretch_downward(x, x_prev, w, springs, model.rest, kind, LIMITS, top_down_order(x, springs))
+    strain = spring_strain(x, springs, model.rest)
+    assert np.all(strain <= 1.01 * (1 + LIMITS[kind]) - 1)
+    assert x[:, 1].min() < 0.45  # it hangs (1 m cloth, 10 % stretch at most)
+    assert kinetic_energy_per_kg(x, x_prev, model.mass, 0.02) < 1e-2
+
+
+def test_points_inside_a_cylinder_end_outside_with_the_margin(table):
+    margin = 0.004
+    collider = BodyCollider(table, margin)
+    rng = np.random.default_rng(2)
+    n = 2000
+    r = rng.uniform(0.0, 0.295, n)
+    a = rng.uniform(-np.pi, np.pi, n)
+    y = rng.uniform(0.05, 0.95, n)
+    x = np.stack([r * np.cos(a), y, r * np.sin(a)], axis=1)
+    x_prev = x.copy()
+    contact = np.zeros(n, dtype=bool)
+    moved = collider.collide(x, x_prev, np.ones(n), np.ones(n, dtype=bool), np.array([0]), 0.0005, 0.0, 0.0,
+                             contact)
+    assert moved == n
+    radius = np.hypot(x[:, 0], x[:, 2])
+    inside_real = (radius < 0.3) & (x[:, 1] > 0.0) & (x[:, 1] < 1.0)
+    assert not inside_real.any()
+    # each point left by the short way: through the side wall or a cap, whichever is nearer
+    depth_side = 0.3 - r
+    depth_cap = np.minimum(y, 1.0 - y)
+    side = depth_side < depth_cap - 0.01
+    assert np.allclose(radius[side], 0.3 + margin, atol=0.002)
+    assert np.all(collider.depth(x, np.array([0]), offset=False) == 0.0)
+
+
+def test_depth_of_points_near_the_surface(table):
+    collider = BodyCollider(table, 0.004)
+    a = np.linspace(-np.pi, np.pi, 50, endpoint=False)
+    for d in (-0.02, -0.005, 0.003):  # inside by 2 cm, 5 mm; outside by 3 mm
+        x = np.stack([(0.3 + d) * np.cos(a), np.full(50, 0.5), (0.3 + d) * np.sin(a)], axis=1)
+        depth = collider.depth(x, np.array([0]), offset=False)
+        # the faceted cylinder (48 sides) lies up to 0.6 mm inside the round one
+        assert np.allclose(depth, max(-d, 0.0), atol=7e-4)
+
+
+@pytest.mark.parametrize("time_step", [0.02, 0.05])
+def test_cloth_comes_to_rest_on_a_table(table, time_step):
+    cloth = cloth_square(1.0, 31, 1.05)
+    settings = SimSettings(time_step=time_step, max_steps=600, min_steps=20)
+    result = drape(table, cloth, settings, initial=cloth.coarse_vertices)
+    m = result.metrics
+    assert m["rest_reached"], m
+    assert m["penetrating_vertices"] == 0
+    top = result.vertices[np.hypot(result.vertices[:, 0], result.vertices[:, 2]) < 0.25]
+    # lying on the offset top (margin 4 mm + lambda 0.5 mm), a few small wrinkles allowed
+    assert np.median(top[:, 1]) == pytest.approx(1.0045, abs=0.001)
+    assert np.all((top[:, 1] > 1.0) & (top[:, 1] < 1.02))
+    assert result.vertices[:, 1].min() < 0.85  # the corners hang down
+    for kind in m["strain_by_kind"].values():
+        assert kind["over"] == 0, m["strain_by_kind"]
+
+
+def test_on_frame_false_stops_the_run(table):
+    cloth = cloth_square(1.0, 11, 1.2)
+    seen = []
+    result = drape(table, cloth, SimSettings(max_steps=100), initial=cloth.coarse_vertices,
+                   on_frame=lambda step, x: seen.append(step) or step < 5)
+    assert seen == [1, 2, 3, 4, 5]
+    assert result.metrics["steps"] == 5 and result.metrics["stopped"]

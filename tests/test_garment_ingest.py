@@ -199,3 +199,18 @@ def test_short_wide_skirt_is_not_taken_for_z_up():
     m = load_garment(obj_bytes(z_up, skirt.faces), "mini.obj", "m")
     assert any("z up" in n for n in m.notes)
     assert np.allclose(m.vertices, v, atol=1e-4)
+
+
+def test_gltf_with_embedded_buffers_and_with_missing_ones():
+    import base64
+    import json
+
+    skirt = garment_mesh("skirt", "S")
+    files = skirt.export(file_type="gltf")
+    with pytest.raises(GarmentError, match="separate buffer files"):
+        load_garment(files["model.gltf"], "skirt.gltf", "m")
+    gltf = json.loads(files["model.gltf"])
+    for buffer in gltf["buffers"]:
+        buffer["uri"] = "data:application/octet-stream;base64," + base64.b64encode(files[buffer["uri"]]).decode()
+    m = load_garment(json.dumps(gltf).encode(), "skirt.gltf", "m")
+    assert len(m.faces) == len(skirt.faces)

@@ -132,6 +132,11 @@ def _read(data: bytes, ext: str, max_faces: int) -> tuple[np.ndarray, np.ndarray
             warnings.simplefilter("ignore")
             loaded = trimesh.load(io.BytesIO(data), file_type=ext, process=False)
     except Exception as exc:  # trimesh raises many types for broken files
+        if ext == "gltf" and b'"uri"' in data and b'"data:' not in data:
+            raise GarmentError(
+                "this .gltf refers to separate buffer files, which were not uploaded: export a single .glb "
+                "(or a .gltf with embedded buffers)"
+            ) from exc
         raise GarmentError(
             f"could not read the file as {ext.upper()}: it is truncated or not a mesh ({_short(exc)})"
         ) from exc

@@ -4,9 +4,10 @@ Steps: (1) stations and placements from the measurements (``shape.body_layout``)
 section so that its sampled polygon has exactly the requested girth (the mesh row at that station *is* the
 sampled section, see ``nurbs.py``, so the mesh then measures what was asked); (3) move the homogeneous
 control sections into the world and evaluate each part's two surfaces on the cached (u, v) grid; (4)
-mirror the left limbs into the right ones, put the feet on y = 0 and stretch y so that the top of the head
-is at the requested stature (a no-op within 1 mm unless the legs are spread: spread legs would otherwise
-lower the head); (5) normals, measurements of the built mesh, OBBs and cylinder maps.
+solve the leg length so that the soles stand on y = 0 with the hips where the measurements put them
+(spread legs are lengthened rather than the body lowered, so stature and crotch height hold in any pose),
+mirror the left limbs into the right ones, and scale y by the last ~1e-6 that makes the top of the head
+exactly the stature; (5) normals, measurements of the built mesh, OBBs and cylinder maps.
 """
 
 from __future__ import annotations
@@ -29,6 +30,10 @@ from tryon.body.types import PART_NAMES, Body
 DEFAULT_RESOLUTION = 30
 MIN_RESOLUTION = 6
 MAX_RESOLUTION = 200
+# Leg-length solve: at most this many secant steps, stopping when the soles are within this many
+# metres of the floor (the final fit of the stature absorbs what is left: a stretch below 1e-4).
+LEG_ITERATIONS = 3
+LEG_TOLERANCE = 1e-4
 # Margin (m) the OBBs and cylinder cells are grown by: the collision offset of the body surface is
 # smaller than this (SPEC section 4), so a garment point near the offset surface is still found.
 MAP_MARGIN = 0.01
@@ -179,13 +184,29 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
     # ---- surfaces --------------------------------------------------------------------------------------
     shape_points = {}
     shape_axes = {}
-    for shape in SHAPE_NAMES:
-        part = layout.parts[shape]
-        stations = _fit_girths(part.stations, part.measured, targets, g.ring[shape])
-        pw = _homogeneous_world(stations, part.rotation, part.origin, part.tilt, part.pivot)
-        pts = nurbs.evaluate_tube(pw, g.rows[shape], g.ring[shape])
-        shape_points[shape] = np.concatenate([pts[0, :1], pts[1:-1].reshape(-1, 3), pts[-1, :1]])
-        shape_axes[shape] = np.stack([pts[0, 0], pts[-1, 0]])
+
+    def evaluate(shapes):
+        for shape in shapes:
+            part = layout.parts[shape]
+            stations = _fit_girths(part.stations, part.measured, targets, g.ring[shape])
+            pw = _homogeneous_world(stations, part.rotation, part.origin, part.tilt, part.pivot)
+            pts = nurbs.evaluate_tube(pw, g.rows[shape], g.ring[shape])
+            shape_points[shape] = np.concatenate([pts[0, :1], pts[1:-1].reshape(-1, 3), pts[-1, :1]])
+            shape_axes[shape] = np.stack([pts[0, 0], pts[-1, 0]])
+
+    evaluate(SHAPE_NAMES)
+    # Legs long enough for the soles to stand on y = 0 (secant steps on the leg length; the sole's height
+    # is nearly linear in it): the crotch, the torso levels and the stature then stay where the
+    # measurements put them, in any leg spread.
+    hip_y = layout.landmarks["hip_joint"][1]
+    leg_scale = 1.0
+    for _ in range(LEG_ITERATIONS):
+        sole = shape_points["shin"][:, 1].min()
+        if abs(sole) < LEG_TOLERANCE:
+            break
+        leg_scale *= hip_y / (hip_y - sole)
+        layout = body_layout(full, pose, leg_scale)
+        evaluate(("thigh", "shin"))
     mirror = np.array([-1.0, 1.0, 1.0])
     vertices = np.concatenate([
         shape_points[PART_SHAPES[name][0]] * (mirror if PART_SHAPES[name][1] else 1.0) for name in PART_NAMES

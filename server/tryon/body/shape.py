@@ -108,8 +108,12 @@ class BodyLayout:
     landmarks: dict
 
 
-def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
-    """Stations and placements of head, torso and the left limbs for measurements ``m`` (cm) in ``pose``."""
+def body_layout(m: Measurements, pose: Pose, leg_scale: float = 1.0) -> BodyLayout:
+    """Stations and placements of head, torso and the left limbs for measurements ``m`` (cm) in ``pose``.
+
+    leg_scale: factor on the thigh and shin lengths, which ``build.py`` solves for so that the soles
+    reach the floor from the hip joints' height (spread legs need longer legs to keep the crotch height
+    and the stature; the cubic sole cap also reaches a few millimetres below its pole)."""
     m = complete(m)
     H = m.height / 100.0
     C, W, P = m.chest / 100.0, m.waist / 100.0, m.hips / 100.0
@@ -241,7 +245,7 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
     gamma = np.radians(pose.leg_spread)
     rot_leg = rot_z(np.pi + gamma)
     d_leg = rot_leg[:, 1]
-    l_th = y_h - y_k
+    l_th = (y_h - y_k) * leg_scale
     knee = hip_joint + l_th * d_leg
     s_g = (y_h - y_c) + 0.02 * hs  # thigh girth just below the buttock crease
     thigh = np.array([
@@ -255,7 +259,7 @@ def body_layout(m: Measurements, pose: Pose) -> BodyLayout:
         _ring(l_th + 0.5 * r_k, 0.85 * r_k),
         _pole(l_th + 0.9 * r_k),
     ])
-    l_sh = y_k  # knee to sole
+    l_sh = y_k * leg_scale  # knee to sole
     shin = np.array([
         _pole(-0.9 * r_k),
         _ring(-0.5 * r_k, 0.85 * r_k),

@@ -8,7 +8,7 @@ import numpy as np
 from fastapi import APIRouter, Query
 from fastapi.responses import Response
 
-from tryon.api.export import MEDIA_TYPES, mesh_bytes, mesh_json
+from tryon.api.export import MEDIA_TYPES, mesh_bytes
 from tryon.api.schemas.bodies import (
     API_MAX_RESOLUTION,
     DEFAULT_MEASUREMENTS,
@@ -32,6 +32,17 @@ from tryon.body.params import (
 )
 from tryon.body.types import Body
 
+try:  # orjson writes the ~30,000 coordinates about 20x faster than the standard library
+    import orjson
+
+    def _dumps(obj: dict) -> bytes:
+        return orjson.dumps(obj, option=orjson.OPT_SERIALIZE_NUMPY)
+except ImportError:  # pragma: no cover - orjson is optional
+    orjson = None
+
+    def _dumps(obj: dict) -> bytes:
+        return json.dumps(obj, separators=(",", ":"), default=lambda a: a.tolist()).encode()
+
 router = APIRouter(tags=["bodies"])
 
 # RGBA per part for GLB vertex colours (skin tones, limbs a shade apart so the parts can be told apart).
@@ -43,10 +54,11 @@ PART_COLOURS = np.array([
 
 
 def body_json(body: Body) -> dict:
-    """The JSON answer of ``POST /api/bodies`` (see ``BodyOut``)."""
-    out = mesh_json(body.vertices, body.faces)
+    """The JSON answer of ``POST /api/bodies`` (see ``BodyOut``); arrays left as numpy (``_dumps``), the
+    same content as ``export.mesh_json`` (vertices rounded to 0.01 mm)."""
+    out = {"vertices": np.round(body.vertices, 5), "faces": np.ascontiguousarray(body.faces)}
     out["parts"] = list(body.parts)
-    out["face_part"] = body.face_part.tolist()
+    out["face_part"] = np.ascontiguousarray(body.face_part)
     out["measurements"] = {
         "requested": body.requested,
         "achieved": body.achieved,
@@ -80,7 +92,7 @@ def create_body(
     if format == "glb":
         return Response(body_glb(body), media_type=MEDIA_TYPES["glb"],
                         headers={"X-Body-Measurements": json.dumps(body.achieved, separators=(",", ":"))})
-    return Response(json.dumps(body_json(body), separators=(",", ":")), media_type="application/json")
+    return Response(_dumps(body_json(body)), media_type="application/json")
 
 
 @router.get("/bodies/ranges", response_model=RangesOut)

@@ -51,8 +51,8 @@ class SimSettings:
     """
 
     time_step: float = 0.02
-    passes: int = 8
-    substeps: int = 4
+    passes: int = 16
+    substeps: int = 16
     simplification: float = 0.3
     max_steps: int = 400
     gravity: float = 9.81

@@ -79,13 +79,13 @@ def test_quads_split_3dmax_style(meshes):
 
 @pytest.mark.parametrize("size,chest", [("S", 88), ("M", 96), ("L", 104)])
 def test_tshirt_chest_girth_has_ease(meshes, size, chest):
-    g = girth(meshes[("tshirt", size)], 1.16)
+    g = girth(meshes[("tshirt", size)], 1.20)  # just under the armpits (1.21 m)
     assert g * 100 == pytest.approx(chest + 8, abs=1.5)  # cm: ease of 8 cm over the body's chest
 
 
 def test_trouser_waist_and_hems(meshes):
     m = meshes[("trousers", "M")]
-    assert girth(m, 1.04) * 100 == pytest.approx(SIZE_CHART["M"]["waist"] + 3, abs=2.0)
+    assert girth(m, 1.04) * 100 == pytest.approx(SIZE_CHART["M"]["waist"] + 4, abs=2.0)
     hems = sorted(loops(m), key=lambda lp: m.vertices[lp, 1].mean())[:2]
     for hem in hems:
         assert m.vertices[hem, 1].mean() == pytest.approx(0.05, abs=0.01)

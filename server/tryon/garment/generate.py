@@ -51,24 +51,34 @@ SLEEVE_RETURN = 0.2
 # The body's mid-plane is not z = 0 at every height: the neck and shoulders sit behind the chest, the
 # buttocks behind the belly. (y, z of the torso's section centre), m, measured on the service's
 # parametric body (tryon.body) of a 1.70 m person; the legs are centred on z = 0.
-BODY_CENTRE_Z = ((0.0, 0.0), (0.75, 0.0), (0.82, -0.01), (0.9, -0.03), (0.95, -0.02), (1.05, -0.01),
-                 (1.2, -0.02), (1.3, -0.032), (1.38, -0.055), (1.47, -0.05))
+BODY_CENTRE_Z = ((0.0, 0.0), (0.75, 0.0), (0.80, -0.005), (0.85, -0.025), (0.90, -0.026), (0.95, -0.02),
+                 (1.00, -0.012), (1.05, -0.008), (1.10, -0.015), (1.20, -0.021), (1.25, -0.024),
+                 (1.30, -0.033), (1.35, -0.049), (1.40, -0.052), (1.47, -0.05))
 # The A-pose: arms this many degrees out from the torso's side.
 ARM_ANGLE_DEG = 27.0
-# Depth / width of the torso's cross-section ellipse (a chest is about 0.7 as deep as wide).
+# Depth / width of the torso's cross-section (a chest is about 0.7 as deep as wide), and the exponent of
+# its superellipse |x/a|^p + |z/b|^p = 1: 2.5 is squarer than an ellipse, like a torso's section.
 DEPTH_RATIO = 0.72
+SECTION_EXPONENT = 2.5
 # Target grid spacing, m: about 1.7 cm gives the 2,000-8,000 vertices of a 3DMAX garment.
 SPACING = 0.017
 
 
-def ellipse_perimeter(a: float, b: float) -> float:
-    """Ramanujan's approximation, m."""
-    return math.pi * (3 * (a + b) - math.sqrt((3 * a + b) * (a + 3 * b)))
+def spow(t, p: float = SECTION_EXPONENT):
+    """sign(t) |t|^(2/p): cos/sin of a superellipse |x/a|^p + |z/b|^p = 1 (p = 2: an ellipse)."""
+    return np.sign(t) * np.abs(t) ** (2.0 / p)
+
+
+def section_perimeter(a: float, b: float, p: float = SECTION_EXPONENT) -> float:
+    """Perimeter (m) of the superellipse with half-axes a, b (polygon of 720 points)."""
+    t = np.linspace(0, 2 * np.pi, 721)
+    x, z = a * spow(np.cos(t), p), b * spow(np.sin(t), p)
+    return float(np.hypot(np.diff(x), np.diff(z)).sum())
 
 
 def half_axes(girth_m: float, ratio: float = DEPTH_RATIO) -> tuple[float, float]:
-    """(half-width, half-depth) of an ellipse of the given perimeter and depth/width ratio."""
-    a = girth_m / ellipse_perimeter(1.0, ratio)
+    """(half-width, half-depth) of the torso section of the given girth and depth/width ratio."""
+    a = girth_m / section_perimeter(1.0, ratio)
     return a, a * ratio
 
 
@@ -183,7 +193,8 @@ def build_top(spec: TopSpec) -> trimesh.Trimesh:
     for j in range(rows_low + 1):
         y = y_hem + (y_arm - y_hem) * j / rows_low
         a, b = half_axes(np.interp(y, ys, gs))
-        rings.append(mb.add(np.column_stack([-a * np.cos(theta), np.full(n_ring, y), b * np.sin(theta) + centre_z(y)])))
+        rings.append(mb.add(np.column_stack([-a * spow(np.cos(theta)), np.full(n_ring, y),
+                                             b * spow(np.sin(theta)) + centre_z(y)])))
     for j in range(rows_low):
         mb.strip(rings[j], rings[j + 1], closed=True)
 
@@ -199,12 +210,12 @@ def build_top(spec: TopSpec) -> trimesh.Trimesh:
         half = []
         for side in (+1, -1):  # front, back
             th = delta + (np.pi - 2 * delta) * k
-            x = -a * np.cos(th)
+            x = -a * spow(np.cos(th))
             y_top = _shoulder_line(x, spec, side)
             y = y_arm + (y_top - y_arm) * u
             z_top = _neck_z(x, spec) * side
             # the depth closes towards the shoulder seam late (1 - u^4): the shoulders are round
-            z = side * np.sqrt((b_arm * np.sin(th)) ** 2 * (1 - u ** 4) + (np.abs(z_top) * u * u) ** 2)
+            z = side * np.sqrt((b_arm * spow(np.sin(th))) ** 2 * (1 - u ** 4) + (np.abs(z_top) * u * u) ** 2)
             half.append(np.column_stack([x, y, z + centre_z(y)]))
         if j < rows_high:
             front_ids = mb.add(half[0])
@@ -309,18 +320,20 @@ def build_skirt(girths: list[tuple[float, float]], spacing: float = SPACING) -> 
     prev = None
     for j in range(rows + 1):
         y = ys[0] + (ys[-1] - ys[0]) * j / rows
-        a, b = half_axes(np.interp(y, ys, gs), 0.8)
-        ids = mb.add(np.column_stack([-a * np.cos(theta), np.full(n_ring, y), b * np.sin(theta) + centre_z(y)]))
+        a, b = half_axes(np.interp(y, ys, gs))
+        ids = mb.add(np.column_stack([-a * spow(np.cos(theta)), np.full(n_ring, y),
+                                      b * spow(np.sin(theta)) + centre_z(y)]))
         if prev is not None:
             mb.strip(prev, ids, closed=True)
         prev = ids
     return mb.mesh()
 
 
-def build_trousers(waist_girth: float, hip_girth: float, thigh_girth: float, knee_girth: float,
+def build_trousers(seat_girths: list[tuple[float, float]], thigh_girth: float, knee_girth: float,
                    hem_girth: float, y_hem: float) -> trimesh.Trimesh:
     """Seat tube (crotch to waist) whose first ring is a figure eight pinched at the crotch point, and
-    two leg tubes from that ring down to the leg hems at ``y_hem``.
+    two leg tubes from that ring down to the leg hems at ``y_hem``. ``seat_girths``: [(y, girth)] from the
+    crotch up to the waist, m; the other girths (m) are the legs'.
 
     Seat ring node k (of 2 h, h even, q = h / 2): angle pi k / h around the seat from the person's right
     side (-x) over the front (+z); k = q is the front centre, k = h + q the back centre. On the crotch
@@ -351,9 +364,10 @@ def build_trousers(waist_girth: float, hip_girth: float, thigh_girth: float, kne
     rings = []
     for j in range(seat_rows + 1):
         y = Y_CROTCH + (Y_WAIST - Y_CROTCH) * j / seat_rows
-        g = np.interp(y, [Y_CROTCH, Y_HIP, Y_WAIST], [hip_girth, hip_girth, waist_girth])
-        a, b = half_axes(g, 0.8)
-        ellipse = np.column_stack([-a * np.cos(theta), np.full(n_ring, y), b * np.sin(theta) + centre_z(y)])
+        g = np.interp(y, *zip(*seat_girths))
+        a, b = half_axes(g)
+        ellipse = np.column_stack([-a * spow(np.cos(theta)), np.full(n_ring, y),
+                                   b * spow(np.sin(theta)) + centre_z(y)])
         # the seat rounds out quickly above the crotch point (the buttocks start just above it)
         w = np.sqrt(smoothstep((y - Y_CROTCH) / SEAT_RISE))
         ids = mb.add((1 - w) * crotch_pts + w * ellipse)
@@ -392,41 +406,57 @@ def _cm(x: float) -> float:
     return x / 100.0
 
 
+# The body's torso girth (tape around the convex hull, m) at heights y, from the size chart's chest,
+# waist and hips: the shape of the service's parametric body between the buttocks (0.85 m) and the
+# armpits, where the torso is measured. Garments are this plus their ease.
+def body_girth_table(s: dict) -> list[tuple[float, float]]:
+    # at 0.85-0.90 m the fronts of the thighs and the buttocks make the section fuller than an
+    # ellipse of its girth: 4 and 2 cm more keep an elliptic garment around it
+    return [(0.85, s["hips"] + 0.05), (0.90, s["hips"] + 0.02), (0.95, (s["hips"] + s["waist"]) / 2 + 0.02),
+            (1.00, s["waist"] + 0.02), (Y_WAIST, s["waist"]), (1.10, s["waist"] + 0.03),
+            (1.15, s["chest"] - 0.05), (1.20, s["chest"] - 0.01), (1.25, s["chest"] - 0.01)]
+
+
+def fitted(s: dict, y0: float, y1: float, ease: float, floor: float = 0.0) -> list[tuple[float, float]]:
+    """[(y, girth)] from y0 up to y1: the body's girth plus ``ease`` (m), at least ``floor`` (m)."""
+    table = body_girth_table(s)
+    ys = [y0, *[y for y, _ in table if y0 < y < y1], y1]
+    ty, tg = zip(*table)
+    return [(y, max(float(np.interp(y, ty, tg)) + ease, floor)) for y in ys]
+
+
 def garment_mesh(kind: str, size: str) -> trimesh.Trimesh:
     """One catalogue garment: kind in ``GARMENTS``, size S | M | L."""
     s = {k: _cm(v) for k, v in SIZE_CHART[size].items()}
-    neck = dict(neck_half=s["neck"] / (2 * np.pi) + 0.02, neck_depth=s["neck"] / (2 * np.pi) + 0.012)
-    if kind == "tshirt":  # ease: chest +8 cm, hem +6 cm over the hips, short sleeves to mid upper arm
+    neck = dict(neck_half=s["neck"] / (2 * np.pi) + 0.025, neck_depth=s["neck"] / (2 * np.pi) + 0.025)
+    if kind == "tshirt":  # chest + 8 cm (body + 9 cm under the arms), straight, sleeves to mid upper arm
         return build_top(TopSpec(
-            girths=[(0.75, s["hips"] + 0.10), (0.95, s["hips"] + 0.08),
-                    (Y_WAIST, max(s["waist"] + 0.14, s["chest"] + 0.04)),
-                    (1.16, s["chest"] + 0.08), (Y_ARMPIT, s["chest"] + 0.08)],
+            girths=fitted(s, 0.75, Y_ARMPIT, 0.09, floor=s["chest"] + 0.04),
             shoulder_half=SHOULDER_HALF[size], neck_drop_front=0.08, neck_drop_back=0.02,
-            armhole_angle_deg=40.0, sleeve_end=0.24, sleeve_top_girth=s["upper_arm"] + 0.14,
+            armhole_angle_deg=46.0, sleeve_end=0.24, sleeve_top_girth=s["upper_arm"] + 0.14,
             sleeve_end_girth=s["upper_arm"] + 0.12, **neck))
-    if kind == "longsleeve":  # ease: chest +10 cm, sleeves to the wrist
+    if kind == "longsleeve":  # chest + 10 cm, straight, sleeves to the wrist
         return build_top(TopSpec(
-            girths=[(0.72, s["hips"] + 0.10), (0.95, s["hips"] + 0.08),
-                    (Y_WAIST, max(s["waist"] + 0.16, s["chest"] + 0.06)),
-                    (1.16, s["chest"] + 0.10), (Y_ARMPIT, s["chest"] + 0.10)],
+            girths=fitted(s, 0.72, Y_ARMPIT, 0.11, floor=s["chest"] + 0.06),
             shoulder_half=SHOULDER_HALF[size], neck_drop_front=0.07, neck_drop_back=0.02,
-            armhole_angle_deg=40.0, sleeve_end=0.60, sleeve_top_girth=s["upper_arm"] + 0.12,
+            armhole_angle_deg=46.0, sleeve_end=0.60, sleeve_top_girth=s["upper_arm"] + 0.12,
             sleeve_end_girth=s["wrist"] + 0.08, **neck))
-    if kind == "dress":  # sleeveless, fitted bodice (+6 cm), flared knee-length skirt
+    if kind == "dress":  # sleeveless, fitted (ease 8 cm) down to the hips, then flared to the knee
         return build_top(TopSpec(
-            girths=[(0.52, s["hips"] + 0.50), (Y_HIP, s["hips"] + 0.08), (Y_WAIST, s["waist"] + 0.08),
-                    (1.16, s["chest"] + 0.06), (Y_ARMPIT, s["chest"] + 0.06)],
+            girths=[(0.52, s["hips"] + 0.50), *fitted(s, 0.85, Y_ARMPIT, 0.08)],
             shoulder_half=SHOULDER_HALF[size] - 0.03, neck_drop_front=0.11, neck_drop_back=0.04,
             armhole_angle_deg=44.0, sleeve_end=None, **neck))
-    if kind == "skirt":  # A-line to just above the knee, sits at the waist
-        return build_skirt([(0.52, s["hips"] + 0.30), (Y_HIP, s["hips"] + 0.06), (0.96, s["hips"] + 0.04),
-                            (Y_WAIST, s["waist"] + 0.03)],
+    if kind == "skirt":  # A-line to just above the knee, sits at the waist (ease 4 cm there)
+        return build_skirt([(0.52, s["hips"] + 0.30), *fitted(s, 0.85, Y_WAIST, 0.08)[:-1],
+                            (Y_WAIST, s["waist"] + 0.04)],
                            spacing=0.8 * SPACING)  # a small garment: a finer grid keeps >= 2,000 vertices
+    # trousers and shorts: a seat with 6 cm of ease, a waistband 4 cm over the waist
+    seat = [*fitted(s, Y_CROTCH, Y_WAIST, 0.06)[:-1], (Y_WAIST, s["waist"] + 0.04)]
     if kind == "trousers":
-        return build_trousers(s["waist"] + 0.03, s["hips"] + 0.08, s["thigh"] + 0.10, s["knee"] + 0.12,
+        return build_trousers(seat, s["thigh"] + 0.10, s["knee"] + 0.12,
                               s["knee"] + 0.04, y_hem=0.05)
     if kind == "shorts":
-        return build_trousers(s["waist"] + 0.03, s["hips"] + 0.10, s["thigh"] + 0.10, s["knee"] + 0.14,
+        return build_trousers(seat, s["thigh"] + 0.12, s["knee"] + 0.14,
                               s["knee"] + 0.14, y_hem=0.58)
     raise ValueError(f"unknown garment kind {kind!r}")
 

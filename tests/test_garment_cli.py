@@ -1,0 +1,50 @@
+"""``tryon ingest``: one line per garment, cached the second time, refused files named with a reason."""
+
+import json
+
+from tryon.cli import main
+from tryon.garment.catalogue import Catalogue
+from tryon.garment.generate import garment_mesh, obj_text
+
+
+def test_ingest_files_and_a_refused_one(tmp_path, capsys):
+    good = tmp_path / "skirt-s.obj"
+    good.write_text(obj_text(garment_mesh("skirt", "S"), "skirt"))
+    bad = tmp_path / "broken.obj"
+    bad.write_bytes(b"v 0 0 0\nv 1 0 0\n")
+    data = tmp_path / "data"
+    code = main(["ingest", str(good), str(bad), "--units", "m", "--size", "S", "--data-dir", str(data)])
+    out = capsys.readouterr().out
+    assert code == 1
+    assert "[1/2] skirt-s.obj:" in out and "bottom S" in out and "-> " in out and " ms" in out
+    assert "[2/2] broken.obj: REFUSED: the file is a point cloud" in out
+    assert "1 of 2 garments" in out and "1 refused" in out
+    entries = Catalogue(data).list()
+    assert [(e.name, e.category, e.size, e.units) for e in entries] == [("skirt-s", "bottom", "S", "m")]
+
+    code = main(["ingest", str(good), "--units", "m", "--size", "S", "--data-dir", str(data)])
+    assert code == 0 and "(cached)" in capsys.readouterr().out
+
+
+def test_ingest_a_catalogue_directory(tmp_path, capsys):
+    src = tmp_path / "garments"
+    src.mkdir()
+    entries = []
+    for kind, category in (("shorts", "bottom"), ("tshirt", "top")):
+        (src / f"{kind}.obj").write_text(obj_text(garment_mesh(kind, "S"), kind))
+        entries.append(dict(file=f"{kind}.obj", name=f"{kind} S", category=category, size="S", units="m"))
+    (src / "catalogue.json").write_text(json.dumps(entries))
+    data = tmp_path / "data"
+    assert main(["ingest", "--catalogue", str(src), "--data-dir", str(data)]) == 0
+    out = capsys.readouterr().out
+    assert "[1/2] shorts.obj" in out and "[2/2] tshirt.obj" in out and "2 of 2 garments" in out
+    listed = Catalogue(data).list()
+    assert [(e.name, e.category, e.size) for e in listed] == [("shorts S", "bottom", "S"), ("tshirt S", "top", "S")]
+
+
+def test_usage_errors(tmp_path, capsys):
+    assert main(["ingest", "--data-dir", str(tmp_path)]) == 2
+    assert main(["ingest", "a.obj", "b.obj", "--name", "x", "--data-dir", str(tmp_path)]) == 2
+    assert main(["ingest", "a.obj", "--simplify", "1.5", "--data-dir", str(tmp_path)]) == 2
+    assert main(["ingest", str(tmp_path / "missing.obj"), "--data-dir", str(tmp_path)]) == 1
+    assert "no such file" in capsys.readouterr().out

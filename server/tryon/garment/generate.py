@@ -210,7 +210,10 @@ def build_top(spec: TopSpec) -> trimesh.Trimesh:
         half = []
         for side in (+1, -1):  # front, back
             th = delta + (np.pi - 2 * delta) * k
-            x = -a * spow(np.cos(th))
+            # towards the flat shoulder seam the columns go from even angles to even widths, or the ones
+            # near the shoulder point (cos ~ 1) would bunch up there
+            w = u ** 4
+            x = -a * ((1 - w) * spow(np.cos(th)) + w * (1 - 2 * k))
             y_top = _shoulder_line(x, spec, side)
             y = y_arm + (y_top - y_arm) * u
             z_top = _neck_z(x, spec) * side

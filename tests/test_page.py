@@ -52,8 +52,9 @@ def changed_fraction(a: np.ndarray, b: np.ndarray, threshold: int = 24) -> float
     return float((np.abs(a.astype(int) - b.astype(int)).max(axis=2) > threshold).mean())
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def page(browser, shop):
+    """One page for the module (loading it costs seconds under software GL); the tests run in order."""
     context = browser.new_context(viewport={"width": 1400, "height": 860}, accept_downloads=True)
     page = context.new_page()
     page.problems = []
@@ -123,6 +124,7 @@ def test_try_on_in_the_browser(page):
 
 
 def test_server_errors_are_shown_in_words(page):
+    page.problems.clear()
     # in range one by one, but not together: the server refuses the body and says why
     page.fill("#field-chest", "70")
     page.fill("#field-waist", "150")

@@ -25,16 +25,19 @@ from tryon.garment.generate import garment_mesh, obj_text
 
 pytestmark = pytest.mark.e2e
 
-WALL_LIMIT_S = 4.0  # the server's per-simulation limit (TRYON_SIM_WALL_LIMIT_S)
+WALL_LIMIT_S = 3.0  # the server's per-simulation limit (TRYON_SIM_WALL_LIMIT_S)
 BODY = {"height": 170.0, "chest": 96.0, "waist": 82.0, "hips": 100.0}
-SHORT = {"max_steps": 60}  # a quick drape (a few hundred ms)
-LONG = {"max_steps": 100_000}  # runs until stopped (client gone, or the wall-clock limit)
+SHORT = {"max_steps": 60}  # a quick drape of the T-shirt (a few hundred ms)
+# The most work a request may ask for (trousers, every vertex simulated, smallest step, most passes):
+# ~10 s to rest here, so it runs until stopped (client gone, or the wall-clock limit).
+LONG = {"max_steps": 3000, "time_step": 0.005, "passes": 50, "substeps": 16, "simplification": 1.0}
 
 
 @dataclass
 class Live:
     url: str
-    garment_id: str
+    garment_id: str  # a T-shirt, ~2,500 vertices
+    long_id: str  # trousers, ~4,600 vertices
 
     @property
     def ws(self) -> str:
@@ -54,7 +57,8 @@ class Live:
             time.sleep(0.02)
 
     def request(self, settings: dict, **body) -> dict:
-        return {"garment_id": self.garment_id, "measurements": {**BODY, **body}, "settings": settings}
+        garment = self.long_id if settings is LONG else self.garment_id
+        return {"garment_id": garment, "measurements": {**BODY, **body}, "settings": settings}
 
 
 @dataclass
@@ -97,15 +101,18 @@ def run_stream(live: Live, message, max_frames: int | None = None, timeout_s: fl
 
 @pytest.fixture(scope="session")
 def live(tmp_path_factory) -> Live:
-    """A served catalogue with one small generated garment (a size-S T-shirt, ~2,700 vertices)."""
+    """A served catalogue with two generated garments: a T-shirt (quick drapes) and trousers (long ones)."""
     root = tmp_path_factory.mktemp("ws")
-    source = root / "test-tee-s.obj"
-    source.write_text(obj_text(garment_mesh("tshirt", "S"), "test tee"))
     data = root / "data"
-    meta = Catalogue(data).ingest(source, name="Test tee S", category="top", size="S", units="m")
+    ids = []
+    for kind, size, category in (("tshirt", "S", "top"), ("trousers", "L", "bottom")):
+        source = root / f"{kind}-{size}.obj"
+        source.write_text(obj_text(garment_mesh(kind, size), kind))
+        ids.append(Catalogue(data).ingest(source, name=f"Test {kind} {size}", category=category, size=size,
+                                          units="m").id)
     env = {"TRYON_SIM_WORKERS": "1", "TRYON_SIM_QUEUE": "0", "TRYON_SIM_WALL_LIMIT_S": str(WALL_LIMIT_S)}
     with serve_process(data, env=env) as url:
-        server = Live(url, meta.id)
+        server = Live(url, *ids)
         # warm-up (numba compiles on first use): a 1-step try-on, not part of any test's timing
         warm = run_stream(server, server.request({"max_steps": 1}, height=150.0), timeout_s=300)
         assert warm.done is not None, warm.error
@@ -115,6 +122,11 @@ def live(tmp_path_factory) -> Live:
 def test_full_stream_matches_rest(live: Live):
     live.wait_idle()
     request = live.request(SHORT, chest=97.0)
+    # REST first: its result is cached without the stream's init, so the stream below simulates again
+    r = httpx.post(f"{live.url}/api/tryon", json=request, timeout=120)
+    assert r.status_code == 200, r.text
+    rest = r.json()
+
     s = run_stream(live, {**request, "fps": 60})
     assert s.error is None and s.close_code == 1000
     init, done = s.init, s.done
@@ -138,18 +150,23 @@ def test_full_stream_matches_rest(live: Live):
     final = s.positions()
     assert np.isfinite(final).all() and 0.5 < final[:, 1].mean() < 1.6  # on the torso of a 1.7 m body
 
-    r = httpx.post(f"{live.url}/api/tryon", json=request, timeout=120)
-    assert r.status_code == 200, r.text
-    rest = r.json()
-    for key in ("steps", "penetrating_vertices", "rest_reached"):
-        assert rest["metrics"][key] == done["metrics"][key], key
-    assert rest["metrics"]["max_strain"] == pytest.approx(done["metrics"]["max_strain"], abs=1e-4)
-    np.testing.assert_allclose(np.asarray(rest["vertices"]), final, atol=2e-4)  # JSON rounding + float32
+    # the same simulation as the REST answer (deterministic): same metrics, same final state
+    rest_metrics = dict(rest["metrics"])
+    np.testing.assert_allclose(rest_metrics.pop("strain"), done["strain"], atol=1e-4)
+    for key in ("steps", "penetrating_vertices", "rest_reached", "sim_seconds"):
+        assert rest_metrics[key] == done["metrics"][key], key
+    assert rest_metrics["max_strain"] == pytest.approx(done["metrics"]["max_strain"], abs=1e-4)
+    assert rest["garment"]["faces"] == init["faces"]
+    np.testing.assert_allclose(np.asarray(rest["garment"]["vertices"]), final, atol=2e-4)  # JSON rounding
 
     again = run_stream(live, {**request, "fps": 60})  # the same request: from the result cache
     assert again.done["cached"] is True and len(again.frames) == 1
     assert again.frames[0][3][12:] == s.frames[-1][3][12:]
     assert again.done["metrics"] == done["metrics"]
+    t0 = time.monotonic()
+    cached_rest = httpx.post(f"{live.url}/api/tryon", json=request, timeout=120).json()
+    assert time.monotonic() - t0 < 1.0
+    assert cached_rest["metrics"]["steps"] == done["metrics"]["steps"]
 
 
 def test_frames_respect_the_requested_rate(live: Live):

@@ -13,6 +13,7 @@ from tryon.api.pool import (
     CachedTryOn,
     PoolFull,
     ResultCache,
+    RunCancelled,
     RunGuard,
     SimPool,
     busy_response_headers,
@@ -60,8 +61,13 @@ def test_pool_counts_failures_and_cancelled_waiters():
         blocker.result(timeout=5)
         with pytest.raises(ZeroDivisionError):
             pool.submit(lambda: 1 / 0).result(timeout=5)
+        guard = RunGuard(5.0)
+        guard.cancelled.set()
+        with pytest.raises(RunCancelled):
+            pool.submit(guard, 0, None).result(timeout=5)
+        time.sleep(0.05)
         stats = pool.stats()
-        assert stats["cancelled"] == 1 and stats["failed"] == 1
+        assert stats["cancelled"] == 2 and stats["failed"] == 1
     finally:
         release.set()
         pool.shutdown()
@@ -79,7 +85,9 @@ def test_run_guard_stops_past_the_wall_limit_and_when_cancelled():
     guard = RunGuard(10.0, cancelled=cancel, on_frame=lambda step, c: seen.append(step))
     assert guard(0, x) and guard(1, x)
     cancel.set()
-    assert guard(2, x) is False and guard.stopped_by == "cancelled"
+    with pytest.raises(RunCancelled):  # unwinds the drape at once: nobody reads the result
+        guard(2, x)
+    assert guard.stopped_by == "cancelled"
     assert seen == [0, 1]
 
     guard = RunGuard(10.0, on_frame=lambda step, c: step < 3)
@@ -99,13 +107,12 @@ def test_request_key_is_canonical():
 
 def test_result_cache_is_a_bounded_lru():
     cache = ResultCache(2)
-    item = lambda k: CachedTryOn(vertices=np.full((2, 3), k, np.float32), strain=np.zeros(2, np.float32),
-                                 metrics={"k": k})
+    item = lambda k: CachedTryOn(result={"k": k})
     cache.put("a", item(1))
     cache.put("b", item(2))
-    assert cache.get("a").metrics == {"k": 1}  # a is now the most recent
+    assert cache.get("a").result == {"k": 1}  # a is now the most recent
     cache.put("c", item(3))  # evicts b
-    assert cache.get("b") is None and cache.get("c").metrics == {"k": 3} and len(cache) == 2
+    assert cache.get("b") is None and cache.get("c").result == {"k": 3} and len(cache) == 2
     assert cache.stats()["hits"] == 2 and cache.stats()["misses"] == 1
     off = ResultCache(0)
     off.put("a", item(1))

@@ -5,7 +5,7 @@
 import { Stage } from './scene.js';
 import { ApiError, flatMesh, getJSON, liveTryOn, postJSON, saveBlob } from './api.js';
 import { MeasurementForm, normaliseRanges } from './controls.js';
-import { strainScale } from './fitmap.js';
+import { smoothStrain, strainScale } from './fitmap.js';
 
 const $ = (id) => document.getElementById(id);
 const BODY_PREVIEW_DELAY_MS = 350;  // debounce: rebuild the body when the sliders rest this long
@@ -219,12 +219,12 @@ async function tryOn() {
   try {
     const done = await live.promise;
     state.done = done;
-    const strain = Float32Array.from(done.strain || []);
-    if (strain.length) {
+    if (done.strain?.length) {
+      const strain = smoothStrain(done.strain, stage.garment.geometry.index.array);
       const top = strainScale(strain);
       stage.setStrain(strain, top);
       $('legend-max').textContent = `${(top * 100).toFixed(0)}%+`;
-      $('legend-mid').textContent = `${(top * 50).toFixed(1)}%`;
+      $('legend-mid').textContent = `${(top * 50).toFixed(0)}%`;
     }
     showMetrics(done);
     setProgress(1, done.cached ? 'Done (from the fitting-room memory).' : 'Done.');

@@ -23,11 +23,40 @@ export function strainColor(t, color) {
   return color;
 }
 
-/** The legend's top value for a strain array: at least 5 %, else the 98th percentile, rounded up. */
+/**
+ * Per-vertex strain averaged with its neighbours `passes` times (faces: flat index array), so the map
+ * shows regions rather than single stretched springs. Returns a new Float32Array.
+ */
+export function smoothStrain(strain, faces, passes = 2) {
+  const n = strain.length;
+  let value = Float32Array.from(strain);
+  const sum = new Float32Array(n);
+  const count = new Float32Array(n);
+  for (let p = 0; p < passes; p++) {
+    sum.set(value);
+    count.fill(1);
+    for (let f = 0; f < faces.length; f += 3) {
+      const a = faces[f], b = faces[f + 1], c = faces[f + 2];
+      sum[a] += value[b] + value[c]; count[a] += 2;
+      sum[b] += value[a] + value[c]; count[b] += 2;
+      sum[c] += value[a] + value[b]; count[c] += 2;
+    }
+    const next = new Float32Array(n);
+    for (let i = 0; i < n; i++) next[i] = sum[i] / count[i];
+    value = next;
+  }
+  return value;
+}
+
+/**
+ * The legend's top: the 98th percentile of the (smoothed) strain, at least 2 %, rounded up to a whole
+ * per cent. Cloth held by strain limits hangs stretched toward its limit almost everywhere, so a fixed
+ * scale paints it all one colour; this scale shows where this garment is tighter than elsewhere, and the
+ * legend gives the numbers.
+ */
 export function strainScale(strain) {
-  if (!strain || strain.length === 0) return 0.05;
+  if (!strain || strain.length === 0) return 0.1;
   const sorted = Float32Array.from(strain).sort();
   const p98 = sorted[Math.min(sorted.length - 1, Math.floor(sorted.length * 0.98))];
-  const top = Math.max(p98, 0.05);
-  return Math.ceil(top * 100) / 100;
+  return Math.ceil(Math.max(p98, 0.02) * 100) / 100;
 }

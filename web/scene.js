@@ -64,7 +64,7 @@ export class Stage {
     const key = new THREE.DirectionalLight(0xfff3e6, 2.0);
     key.position.set(2.2, 4.5, 3.0);
     key.castShadow = true;
-    key.shadow.mapSize.set(2048, 2048);
+    key.shadow.mapSize.set(1024, 1024);
     key.shadow.camera.left = -1.4; key.shadow.camera.right = 1.4;
     key.shadow.camera.top = 2.4; key.shadow.camera.bottom = -0.6;
     key.shadow.camera.near = 1; key.shadow.camera.far = 12;
@@ -89,8 +89,8 @@ export class Stage {
     scene.add(floor);
 
     this.skin = new THREE.MeshPhysicalMaterial({
-      color: 0xd9a47f, roughness: 0.55, metalness: 0, sheen: 0.35, sheenColor: new THREE.Color(0xffd6c0),
-      sheenRoughness: 0.6, clearcoat: 0.05,
+      color: 0xd9a47f, roughness: 0.68, metalness: 0, sheen: 0.3, sheenColor: new THREE.Color(0xffd6c0),
+      sheenRoughness: 0.7,
     });
     this.cloth = new THREE.MeshPhysicalMaterial({
       color: 0xb5523b, roughness: 0.85, metalness: 0, sheen: 1.0, sheenRoughness: 0.55,
@@ -106,10 +106,23 @@ export class Stage {
     this.fitmapOn = false;
     this.framed = false;
 
+    // Render on demand: only when something changed (a frame arrived, the camera moved, a toggle), so an
+    // idle page costs nothing; the loop itself only checks a flag. Damped orbiting keeps it going.
+    this.dirty = true;
+    this.renders = 0;
+    controls.addEventListener('change', () => this.requestRender());
     window.addEventListener('resize', () => this.resize());
     new ResizeObserver(() => this.resize()).observe(container);
-    renderer.setAnimationLoop(() => { controls.update(); renderer.render(scene, camera); });
+    renderer.setAnimationLoop(() => {
+      controls.update();
+      if (!this.dirty) return;
+      this.dirty = false;
+      renderer.render(scene, camera);
+      this.renders++;
+    });
   }
+
+  requestRender() { this.dirty = true; }
 
   aspect() { return Math.max(this.container.clientWidth, 1) / Math.max(this.container.clientHeight, 1); }
 
@@ -117,6 +130,7 @@ export class Stage {
     this.camera.aspect = this.aspect();
     this.camera.updateProjectionMatrix();
     this.renderer.setSize(this.container.clientWidth, this.container.clientHeight);
+    this.requestRender();
   }
 
   // ---- body -------------------------------------------------------------------------------
@@ -139,6 +153,7 @@ export class Stage {
       this.scene.add(this.body);
     }
     if (!this.framed) { this.frame(geometry.boundingBox); this.framed = true; }
+    this.requestRender();
   }
 
   /** Point the camera at a box (the body), from the front and a little to the side. */
@@ -192,6 +207,7 @@ export class Stage {
     geometry.computeVertexNormals();
     geometry.computeBoundingSphere();
     this.garment.visible = true;
+    this.requestRender();
   }
 
   clearGarment() {
@@ -201,6 +217,7 @@ export class Stage {
       this.garment = null;
     }
     this.strain = null;
+    this.requestRender();
   }
 
   /** Per-vertex strain (ratio: 0.05 = 5 % stretch) for the fit map; `scaleMax` is the legend's top. */
@@ -220,6 +237,7 @@ export class Stage {
   setFitMap(on) {
     this.fitmapOn = on;
     if (this.garment) this.garment.material = on && this.strain ? this.fitmapMaterial : this.cloth;
+    this.requestRender();
   }
 
   /** The fitted garment as GLB bytes (ArrayBuffer), with fit-map colours as COLOR_0 when known. */

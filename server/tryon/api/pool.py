@@ -10,7 +10,8 @@ A :class:`RunGuard` wraps a drape's ``on_frame`` callback: it returns False (sto
 is gone or the simulation is past its wall-clock limit, and records which of the two stopped it.
 
 :class:`ResultCache` keeps the last ``settings.result_cache_size`` finished try-ons in memory (LRU),
-keyed by :func:`request_key`: the canonical JSON of garment id, measurements, pose and settings.
+keyed by :func:`request_key` (:func:`tryon_key` for a request): the canonical JSON of garment id,
+measurements, pose and settings. Only runs that ended by themselves (rest or step limit) are kept.
 """
 
 from __future__ import annotations
@@ -43,6 +44,11 @@ class PoolFull(RuntimeError):
         )
         self.capacity = capacity
         self.retry_after_s = retry_after_s
+
+
+class RunCancelled(Exception):
+    """Raised by :class:`RunGuard` inside a drape whose client is gone: unwinds the worker at once (no
+    final polish, no metrics), since nobody will read the result."""
 
 
 class SimPool:
@@ -94,7 +100,7 @@ class SimPool:
     def _release(self, future: Future) -> None:
         with self._lock:
             self._admitted -= 1
-            if future.cancelled():
+            if future.cancelled() or isinstance(future.exception(), RunCancelled):
                 self._counts["cancelled"] += 1
             elif future.exception() is not None:
                 self._counts["failed"] += 1
@@ -127,8 +133,10 @@ class SimPool:
 class RunGuard:
     """``on_frame`` for ``drape``: stops the run when the client is gone or time is up.
 
-    wall_limit_s: seconds from :meth:`start` (or the first frame) after which every call returns False.
-    cancelled: set by the caller (e.g. the WebSocket went away) to stop at the next step.
+    wall_limit_s: seconds from :meth:`start` (or the first frame) after which every call returns False
+        (the drape ends normally and its result says it was cut short).
+    cancelled: set by the caller (e.g. the WebSocket went away): the next call raises
+        :class:`RunCancelled`, so the worker is free at once.
     on_frame: an optional inner callback ``(step, coarse (k, 3)) -> bool | None``; False also stops.
     After the run, ``stopped_by`` is None (ran to rest or to its step limit), ``"wall_limit"``,
     ``"cancelled"`` or ``"callback"``.
@@ -157,7 +165,7 @@ class RunGuard:
         self.frames += 1
         if self.cancelled.is_set():
             self.stopped_by = "cancelled"
-            return False
+            raise RunCancelled("the client went away")
         if self.elapsed_s > self.wall_limit_s:
             self.stopped_by = "wall_limit"
             return False
@@ -188,23 +196,27 @@ def request_key(garment_id: str, measurements: dict, pose: dict, settings: dict)
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+def tryon_key(request: Any) -> str:
+    """:func:`request_key` of a validated try-on request (pydantic; ``fps`` and other display-only fields
+    excluded): garment id, measurements, pose, and the settings with every other field."""
+    data = request.model_dump(mode="json", exclude={"fps"})
+    settings = {**(data.pop("settings", None) or {}), **{k: v for k, v in data.items()
+                                                        if k not in ("garment_id", "measurements", "pose")}}
+    return request_key(data["garment_id"], data.get("measurements") or {}, data.get("pose") or {}, settings)
+
+
 @dataclass
 class CachedTryOn:
     """One finished try-on, as kept in memory.
 
-    vertices (n, 3) float32 metres: the final full-mesh positions; strain (n,) float32 per vertex;
-    metrics: the run's metrics; extra: anything else the writer wants to replay (e.g. the init message).
+    result: the simulation's ``TryOnResult`` (final full-mesh vertices (n, 3), faces, strain (n,),
+    metrics), what ``POST /api/tryon`` answers from; extra: what a writer wants to replay, e.g. the
+    WebSocket's init message (JSON text) and done message.
     """
 
-    vertices: np.ndarray
-    strain: np.ndarray
-    metrics: dict
+    result: Any
     extra: dict = field(default_factory=dict)
     created: float = field(default_factory=time.time)
-
-    @property
-    def nbytes(self) -> int:
-        return int(self.vertices.nbytes + self.strain.nbytes)
 
 
 class ResultCache:

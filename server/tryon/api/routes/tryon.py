@@ -16,7 +16,7 @@ from fastapi.responses import JSONResponse, Response
 
 from tryon.api.deps import CatalogueDep
 from tryon.api.export import MEDIA_TYPES, mesh_bytes, mesh_json
-from tryon.api.pool import PoolFull, busy_response_headers, get_pool
+from tryon.api.pool import CachedTryOn, PoolFull, busy_response_headers, get_pool, get_result_cache, tryon_key
 from tryon.api.schemas.bodies import to_body_params
 from tryon.api.schemas.tryon import MeshFormatTryOn, TryOnOut, TryOnRequest
 from tryon.body.build import build_body
@@ -89,14 +89,18 @@ async def tryon(
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"no garment with id {body.garment_id!r}")
     pool = get_pool(request.app)
     guard = pool.guard()
+    cache, key = get_result_cache(request.app), tryon_key(body)
+    hit = cache.get(key)  # the same request again: the stored final state (shared with WS /ws/tryon)
     try:
-        result = await pool.run(run_tryon, catalogue, body, guard)
+        result = hit.result if hit is not None else await pool.run(run_tryon, catalogue, body, guard)
     except PoolFull as exc:
         raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE, str(exc), headers=busy_response_headers(exc))
     except KeyError:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"no garment with id {body.garment_id!r}") from None
     except ValueError as exc:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_ENTITY, f"cannot run this try-on: {exc}") from None
+    if hit is None and guard.stopped_by is None:  # cut-short runs are not kept
+        cache.put(key, CachedTryOn(result=result))
     out = result_json(result)
     if guard.stopped_by == "wall_limit":
         out["metrics"]["timed_out"] = True

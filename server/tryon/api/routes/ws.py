@@ -37,6 +37,8 @@ import logging
 import struct
 import threading
 import time
+from concurrent.futures import CancelledError as FutureCancelled
+from concurrent.futures import Future
 from typing import Any
 
 import numpy as np
@@ -44,7 +46,15 @@ from fastapi import APIRouter, HTTPException, WebSocket, WebSocketDisconnect
 from pydantic import Field, ValidationError
 from starlette.websockets import WebSocketState
 
-from tryon.api.pool import CachedTryOn, PoolFull, RunGuard, get_pool, get_result_cache, request_key
+from tryon.api.deps import get_catalogue
+from tryon.api.pool import CachedTryOn, PoolFull, RunCancelled, RunGuard, get_pool, get_result_cache, tryon_key
+from tryon.api.routes.tryon import prepare_tryon, result_json
+from tryon.api.schemas.tryon import TryOnRequest
+from tryon.body.types import Body
+from tryon.garment.catalogue import Catalogue
+from tryon.garment.model import GarmentModel
+from tryon.sim.run import TryOnResult, drape
+from tryon.sim.settings import SimSettings
 
 router = APIRouter(tags=["ws"])
 log = logging.getLogger(__name__)
@@ -90,26 +100,10 @@ def validation_reason(error: ValidationError) -> str:
 
 
 # -- the simulation side (runs on a pool thread) --------------------------------------------------------
-_live_request_model = None
+class LiveTryOnRequest(TryOnRequest):
+    """``POST /api/tryon``'s body plus the frame rate the client wants."""
 
-
-def live_request_model():
-    """``POST /api/tryon``'s body plus ``fps``, the frame rate the client wants (built on first use)."""
-    global _live_request_model
-    if _live_request_model is None:
-        from tryon.api.schemas.tryon import TryOnRequest
-
-        class LiveTryOnRequest(TryOnRequest):
-            fps: int = Field(30, ge=1, le=60, description="frames per second of wall time to send, 1/s")
-
-        _live_request_model = LiveTryOnRequest
-    return _live_request_model
-
-
-def cache_key(request: Any) -> str:
-    """The result-cache key: garment id + measurements + pose + every other setting (not ``fps``)."""
-    data = request.model_dump(mode="json", exclude={"fps"})
-    return request_key(data.pop("garment_id"), data.pop("measurements", {}), data.pop("pose", {}), data)
+    fps: int = Field(30, ge=1, le=60, description="frames per second of wall time to send, 1/s; range [1, 60]")
 
 
 def mesh_lists(vertices: np.ndarray, faces: np.ndarray, decimals: int = 4) -> dict:
@@ -118,7 +112,8 @@ def mesh_lists(vertices: np.ndarray, faces: np.ndarray, decimals: int = 4) -> di
             "faces": np.asarray(faces, dtype=np.int64).tolist()}
 
 
-def init_message(body: Any, model: Any, sim_settings: Any) -> dict:
+def init_message(body: Body, model: GarmentModel, sim_settings: SimSettings) -> dict:
+    """The init message: topology, the body, the garment's catalogue facts, the frame encoding."""
     meta = model.meta
     n = int(len(model.vertices))
     return {
@@ -129,55 +124,30 @@ def init_message(body: Any, model: Any, sim_settings: Any) -> dict:
         "body": {**mesh_lists(body.vertices, body.faces), "achieved": body.achieved},
         "garment": {"id": meta.id, "name": meta.name, "category": meta.category, "size": meta.size,
                     "vertices": meta.vertices, "faces": meta.faces, "coarse_vertices": meta.coarse_vertices},
-        "max_steps": int(getattr(sim_settings, "max_steps", 0)),
-        "time_step": float(getattr(sim_settings, "time_step", 0.0)),
+        "max_steps": int(sim_settings.max_steps),
+        "time_step": float(sim_settings.time_step),
+        "strain_limit": float(sim_settings.strain_limit[0]),  # structural springs' stretch limit
         "encoding": encoding(n),
     }
 
 
-def done_message(result: Any, guard: RunGuard) -> dict:
-    metrics = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in dict(result.metrics).items()}
-    return {
-        "type": "done",
-        "metrics": metrics,
-        "strain": np.round(np.asarray(result.strain, float), 4).tolist(),
-        "stopped_by": guard.stopped_by,
-        "timed_out": guard.stopped_by == "wall_limit",
-    }
+def done_message(result: TryOnResult, guard: RunGuard) -> dict:
+    """The done message: the same metrics as ``POST /api/tryon``, the per-vertex strain beside them."""
+    metrics = result_json(result)["metrics"]
+    strain = metrics.pop("strain")
+    if guard.stopped_by == "wall_limit":
+        metrics["timed_out"] = True
+    return {"type": "done", "metrics": metrics, "strain": strain, "stopped_by": guard.stopped_by,
+            "timed_out": guard.stopped_by == "wall_limit"}
 
 
-def prepare(app: Any, request: Any):
-    """(body, garment model, SimSettings) for a validated request; KeyError for an unknown garment."""
-    from tryon.api.deps import get_catalogue
-    from tryon.api.schemas.bodies import to_body_params
-    from tryon.body.build import build_body
-    from tryon.sim.settings import SimSettings
-
-    catalogue = get_catalogue(_RequestLike(app))
-    if catalogue.get(request.garment_id) is None:
-        raise HTTPException(404, f"no garment with id {request.garment_id!r}")
-    settings_in = getattr(request, "settings", None)
-    sim_settings = SimSettings(**settings_in.model_dump()) if settings_in is not None else SimSettings()
-    model = catalogue.model(request.garment_id, sim_settings.simplification)
-    body = build_body(*to_body_params(request.measurements, request.pose))
-    return body, model, sim_settings
-
-
-class _RequestLike:
-    """What ``tryon.api.deps`` needs of a request (``.app``) outside a request."""
-
-    def __init__(self, app: Any):
-        self.app = app
-
-
-def run_live(app: Any, request: Any, session: LiveSession, guard: RunGuard):
-    """Build the body, load the garment, send init, drape; returns (result, done message) or None."""
+def run_live(catalogue: Catalogue, request: LiveTryOnRequest, session: LiveSession, guard: RunGuard):
+    """On a worker: build the body, load the garment, hand over init, drape. Returns (result, done
+    message), or None when the client left before a worker was free."""
     guard.start()
-    if guard.cancelled.is_set():  # the client left while this job waited for a worker
+    if guard.cancelled.is_set():
         return None
-    from tryon.sim.run import drape
-
-    body, model, sim_settings = prepare(app, request)
+    body, model, sim_settings = prepare_tryon(catalogue, request)
     # serialised here, on the worker: the init message carries two meshes (~0.5 MB of JSON), too much
     # work for the event loop
     session.offer_init(json.dumps(init_message(body, model, sim_settings), separators=(",", ":")), model)
@@ -185,11 +155,12 @@ def run_live(app: Any, request: Any, session: LiveSession, guard: RunGuard):
     return result, done_message(result, guard)
 
 
-def failure_reason(error: BaseException) -> str:
+def failure_reason(error: BaseException, request: TryOnRequest) -> str:
+    """A failed try-on in words."""
     if isinstance(error, HTTPException):
         return str(error.detail)
-    if isinstance(error, (KeyError, LookupError)):
-        return f"not found: {error}"
+    if isinstance(error, KeyError):
+        return f"no garment with id {request.garment_id!r} in the catalogue (see GET /api/garments)"
     if isinstance(error, ValueError):
         return f"cannot run this try-on: {error}"
     return f"the simulation failed ({type(error).__name__}: {error})"
@@ -215,6 +186,7 @@ class LiveSession:
         self.bytes_sent = 0
         self.first_frame_at: float | None = None
         self.started_at = time.monotonic()
+        self.future: Future | None = None  # the pool job
         # simulation-thread side
         self._next_offer_at = 0.0
         self._model: Any = None
@@ -251,6 +223,9 @@ class LiveSession:
         self.finished = True
 
     def stop(self) -> None:
+        """The client is gone (or the run failed): stop simulating, free a waiting slot at once."""
+        if self.future is not None:
+            self.future.cancel()  # only succeeds while the job still waits for a worker
         self.cancelled.set()
         self.finished = True
         self.wake.set()
@@ -323,7 +298,7 @@ async def _close(ws: WebSocket) -> None:
 async def _replay(ws: WebSocket, cached: CachedTryOn) -> None:
     """Serve a cached try-on: init, the final frame, done with ``cached: true``."""
     await ws.send_text(cached.extra["init"])
-    frame = encode_frame(0, cached.metrics.get("steps", 0), cached.vertices)
+    frame = encode_frame(0, cached.result.metrics.get("steps", 0), cached.result.vertices)
     await ws.send_bytes(frame)
     done = {**cached.extra["done"], "cached": True, "frames_sent": 1, "bytes_sent": len(frame)}
     done.pop("time_to_first_frame_s", None)
@@ -368,13 +343,13 @@ async def _serve(ws: WebSocket) -> None:
         await _send_error(ws, "the request must be a JSON object with garment_id, measurements, pose, settings")
         return
     try:
-        request = live_request_model().model_validate(payload)
+        request = LiveTryOnRequest.model_validate(payload)
     except ValidationError as e:
         await _send_error(ws, validation_reason(e))
         return
 
     cache = get_result_cache(app)
-    key = cache_key(request)
+    key = tryon_key(request)
     cached = cache.get(key)
     if cached is not None and "init" in cached.extra:
         try:
@@ -387,24 +362,26 @@ async def _serve(ws: WebSocket) -> None:
     session = LiveSession(asyncio.get_running_loop(), request.fps)
     guard = pool.guard(cancelled=session.cancelled, on_frame=session.on_frame)
     try:
-        future = pool.submit(run_live, app, request, session, guard)
+        future = pool.submit(run_live, get_catalogue(ws), request, session, guard)
     except PoolFull as e:
         await _send_error(ws, str(e), code=CLOSE_TRY_AGAIN_LATER)
         return
+    session.future = future
 
     sender = asyncio.create_task(_sender(ws, session))
     watcher = asyncio.create_task(_watch_disconnect(ws, session))
     try:
         try:
             outcome = await asyncio.wrap_future(future)
-        except asyncio.CancelledError:
+        except (asyncio.CancelledError, FutureCancelled, RunCancelled):
+            if session.cancelled.is_set():
+                return  # the client left (before or while the job ran): nothing to send
             session.stop()
-            future.cancel()
             raise
         except Exception as e:  # the simulation failed: tell the client in words
             session.stop()
             await sender
-            await _send_error(ws, failure_reason(e))
+            await _send_error(ws, failure_reason(e, request))
             return
         if session.cancelled.is_set():
             return  # client gone: nothing to send, nothing to cache (the run was cut short)
@@ -417,9 +394,7 @@ async def _serve(ws: WebSocket) -> None:
                 "time_to_first_frame_s": round((session.first_frame_at or time.monotonic()) - session.started_at, 4),
                 "bytes_sent": session.bytes_sent}
         if guard.stopped_by is None:
-            cache.put(key, CachedTryOn(vertices=np.asarray(result.vertices, np.float32),
-                                       strain=np.asarray(result.strain, np.float32),
-                                       metrics=done["metrics"], extra={"init": session.init, "done": done}))
+            cache.put(key, CachedTryOn(result=result, extra={"init": session.init, "done": done}))
         try:
             await ws.send_text(json.dumps(done, separators=(",", ":")))
         except (WebSocketDisconnect, RuntimeError, OSError):

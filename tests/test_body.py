@@ -276,11 +276,12 @@ def test_front_and_back_surfaces_meet_at_the_seams():
         rng.uniform(-0.02, 0.02, n), rng.uniform(-0.02, 0.02, n), rng.uniform(0.6, 0.9, n), rng.uniform(0.6, 0.9, n),
     )
     params = (0.0, 0.2, 0.5, 0.7, 1.0)
+    data = np.concatenate([stations, nurbs.end_tangents(stations, params, 1.0)])  # (n + 2, 8, 4)
     rows = nurbs.station_matrix(params, tuple(np.linspace(0.0, 1.0, 9)))
     bu = nurbs.basis_matrix(np.linspace(0.0, 1.0, 7), nurbs.RING_KNOTS, nurbs.RING_DEGREE)
 
     def surface(columns):
-        per_row = np.einsum("vn,nic->vic", rows, stations[:, list(columns)])  # (n_v, 5, 4) homogeneous
+        per_row = np.einsum("vn,nic->vic", rows, data[:, list(columns)])  # (n_v, 5, 4) homogeneous
         h = np.einsum("ui,vic->vuc", bu, per_row)  # Bu @ Pw @ Bv^T
         return h[..., :3] / h[..., 3:]
 
@@ -289,7 +290,7 @@ def test_front_and_back_surfaces_meet_at_the_seams():
     assert np.allclose(front[:, -1], back[:, 0], atol=1e-14)
     # the rows at station parameters are the stations' sections themselves (exact girths rely on it)
     sections = nurbs.sample_rings(stations, nurbs.ring_matrix(7))
-    tube = nurbs.evaluate_tube(stations, nurbs.station_matrix(params, params), nurbs.ring_matrix(7))
+    tube = nurbs.evaluate_tube(data, nurbs.station_matrix(params, params), nurbs.ring_matrix(7))
     assert np.allclose(tube, sections, atol=1e-14)
 
 

@@ -34,6 +34,9 @@ MAX_RESOLUTION = 200
 # metres of the floor (the final fit of the stature absorbs what is left: a stretch below 1e-4).
 LEG_ITERATIONS = 3
 LEG_TOLERANCE = 1e-4
+# End tangent of every part at its poles, as a multiple of (next section - pole) / parameter step:
+# 1 makes the caps about spherical; the tangent is perpendicular to the axis, so no cap overshoots its pole.
+CAP_ROUNDNESS = 1.0
 # Margin (m) the OBBs and cylinder cells are grown by: the collision offset of the body surface is
 # smaller than this (SPEC section 4), so a garment point near the offset surface is still found.
 MAP_MARGIN = 0.01
@@ -134,14 +137,18 @@ def grid(resolution: int) -> Grid:
                 tuple(part_edges))
 
 
-def _homogeneous_world(stations: np.ndarray, rotation: np.ndarray, origin: np.ndarray,
-                       tilt: np.ndarray | None = None, pivot: np.ndarray | None = None) -> np.ndarray:
-    """(n, 8, 4) homogeneous control sections moved into the world (NURBS are affine invariant, so
-    moving the control points moves the surface); sections first turned by ``tilt`` (n,) radians about
-    the local z axis through ``pivot``."""
+def _homogeneous_world(stations: np.ndarray, params: tuple[float, ...], rotation: np.ndarray,
+                       origin: np.ndarray, tilt: np.ndarray | None = None,
+                       pivot: np.ndarray | None = None) -> np.ndarray:
+    """(n + 2, 8, 4) interpolation data of a part in the world: its n homogeneous sections and the two
+    end tangents (``nurbs.end_tangents``), first turned by ``tilt`` (n,) radians about the local z axis
+    through ``pivot``, then moved by (rotation, origin). NURBS are affine invariant, so moving the data
+    (points and tangents alike: the maps are linear in homogeneous coordinates) moves the surface."""
     pw = nurbs.ring_controls(*stations.T)
+    pw = np.concatenate([pw, nurbs.end_tangents(pw, params, CAP_ROUNDNESS)])
     if tilt is not None and np.any(tilt):
-        c, s = np.cos(tilt)[:, None], np.sin(tilt)[:, None]
+        angle = np.concatenate([tilt, tilt[[0, -1]]])[:, None]
+        c, s = np.cos(angle), np.sin(angle)
         w = pw[..., 3]
         x = pw[..., 0] - pivot[0] * w
         y = pw[..., 1] - pivot[1] * w
@@ -189,11 +196,12 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
         for shape in shapes:
             part = layout.parts[shape]
             stations = _fit_girths(part.stations, part.measured, targets, g.ring[shape])
-            pw = _homogeneous_world(stations, part.rotation, part.origin, part.tilt, part.pivot)
+            pw = _homogeneous_world(stations, params[shape], part.rotation, part.origin, part.tilt, part.pivot)
             pts = nurbs.evaluate_tube(pw, g.rows[shape], g.ring[shape])
             shape_points[shape] = np.concatenate([pts[0, :1], pts[1:-1].reshape(-1, 3), pts[-1, :1]])
             shape_axes[shape] = np.stack([pts[0, 0], pts[-1, 0]])
 
+    params = station_params()
     evaluate(SHAPE_NAMES)
     # Legs long enough for the soles to stand on y = 0 (secant steps on the leg length; the sole's height
     # is nearly linear in it): the crotch, the torso levels and the stature then stay where the

@@ -6,8 +6,10 @@ two quarter arcs ``seam -> corner -> middle -> corner -> seam``. With the corner
 quarter is an exact ellipse arc; a larger weight squares it off. The front and back surfaces share their
 two seam control points (the clamped knots make the surfaces pass through them), so they meet at the
 seams exactly. In v (along the part) the surfaces are cubic B-splines that interpolate a list of cross
-sections ("stations") at fixed parameters; the interpolation is done on the homogeneous control points,
-so the surface row at a station's parameter *is* that station's rational section, exactly.
+sections ("stations") at fixed parameters, from a pole (a section shrunk to a point) to a pole, with the
+end tangents perpendicular to the part's axis (round caps that never overshoot their pole). The
+interpolation is done on the homogeneous control points, so the surface row at a station's parameter
+*is* that station's rational section, exactly.
 
 Evaluator choice: the basis functions are computed once per sample grid with scipy
 (``BSpline.design_matrix``) and cached; a surface is then ``Bu @ Pw @ Bv^T`` on the homogeneous
@@ -39,13 +41,11 @@ def basis_matrix(x: np.ndarray, knots: np.ndarray, degree: int) -> np.ndarray:
     return BSpline.design_matrix(np.asarray(x, float), np.asarray(knots, float), degree).toarray()
 
 
-def interpolation_knots(params: np.ndarray, degree: int = STATION_DEGREE) -> np.ndarray:
-    """Clamped knot vector for interpolating at ``params`` (n,) in [0, 1] by knot averaging
-    (Piegl and Tiller, The NURBS Book, eq. 9.8)."""
-    n = len(params)
-    p = min(degree, n - 1)
-    inner = [np.mean(params[j:j + p]) for j in range(1, n - p)]
-    return np.concatenate([np.zeros(p + 1), inner, np.ones(p + 1)])
+def interpolation_knots(params: np.ndarray) -> np.ndarray:
+    """Clamped cubic knot vector for interpolating at ``params`` (n,) in [0, 1] with both end tangents
+    given: n + 2 control points, the interior parameters themselves as knots (Piegl and Tiller, The NURBS
+    Book, section 9.2.2)."""
+    return np.concatenate([np.zeros(STATION_DEGREE + 1), params[1:-1], np.ones(STATION_DEGREE + 1)])
 
 
 @lru_cache(maxsize=64)
@@ -78,15 +78,19 @@ def sample_params(n_v: int, forced: tuple[float, ...]) -> np.ndarray:
 
 @lru_cache(maxsize=256)
 def station_matrix(params: tuple[float, ...], v_samples: tuple[float, ...]) -> np.ndarray:
-    """(len(v_samples), n_stations): rows of the surface as combinations of the station sections.
+    """(len(v_samples), n_stations + 2): surface rows as combinations of the data
+    ``[station_0, ..., station_{n-1}, tangent_start, tangent_end]`` (homogeneous sections and the
+    homogeneous v-derivatives at v = 0 and v = 1, see ``end_tangents``).
 
-    ``Bv @ inv(A)`` where A[i, j] = N_j(params[i]) is the interpolation matrix: the control sections
-    are ``inv(A) @ stations``, and the sampled rows are ``Bv @ controls``."""
+    ``Bv @ inv(A)``, A the (n + 2)-square interpolation matrix: n rows ``N_j(params[i])`` and the rows of
+    ``N_j'(0)``, ``N_j'(1)``: the control sections are ``inv(A) @ data``, the sampled rows
+    ``Bv @ controls``."""
     t = np.asarray(params, float)
     knots = interpolation_knots(t)
-    degree = min(STATION_DEGREE, len(t) - 1)
-    a = basis_matrix(t, knots, degree)
-    bv = basis_matrix(np.asarray(v_samples), knots, degree)
+    n_ctrl = len(t) + 2
+    derivative = BSpline(knots, np.eye(n_ctrl), STATION_DEGREE).derivative()
+    a = np.concatenate([basis_matrix(t, knots, STATION_DEGREE), derivative(np.array([0.0, 1.0]))])
+    bv = basis_matrix(np.asarray(v_samples), knots, STATION_DEGREE)
     out = bv @ np.linalg.inv(a)
     # rows at a station parameter are exactly that station: clean the round-off of the inverse
     for i, ti in enumerate(t):
@@ -95,6 +99,25 @@ def station_matrix(params: tuple[float, ...], v_samples: tuple[float, ...]) -> n
         out[hit, i] = 1.0
     out.setflags(write=False)
     return out
+
+
+def end_tangents(stations: np.ndarray, params: tuple[float, ...], roundness: float) -> np.ndarray:
+    """(2, 8, 4) homogeneous v-derivatives at both ends of a part whose first and last stations are poles.
+
+    stations: (n, 8, 4) homogeneous sections, local frame, axis along y. At a pole the surface leaves
+    perpendicular to the axis (a round cap, no overshoot past the pole): the derivative is the next
+    section, moved to the pole's height, minus the pole, times ``roundness / dt`` (dt the parameter step
+    to that section; roundness 1 ~ a spherical cap). With d(w y) = y dw the derivative of y is 0."""
+    t = params
+
+    def towards(pole, ring, dt):
+        moved = ring.copy()
+        moved[:, 1] = ring[:, 3] * (pole[0, 1] / pole[0, 3])  # ring at the pole's height (y)
+        return (moved - pole) * (roundness / dt)
+
+    start = towards(stations[0], stations[1], t[1] - t[0])
+    end = -towards(stations[-1], stations[-2], t[-1] - t[-2])
+    return np.stack([start, end])
 
 
 def ring_controls(y: np.ndarray, a: np.ndarray, f: np.ndarray, b: np.ndarray, cx: np.ndarray,

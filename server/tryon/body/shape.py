@@ -269,10 +269,6 @@ def body_layout(m: Measurements, pose: Pose, leg_scale: float = 1.0) -> BodyLayo
         _station(l_sh - 0.075 * hs, 0.032 * hs, 0.034 * hs, 0.034 * hs),  # ankle
         _station(l_sh - 0.045 * hs, 0.041 * hs, 0.090 * hs, 0.050 * hs, cz=0.015 * hs),
         _station(l_sh - 0.018 * hs, 0.046 * hs, 0.170 * hs, 0.058 * hs, cz=0.015 * hs, wf=SQUARE),
-        # rounded sole edge, centred on the axis like the pole it closes on (the cubic still folds within
-        # ~5 mm of the sole's pole: no garment reaches under the foot)
-        _station(l_sh - 0.4 * 0.018 * hs, 0.8 * 0.046 * hs, 0.8 * 0.170 * hs + 0.012 * hs,
-                 0.8 * 0.058 * hs - 0.012 * hs, wf=SQUARE),
         _pole(l_sh),
     ])
 
@@ -284,7 +280,7 @@ def body_layout(m: Measurements, pose: Pose, leg_scale: float = 1.0) -> BodyLayo
         "upper_arm": PartShape(upper_arm, rot_ua, joint, MEASURED_STATIONS["upper_arm"]),
         "forearm": PartShape(forearm, rot_fa, elbow, {}),
         "thigh": PartShape(thigh, rot_leg, hip_joint, MEASURED_STATIONS["thigh"]),
-        "shin": PartShape(shin, rot_leg, knee, {}, tilt=np.array([0, 0, 0, 0, 0, -0.5, -1, -1, -1, -1]) * gamma,
+        "shin": PartShape(shin, rot_leg, knee, {}, tilt=np.array([0, 0, 0, 0, 0, -0.5, -1, -1, -1]) * gamma,
                           pivot=np.array([0.0, l_sh - 0.075 * hs, 0.0])),
     }
     landmarks = {

@@ -35,6 +35,17 @@ def grid_edges(n: int) -> np.ndarray:
     return np.vstack([a, b]).astype(np.int64)
 
 
+def outcome(final: np.ndarray) -> str:
+    """How a run ended: 'non-finite', 'thrown up' (some particle above the start height: energy came from
+    nowhere), 'on the ball' (a particle within 2 cm of its surface), or 'slid off'."""
+    if not np.isfinite(final).all():
+        return "non-finite"
+    if final[:, 1].max() > HEIGHT + 0.05:
+        return "thrown up"
+    r = np.sqrt(np.einsum("ij,ij->i", final, final))
+    return "on the ball" if r.min() < RADIUS + 0.02 else "slid off"
+
+
 class FrameProbe:
     """Accumulates the scene's accuracy figures over frames (called outside the timed region).
 
@@ -78,4 +89,5 @@ class FrameProbe:
             "on_sphere_at_end": bool(r.min() < RADIUS + 0.02),
             "final_lowest_y": float(final[:, 1].min()),
             "finite": bool(np.isfinite(final).all()),
+            "outcome": outcome(final),
         }

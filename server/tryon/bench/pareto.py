@@ -4,7 +4,8 @@ For a grid of settings (time step, constraint passes, simplification degree B) t
 draped on the size M body; each drape's error is the RMS distance over the full-mesh vertices to a
 reference drape of the same scene with a 10x smaller time step and 10x more passes (at the finest B of
 the grid). Wall time, penetration and max strain sit beside each point. The default is the fastest
-setting within ``TOLERANCE_MM`` of the reference.
+setting within ``TOLERANCE_MM`` of the reference (or, if none is, within ``TOLERANCE_MM`` of the best
+setting's error).
 """
 
 from __future__ import annotations
@@ -84,21 +85,28 @@ def run(ctx: Context, sec: Section) -> None:
         res, model = drape_full(ctx, body, entry, s)
         m = res.metrics
         points.append({
-            "time_step": dt, "passes": passes, "simplification": b, "coarse_vertices": len(model.coarse_index),
+            "time_step": dt, "passes": passes, "simplification": b, "substeps": getattr(s, "substeps", 1),
+            "coarse_vertices": len(model.coarse_index),
             "wall_s": m["wall_seconds"], "steps": m["steps"], "rms_mm": rms_mm(res.vertices, ref.vertices),
             "max_penetration_mm": m["max_penetration_mm"], "penetrating_vertices": m["penetrating_vertices"],
             "max_strain": m["max_strain"], "rest_reached": m["rest_reached"],
         })
     within = [p for p in points if p["rms_mm"] <= TOLERANCE_MM]
-    pick = min(within, key=lambda p: p["wall_s"]) if within else min(points, key=lambda p: p["rms_mm"])
+    # When no setting comes within the tolerance of the reference (the drape's folds differ between
+    # settings, which sets a floor under the error), the pick is the fastest within the tolerance of the
+    # best setting's error instead: the grid cannot tell those apart.
+    best = min(p["rms_mm"] for p in points)
+    near_best = [p for p in points if p["rms_mm"] <= best + TOLERANCE_MM]
+    pick = min(within or near_best, key=lambda p: p["wall_s"])
     current = next((p for p in points if p["time_step"] == base.time_step and p["passes"] == base.passes
                     and abs(p["simplification"] - base.simplification) < 1e-9), None)
     rm = ref.metrics
     sec.data = {
         "garment": entry["name"], "tolerance_mm": TOLERANCE_MM, "points": points, "pick": pick,
-        "pick_within_tolerance": bool(within), "current_default": current,
+        "pick_within_tolerance": bool(within), "best_rms_mm": best, "current_default": current,
         "reference": {"time_step": ref_settings.time_step, "passes": ref_settings.passes,
-                      "simplification": ref_settings.simplification, "wall_s": rm["wall_seconds"],
+                      "simplification": ref_settings.simplification, "substeps": getattr(ref_settings, "substeps", 1),
+                      "wall_s": rm["wall_seconds"],
                       "steps": rm["steps"], "rest_reached": rm["rest_reached"],
                       "max_penetration_mm": rm["max_penetration_mm"], "max_strain": rm["max_strain"]},
     }
@@ -115,7 +123,8 @@ def run(ctx: Context, sec: Section) -> None:
               "settings (start-up, rest detection, limit) are rescaled to the same simulated time."),
     ))
     verdict = (f"the fastest within {TOLERANCE_MM:g} mm RMS of the reference" if within
-               else f"no setting within {TOLERANCE_MM:g} mm RMS of the reference; the closest")
+               else f"no setting comes within {TOLERANCE_MM:g} mm RMS of the reference (best {fmt(best)} mm); "
+                    f"the fastest within {TOLERANCE_MM:g} mm of that best")
     sec.headline.append(
         f"default pick ({verdict}): time step "
         f"{pick['time_step']} s, {pick['passes']} passes, B = {pick['simplification']}: {fmt(pick['wall_s'])} s "

@@ -108,7 +108,8 @@ def run_sphere(n: int, frames: int, max_seconds: float = 1e9) -> dict:
         "engine": "newton", "version": newton.__version__, "method": "XPBD (SolverXPBD)", "particles": n * n,
         "substeps": SUBSTEPS, "setup_s": setup,
         "params": {"iterations": ITERATIONS, "spring_ke": SPRING_KE, "spring_kd": SPRING_KD,
-                   "particle_mass": PARTICLE_MASS, "particle_radius": PARTICLE_RADIUS, "mu": CONTACT_MU, "device": "cpu", "precision": "f32"},
+                   "particle_mass": PARTICLE_MASS, "particle_radius": PARTICLE_RADIUS, "mu": CONTACT_MU,
+                   "device": "cpu", "precision": "f32"},
     })
     return out
 

@@ -3,7 +3,8 @@
 The physics is Taichi's own example (``examples/ggui_examples/mass_spring_3d_ggui.py``): explicit
 (symplectic Euler) springs to the second ring of neighbours with Young's modulus 3e4 and dashpot damping
 1e4, exponential air drag 1/s, the ball as a velocity projection, and the example's time step
-dt = 4e-2 / n with floor(frame / dt) substeps per frame (n >= 100; see ``run`` for coarser cloths). Only the scene size is ours (``cloth_scene``).
+dt = 4e-2 / n with floor(frame / dt) substeps per frame (n >= 100; see ``run`` for coarser cloths).
+Only the scene size is ours (``cloth_scene``).
 
 ``python -m tryon.bench.peer_taichi N FRAMES MAX_SECONDS`` prints one JSON line with the figures of ``cloth_scene``.
 """
@@ -14,7 +15,6 @@ import json
 import sys
 import time
 
-import numpy as np
 
 from tryon.bench.cloth_scene import FRAME_DT, HEIGHT, RADIUS, SIDE, FrameProbe
 
@@ -29,7 +29,8 @@ def run(n: int, frames: int, max_seconds: float = 1e9) -> dict:
     dt = 4e-2 / max(n, 100)
     substeps = int(FRAME_DT // dt)
     spring_y, dashpot, drag = 3e4, 1e4, 1.0  # the example's constants
-    offsets = [ti.Vector([i, j]) for i in range(-2, 3) for j in range(-2, 3) if (i, j) != (0, 0) and abs(i) + abs(j) <= 2]
+    offsets = [ti.Vector([i, j]) for i in range(-2, 3) for j in range(-2, 3)
+               if (i, j) != (0, 0) and abs(i) + abs(j) <= 2]
 
     @ti.data_oriented
     class Cloth:

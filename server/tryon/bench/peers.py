@@ -71,7 +71,8 @@ def our_substeps(n: int) -> int:
 def headline_ratio(rows: list[dict]) -> dict | None:
     """Ours vs the fastest peer with at least our stretch (ties count), for one cloth size."""
     ours = next((r for r in rows if r["engine"] == "ours" and "error" not in r), None)
-    peers = [r for r in rows if r["engine"] != "ours" and "error" not in r and r.get("finite")]
+    peers = [r for r in rows if r["engine"] != "ours" and "error" not in r and r.get("finite")
+             and r.get("outcome") != "thrown up"]
     if ours is None or not peers:
         return None
     fair = [r for r in peers if r["max_stretch"] >= ours["max_stretch"] - 1e-9]
@@ -82,6 +83,7 @@ def headline_ratio(rows: list[dict]) -> dict | None:
         "ours_frame_ms": ours["frame_ms_median"], "ratio": ours["frame_ms_median"] / best["frame_ms_median"],
         "speedup": best["frame_ms_median"] / ours["frame_ms_median"], "equal_or_lower_stretch": bool(fair),
         "ours_stretch": ours["max_stretch"], "peer_stretch": best["max_stretch"],
+        "ours_outcome": ours.get("outcome"), "peer_outcome": best.get("outcome"),
     }
 
 
@@ -130,12 +132,13 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
                 continue
             table_rows.append([
                 r["engine"], r["particles"], fmt(r["frame_ms_median"]), r["frames"], r.get("substeps", "-"),
-                fmt(r["max_stretch"]), fmt(r.get("final_stretch")), fmt(r["max_penetration_mm"]), fmt(r["on_sphere_at_end"]),
+                fmt(r["max_stretch"]), fmt(r.get("final_stretch")), fmt(r["max_penetration_mm"]),
+                r.get("outcome", fmt(r["on_sphere_at_end"])),
             ])
     sec.tables.append(Table(
         "Cloth dropped on a ball (1 m square, 0.3 m ball, 1/60 s frames)",
         ["engine", "particles", "ms / frame (median)", "frames run", "steps / frame", "max stretch", "final stretch",
-         "max penetration (mm)", "on ball at end"],
+         "max penetration (mm)", "at the end"],
         table_rows,
         note=(f"Median over frames after {10} warm-up frames; stretch = largest grid-edge length / rest - 1 "
               "over all frames (the impact included); penetration = deepest particle inside the true ball. "
@@ -146,8 +149,10 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
         cmp = "at equal or lower stretch" if h["equal_or_lower_stretch"] else "(ours stretched more)"
         sec.headline.append(
             f"cloth on ball, {h['particles']} particles: ours {fmt(h['ours_frame_ms'])} ms/frame vs "
-            f"{h['peer']} {fmt(h['peer_frame_ms'])} ms/frame: {fmt(h['speedup'])}x {'faster' if h['speedup'] >= 1 else 'slower'} "
-            f"{cmp}; stretch {fmt(h['ours_stretch'])} vs {fmt(h['peer_stretch'])}"
+            f"{h['peer']} {fmt(h['peer_frame_ms'])} ms/frame: {fmt(h['speedup'])}x "
+            f"{'faster' if h['speedup'] >= 1 else 'slower'} "
+            f"{cmp}; stretch {fmt(h['ours_stretch'])} vs {fmt(h['peer_stretch'])}; ours ended "
+            f"{h['ours_outcome']}, {h['peer']} {h['peer_outcome']}"
         )
 
 

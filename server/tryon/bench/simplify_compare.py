@@ -15,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 
 from tryon.bench.common import Context, Section, Table, fmt
-from tryon.bench.scenes import default_body, load_clean, main_entry, prepared
+from tryon.bench.scenes import default_body, load_clean, main_entry
 
 
 def quadric_model(paper_model, mesh):
@@ -24,7 +24,7 @@ def quadric_model(paper_model, mesh):
     import fast_simplification
     from scipy.spatial import cKDTree
 
-    from tryon.garment.prepare import lumped_masses, triangle_areas
+    from tryon.garment.prepare import lumped_masses
     from tryon.garment.simplify import attach
     from tryon.garment.springs import spring_model
 
@@ -45,7 +45,8 @@ def quadric_model(paper_model, mesh):
     coarse_v = v[kept]
     springs, rest, kind = spring_model(coarse_v, coarse)
     mass = lumped_masses(coarse_v, coarse, paper_model.mass.sum())
-    attach_face, attach_bary, attach_offset = attach(v, root.astype(np.int64), kept.astype(np.int32), coarse.astype(np.int32))
+    attach_face, attach_bary, attach_offset = attach(v, root.astype(np.int64), kept.astype(np.int32),
+                                                     coarse.astype(np.int32))
     t_total = time.perf_counter() - t0
     meta = replace(paper_model.meta, coarse_vertices=len(kept), coarse_faces=len(coarse))
     model = replace(paper_model, meta=meta, coarse_index=kept.astype(np.int32), coarse_faces=coarse.astype(np.int32),
@@ -70,11 +71,15 @@ def run(ctx: Context, sec: Section) -> None:
         t0 = time.perf_counter()
         collapse_with_parents(mesh.faces, len(mesh.vertices), b, mesh.vertices)
         paper_simplify = time.perf_counter() - t0
-        paper, times = prepared(ctx, entry, b)
+        t0 = time.perf_counter()
+        paper = prepare(mesh, id=entry["file"], name=entry["name"], category=entry["category"],
+                        size=entry.get("size"), source_sha256=sha, source_name=entry["file"], simplification=b)
+        times = {"prepare_s": time.perf_counter() - t0}
         quad, qtimes = quadric_model(paper, mesh)
         settings = SimSettings()
-        for name, model, simp_s, prep_s in (("paper collapse", paper, paper_simplify, times["prepare_s"]),
-                                            ("quadric (fast_simplification)", quad, qtimes["simplify_s"], qtimes["prepare_s"])):
+        variants = (("paper collapse", paper, paper_simplify, times["prepare_s"]),
+                    ("quadric (fast_simplification)", quad, qtimes["simplify_s"], qtimes["prepare_s"]))
+        for name, model, simp_s, prep_s in variants:
             res = drape(body, model, replace(settings, simplification=b))
             d = {"method": name, "B": b, "coarse_vertices": len(model.coarse_index), "simplify_s": simp_s,
                  "prepare_s": prep_s, "rms_mm": rms_mm(res.vertices, ref.vertices),

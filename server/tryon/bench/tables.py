@@ -8,7 +8,6 @@ Table 3: body build, garment preparation, alignment, drape to rest, time per ste
 
 from __future__ import annotations
 
-import time
 
 import numpy as np
 

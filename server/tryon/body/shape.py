@@ -77,6 +77,7 @@ def _ring(y, r, sa=1.0, sf=1.0, sb=1.0, cz=0.0, wf=ROUND, wb=ROUND):
     return (y, r * sa, r * sf, r * sb, 0.0, cz, wf, wb)
 
 
+@lru_cache(maxsize=4096)
 def fitted_section(a: float, f: float, b: float, wf: float, wb: float, girth: float) -> tuple[float, float, float]:
     """(a, f, b) scaled so that the section's convex hull perimeter is ``girth`` (m), measured on a fine
     sampling. Placing the limbs against sections of the right size; ``build.py`` then makes the girth

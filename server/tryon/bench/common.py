@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import os
 import platform
+import subprocess
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -115,8 +116,14 @@ def timed(fn: Callable[[], object]) -> tuple[object, float]:
 
 
 def machine() -> dict:
-    """The facts about this machine a reader needs to compare numbers."""
+    """The facts about this machine (and code) a reader needs to compare numbers."""
     info = {"python": platform.python_version(), "platform": platform.platform(), "cpus": os.cpu_count()}
+    try:
+        here = Path(__file__).resolve().parent
+        info["commit"] = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True,
+                                        text=True, timeout=10).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        info["commit"] = None
     try:
         with open("/proc/cpuinfo") as fh:
             for line in fh:

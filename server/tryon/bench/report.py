@@ -40,7 +40,7 @@ def write_markdown(path: Path, report: dict) -> None:
         f"Command: `{report['command']}`.", "",
         f"Machine: {report['machine'].get('cpu', '?')}, {report['machine'].get('cpus')} CPUs, load average "
         f"{', '.join(f'{x:.1f}' for x in report['machine'].get('load_average', []))} at the start, "
-        f"Python {report['machine'].get('python')}.", "",
+        f"Python {report['machine'].get('python')}, code at commit {report['machine'].get('commit') or '?'}.", "",
         "## Headline", "",
     ]
     heads = [h for s in report["sections"] for h in s["headline"]]

@@ -10,9 +10,11 @@ edges v0v1, v1v2 and the near hypotenuse v2v0):
    those as pairs of structural neighbours that lie on a straight line through the vertex (angle at the
    vertex >= ``STRAIGHT_DEG``), which is exactly rule 3 on a quad grid and means the same on any mesh.
 
-For meshes not built that way (fewer than ``GRID_FACE_FRACTION`` of the faces have a near right angle),
-the fallback: every edge structural; the two vertices opposite each interior edge a shear spring (the
-other diagonal of the two triangles, as rule 2 does for quads); bending as in rule 3 over all edges.
+For meshes not built that way (fewer than ``GRID_FACE_FRACTION`` of the faces are halves of a split
+quad: two near-right triangles sharing their near hypotenuse), the fallback: every edge structural; the
+two vertices opposite each interior edge a shear spring (the other diagonal of the two triangles, as rule
+2 does for quads); bending as in rule 3 over all edges. In a 3DMAX-style mesh, the few faces that are
+not halves of quads get the fallback's shear springs across their shared edges.
 """
 
 from __future__ import annotations
@@ -24,8 +26,8 @@ from tryon.garment.model import BENDING, SHEAR, STRUCTURAL
 
 # An angle within 90 +- 15 degrees is "near right" (3DMAX quads are rectangles up to mesh distortion).
 RIGHT_ANGLE_TOLERANCE_DEG = 15.0
-# At least this fraction of faces with a near right angle makes a mesh "3DMAX-style" (quads split).
-GRID_FACE_FRACTION = 0.6
+# At least this fraction of the faces being halves of split quads makes a mesh "3DMAX-style".
+GRID_FACE_FRACTION = 0.8
 # Two neighbours of a vertex are "opposite" (same grid line) when the angle between them at the vertex
 # is at least this: 150 degrees allows the curvature of a 2 cm grid on a 10 cm-radius sleeve and more.
 STRAIGHT_DEG = 150.0
@@ -67,27 +69,33 @@ def spring_model(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, n
     off = np.abs(angles - 90.0)
     best = np.argmin(off, axis=1)
     has_right = off[np.arange(f), best] <= RIGHT_ANGLE_TOLERANCE_DEG
-    grid_like = f > 0 and has_right.mean() >= GRID_FACE_FRACTION
-
-    if grid_like:
-        hyp_half = np.zeros((f, 3), dtype=bool)
-        hyp_half[np.arange(f)[has_right], best[has_right]] = True
-        hyp_half = hyp_half.reshape(-1)
-        # An edge is a hypotenuse when it is one in every face that has it.
-        hyp_count = np.bincount(edge_of, weights=hyp_half, minlength=n_edges)
-        is_hyp = hyp_count == faces_per_edge
-    else:
-        is_hyp = np.zeros(n_edges, dtype=bool)
+    hyp_half = np.zeros((f, 3), dtype=bool)
+    hyp_half[np.arange(f)[has_right], best[has_right]] = True
+    hyp_half = hyp_half.reshape(-1)
+    # An edge is a near hypotenuse when it is one in every face that has it; a face is half of a split
+    # quad ("paired") when its hypotenuse is shared, as one, with the face across it.
+    is_hyp = np.bincount(edge_of, weights=hyp_half, minlength=n_edges) == faces_per_edge
+    quad_diagonal = is_hyp & (faces_per_edge == 2)
+    face_of_half = np.arange(3 * f) // 3
+    face_paired = np.zeros(f, dtype=bool)
+    face_paired[face_of_half[hyp_half & quad_diagonal[edge_of]]] = True
+    grid_like = f > 0 and face_paired.mean() >= GRID_FACE_FRACTION
+    if not grid_like:  # the fallback: no near hypotenuses at all
+        is_hyp[:] = False
+        face_paired[:] = False
 
     lo, hi = uniq // n, uniq % n
     edge_kind = np.where(is_hyp, SHEAR, STRUCTURAL)
 
-    # Opposite-vertex pairs across edges with exactly two faces (rule 2; fallback: every such edge).
+    # Opposite-vertex pairs across edges with two faces: across each quad diagonal (rule 2), and across
+    # every edge between faces that are not halves of quads (the fallback, there or everywhere).
     order = np.argsort(edge_of, kind="stable")
-    two = faces_per_edge == 2
     starts = np.concatenate([[0], np.cumsum(faces_per_edge)])[:-1]
-    e2 = np.flatnonzero(two & (is_hyp if grid_like else True))
-    across = np.column_stack([opp[order[starts[e2]]], opp[order[starts[e2] + 1]]])
+    e2 = np.flatnonzero(faces_per_edge == 2)
+    h1, h2 = order[starts[e2]], order[starts[e2] + 1]
+    loose = ~face_paired[face_of_half[h1]] & ~face_paired[face_of_half[h2]]
+    pick = is_hyp[e2] | loose
+    across = np.column_stack([opp[h1[pick]], opp[h2[pick]]])
 
     # Bending (rule 3): straight-through pairs of structural neighbours.
     bend_mask = edge_kind == STRUCTURAL

@@ -131,13 +131,16 @@ def test_crash_before_the_index_row_leaves_no_entry_and_is_adopted(tmp_path, ski
 def test_refused_file_leaves_the_catalogue_unchanged(tmp_path, skirt_obj):
     cat = Catalogue(tmp_path)
     cat.ingest(skirt_obj, "Skirt", "bottom", "m", filename="skirt.obj")
-    before = (cat.list(), sorted(p.name for p in (tmp_path / "models").iterdir()))
+    def state():
+        return (cat.list(), *(sorted(p.name for p in (tmp_path / d).iterdir()) for d in ("models", "sources", "tmp")))
+
+    before = state()
     for data, name in [(b"", "x.obj"), (b"v 0 0 0\n", "x.obj"), (skirt_obj, "x.3ds"), (skirt_obj, "../x.obj")]:
         with pytest.raises(GarmentError):
             cat.ingest(data, "X", "top", filename=name)
     with pytest.raises(GarmentError, match="category"):
         cat.ingest(skirt_obj, "X", "hat", filename="x.obj")
-    assert (cat.list(), sorted(p.name for p in (tmp_path / "models").iterdir())) == before
+    assert state() == before
 
 
 def test_delete(tmp_path, skirt_obj, shorts_obj):

@@ -172,7 +172,6 @@ class Catalogue:
         if existing is not None:
             return existing, False
         directory = self.models / gid
-        self._store_source(sha, ext, data)  # kept so that other simplification degrees can be made
         if not (directory / "meta.json").exists():
             meta = GarmentMeta(
                 id=gid, name=name, category=category, size=size, units=units, units_guessed=False,
@@ -180,6 +179,7 @@ class Catalogue:
                 faces=0, coarse_vertices=0, coarse_faces=0,
             )
             self._prepare_into(directory, data, filename, units, meta, density, max_faces)
+        self._store_source(sha, ext, data)  # kept so that other simplification degrees can be made
         meta = json.loads((directory / "meta.json").read_text())
         # name/category/size are the uploader's words for this entry, not part of the prepared model
         meta.update(name=name, category=category, size=size)

@@ -1,7 +1,5 @@
 """Loading garment files: formats, welding, cleaning, orientation, units, and every refusal."""
 
-import io
-
 import numpy as np
 import pytest
 import trimesh

@@ -202,7 +202,6 @@ def build_top(spec: TopSpec) -> trimesh.Trimesh:
     delta_max = math.radians(spec.armhole_angle_deg)
     k = np.arange(n_half + 1) / n_half
     fronts, backs = [], []
-    top_front_ids = None
     for j in range(1, rows_high + 1):
         u = j / rows_high
         delta = delta_max * math.sin(math.pi * u) ** 0.7
@@ -232,7 +231,6 @@ def build_top(spec: TopSpec) -> trimesh.Trimesh:
             shared = ~neck[::-1]
             back_ids[shared] = front_ids[::-1][shared]
             back_ids[~shared] = mb.add(back_pts[~shared])
-            top_front_ids = front_ids
         fronts.append(front_ids)
         backs.append(back_ids)
     armpit = rings[-1]
@@ -242,7 +240,6 @@ def build_top(spec: TopSpec) -> trimesh.Trimesh:
         mb.strip(prev_front, front_ids, closed=False)
         mb.strip(prev_back, back_ids, closed=False)
         prev_front, prev_back = front_ids, back_ids
-    del top_front_ids
 
     if spec.sleeve_end is not None:
         for side in (-1, +1):  # person's right (-x), left (+x)

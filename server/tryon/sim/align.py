@@ -191,8 +191,9 @@ def arm_angle(body: Body, side: str) -> float:
 def plan_arms(body: Body, x: np.ndarray, category: str) -> ArmPlan:
     """Turns that put each arm along its sleeve, measured from the aligned garment points (k, 3).
 
-    Sleeve points: garment points beyond 1.15 x the shoulder half-width from the centre, above the
-    chest-to-waist mid level; the sleeve direction is from the shoulder joint to their centroid.
+    Sleeve points: garment points beyond 1.4 x the shoulder-joint half-width from the centre (past the
+    bodice of a fitted top or dress), above the chest-to-waist mid level; the sleeve direction is from
+    the shoulder joint to their centroid.
     No sleeve (bottoms, sleeveless dresses, too few points): no turn.
     """
     if category == "bottom":
@@ -201,7 +202,7 @@ def plan_arms(body: Body, x: np.ndarray, category: str) -> ArmPlan:
     turns = []
     for side, sign, joint in (("l", 1.0, lm.shoulder_l), ("r", -1.0, lm.shoulder_r)):
         rel = (x[:, 0] - lm.center_x) * sign
-        sel = (rel > 1.15 * lm.shoulder_half) & (x[:, 1] > 0.5 * (lm.chest_y + lm.waist_y))
+        sel = (rel > 1.4 * lm.shoulder_half) & (x[:, 1] > 0.5 * (lm.chest_y + lm.waist_y))
         if sel.sum() < 8:
             turns.append(0.0)
             continue

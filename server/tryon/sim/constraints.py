@@ -183,11 +183,13 @@ STEEP = 0.5
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limit, order):
+def limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limit, order, touching):
     """One sweep of the stretch limits in ``order`` (springs sorted from the top down), moving only the
     lower end of each too-long steep spring (the upper one if the lower is pinned), in place (in the
     spirit of follow-the-leader, Mueller et al. 2012); x_prev (k, 3) is adjusted so the move leaves no
-    velocity towards the upper end.
+    velocity towards the upper end. Only a free lower end follows: where it touches the body
+    (``touching`` (k,) bool, e.g. a sleeve around an arm) the cloth does not hang, and pulling it up
+    would ratchet a tight garment up the body; such springs are split by inverse mass.
 
     Garments hang from their top (shoulders, waist): corrected from the support down, each correction
     sees an already corrected upper end, so a hanging chain of any length is within its limits after
@@ -213,7 +215,7 @@ def limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limit, orde
         if d <= lmax or d < 1e-12:
             continue
         f = (d - lmax) / d
-        if abs(dy) >= STEEP * d:
+        if abs(dy) >= STEEP * d and not touching[j]:
             # a steep spring: the lower end follows the upper one. The move is not momentum-conserving:
             # it may stop the lower end's motion away from the upper one but must not fling it towards
             # it (else the garment climbs), so any velocity left towards the upper end is removed
@@ -248,3 +250,38 @@ def top_down_order(x: np.ndarray, springs: np.ndarray) -> np.ndarray:
     """Spring indices (s,) int64 sorted by the height of their upper end, highest first."""
     top = np.maximum(x[springs[:, 0], 1], x[springs[:, 1], 1])
     return np.argsort(-top, kind="stable").astype(np.int64)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def cap_stretch(x, inv_mass, springs, rest, cap, max_passes):
+    """Shorten every spring longer than ``cap`` x its natural length back to it (inverse-mass split),
+    sweeping until a pass finds none or ``max_passes`` sweeps, in place; returns the sweeps done.
+    A guard, not a material law: one cheap sweep when nothing is that long (the normal case)."""
+    for sweep in range(max_passes):
+        found = False
+        n_springs = springs.shape[0]
+        for q in range(n_springs):
+            s = n_springs - 1 - q if sweep % 2 == 1 else q
+            i = springs[s, 0]
+            j = springs[s, 1]
+            wsum = inv_mass[i] + inv_mass[j]
+            if wsum == 0.0:
+                continue
+            dx = x[i, 0] - x[j, 0]
+            dy = x[i, 1] - x[j, 1]
+            dz = x[i, 2] - x[j, 2]
+            d = math.sqrt(dx * dx + dy * dy + dz * dz)
+            lmax = cap * rest[s]
+            if d <= lmax:
+                continue
+            found = True
+            f = (d - lmax) / (d * wsum)
+            x[i, 0] -= inv_mass[i] * f * dx
+            x[i, 1] -= inv_mass[i] * f * dy
+            x[i, 2] -= inv_mass[i] * f * dz
+            x[j, 0] += inv_mass[j] * f * dx
+            x[j, 1] += inv_mass[j] * f * dy
+            x[j, 2] += inv_mass[j] * f * dz
+        if not found:
+            return sweep + 1
+    return max_passes

@@ -35,10 +35,10 @@ from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import relevant_parts, reuse_planes
 from tryon.sim.constraints import (
-    limit_stretch_downward, project_planes, solve_constraints, spring_lengths, top_down_order,
+    cap_stretch, limit_stretch_downward, project_planes, solve_constraints, spring_lengths, top_down_order,
 )
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
-from tryon.sim.metrics import penetration_metrics, strain_metrics
+from tryon.sim.metrics import LENGTH_TOLERANCE, allowed_length, penetration_metrics, strain_metrics
 from tryon.sim.settings import SimSettings
 
 # m: a point that moved less than this since its last collision test (and was not in contact) is not
@@ -51,11 +51,10 @@ PART_REACH = 0.15
 # Steps for which points pushed out at alignment stay pinned when growth is off (see module doc).
 PIN_STEPS = 5
 # Final projection rounds (collision, then constraints on its contact planes; no integration) after the
-# loop, so that the garment at rest satisfies both: at least MIN, then until no spring is longer than
-# STRAIN_TOLERANCE x its limit length (the accuracy target: within 1 %), at most MAX.
+# loop, so that the garment at rest satisfies both: at least MIN, then until every spring meets the
+# strain target (``metrics.allowed_length``), at most MAX.
 MIN_POLISH_ROUNDS = 3
 MAX_POLISH_ROUNDS = 60
-STRAIN_TOLERANCE = 1.005
 # Degrees per step the arms are turned back from the sleeve pose (slow enough that the arm surface
 # moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).
 ARM_DEG_PER_STEP = 1.0
@@ -68,6 +67,10 @@ ORDER_REFRESH = 20
 NEAR = 0.005
 # m: a contact plane is reused (no map query) while the point stays this close to where it touched.
 PLANE_REUSE = 0.01
+# Largest spring length / natural length the step's last sweeps allow (issue 5: never beyond 3x), and
+# at most how many such sweeps (they stop as soon as one finds nothing to do).
+TEAR_GUARD = 2.5
+TEAR_PASSES = 100
 # Inverse-mass factor of points in contact during the constraint passes (see the loop).
 CONTACT_WEIGHT = 0.2
 
@@ -215,8 +218,16 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                               0.0, 0.0)
             if step % ORDER_REFRESH == 1 and sub == 0:
                 order = top_down_order(x, springs)
-            limit_stretch_downward(x, x_prev, w_eff, springs, rest, kind, limits, order)
+            if not changing:
+                # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its
+                # upward bias would make a tight garment climb off the body
+                limit_stretch_downward(x, x_prev, w_eff, springs, rest, kind, limits, order, has_plane)
             project_planes(x, x_prev, *planes, 0.0, 0.0)
+        # guard: collision wins over the springs within the step, so a garment far too small for its
+        # body (a size S shirt on the largest body) would be stretched without bound; past TEAR_GUARD x
+        # its natural length a spring wins instead (the point may stay inside the body: the metrics
+        # report it). Never active in a normal drape, whose springs stay within their limits.
+        cap_stretch(x, inv_mass, springs, rest, TEAR_GUARD, TEAR_PASSES)
         # at rest = the garment's own motion over the whole step (positions, not the solver's internal
         # velocities, which the strain limits and contact planes keep resetting)
         energy = kinetic_energy_per_kg(x, x_step, mass, dt)
@@ -244,7 +255,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         inv_mass[:] = saved_inv_mass
     active[:] = True
     order = top_down_order(x, springs)
-    over_limit = (1.0 + limits[kind]) * STRAIN_TOLERANCE * rest  # lengths a spring must not exceed
+    over_limit = allowed_length(rest, limits[kind]) - 0.5 * LENGTH_TOLERANCE  # with a little slack
     polish_rounds = 0
     for polish_rounds in range(1, MAX_POLISH_ROUNDS + 1):
         x_prev[:] = x
@@ -254,7 +265,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                          near=NEAR, planes=planes)
         solve_constraints(x, x_prev, inv_mass, springs, rest, kind, limits, compression, settings.passes,
                           *planes, 0.0, 0.0)
-        limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limits, order)
+        limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limits, order, has_plane)
         project_planes(x, x_prev, *planes, 0.0, 0.0)
         if polish_rounds >= MIN_POLISH_ROUNDS and not np.any(spring_lengths(x, springs) > over_limit):
             break

@@ -113,8 +113,10 @@ def test_waist_larger_than_chest_is_kept(bodies):
 
 
 def test_thighs_stay_inside_the_hip_tape(bodies):
-    """A tape at hip level goes round the thighs too: they must not bulge out of the torso's section."""
-    for m, body in bodies:
+    """A tape at hip level goes round the thighs too: they must not bulge out of the torso's section, in
+    the default pose nor with the legs spread."""
+    spread = [(m, build_body(m, Pose(leg_spread=20.0), resolution=20)) for m in SPREAD[-5:]]
+    for m, body in bodies + spread:
         keep = np.isin(body.face_part, [PART_NAMES.index(p) for p in ("torso", "thigh_l", "thigh_r")])
         union = trimesh.Trimesh(body.vertices, body.faces[keep], process=False)
         lines = trimesh.intersections.mesh_plane(union, [0.0, 1.0, 0.0], [0.0, body.levels["hips"] + 1e-9, 0.0])

@@ -241,9 +241,11 @@ def body_layout(m: Measurements, pose: Pose, leg_scale: float = 1.0) -> BodyLayo
     r_k = 0.62 * r_t  # knee
     r_c = 0.60 * r_t  # calf
     y_k = 0.275 * H
-    # hip joint: the thigh's section at hip level (half-width 0.85 r_t) stays 1 cm inside the hips' side
-    hip_joint = np.array([min(0.5 * a_h, a_h - 0.85 * r_t - 0.01), y_h, 0.0])
+    # hip joint: the thigh's section at hip level (half-width 0.85 r_t) stays 1 cm inside the hips' side;
+    # a spread leg swings its upper outer side up to hip level, so the joint moves in by r_t sin(spread)
+    # to keep the thighs inside the hip tape (the flesh of a real hip gives way the same)
     gamma = np.radians(pose.leg_spread)
+    hip_joint = np.array([min(0.5 * a_h, a_h - 0.85 * r_t - 0.01) - r_t * np.sin(gamma), y_h, 0.0])
     rot_leg = rot_z(np.pi + gamma)
     d_leg = rot_leg[:, 1]
     l_th = (y_h - y_k) * leg_scale

@@ -48,3 +48,14 @@ def test_usage_errors(tmp_path, capsys):
     assert main(["ingest", "a.obj", "--simplify", "1.5", "--data-dir", str(tmp_path)]) == 2
     assert main(["ingest", str(tmp_path / "missing.obj"), "--data-dir", str(tmp_path)]) == 1
     assert "no such file" in capsys.readouterr().out
+
+
+def test_category_guessed_from_the_file_name():
+    from tryon.cli.ingest import guess_category
+
+    assert guess_category("polo-shirt.obj") == "top"
+    assert guess_category("A-line_Skirt.glb") == "bottom"
+    assert guess_category("cargo-pants.obj") == "bottom"
+    assert guess_category("dress-straps.obj") == "dress"
+    assert guess_category("outfit-tshirt-pants.obj") == "dress"  # a top and a bottom in one file
+    assert guess_category("garment.obj") == "top"

@@ -19,18 +19,18 @@ from pathlib import Path
 
 from tryon.garment.ingest import UNITS, GarmentError
 
-CATEGORY_WORDS = (
-    ("dress", r"dress|gown|robe"),
-    ("bottom", r"skirt|trouser|pant|short|jean|legging|bottom"),
-)
+DRESS_WORDS = r"dress|gown|robe|outfit|suit|jumpsuit|overall"
+BOTTOM_WORDS = r"skirt|trouser|pant|short|jean|legging|bottom"
+TOP_WORDS = r"shirt|tee|top|blouse|polo|sweater|jacket|hoodie"
 
 
 def guess_category(name: str) -> str:
-    """top | bottom | dress from words in a file name (top when nothing matches)."""
-    for category, pattern in CATEGORY_WORDS:
-        if re.search(pattern, name, re.IGNORECASE):
-            return category
-    return "top"
+    """top | bottom | dress from words in a file name: a dress (or a top and a bottom in one file, an
+    outfit covering the body from the shoulders down) is "dress"; top when nothing matches."""
+    has = lambda pattern: re.search(pattern, name, re.IGNORECASE) is not None  # noqa: E731
+    if has(DRESS_WORDS) or (has(TOP_WORDS) and has(BOTTOM_WORDS)):
+        return "dress"
+    return "bottom" if has(BOTTOM_WORDS) else "top"
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

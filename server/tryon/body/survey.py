@@ -5,7 +5,8 @@
 Columns used: stature, chestcircumference, waistcircumference, buttockcircumference (required), and with
 ``--all-measurements`` also biacromialbreadth, acromionradialelength + radialestylionlength (arm length),
 crotchheight (inseam), neckcircumference, thighcircumference, bicepscircumferenceflexed (upper arm).
-Prints the largest and mean |achieved - requested| (cm) per measurement and the build time.
+Prints the largest and mean |achieved - requested| (cm) per measurement, the same for a hip tape that
+also goes round the thighs (they must stay inside the torso's hip section), and the build time.
 """
 
 from __future__ import annotations

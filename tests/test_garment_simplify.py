@@ -170,28 +170,3 @@ def test_parents_point_to_kept_vertices(tshirt):
     kept, _, root = collapse_with_parents(f, len(v), 0.3, v)
     assert np.isin(root, kept).all()
     assert np.array_equal(root[kept], kept)
-
-
-@pytest.mark.slow
-def test_preparing_a_7500_vertex_garment_is_fast(monkeypatch):
-    """Load + clean + simplify + springs + masses + re-attachment of a ~7,500-vertex garment: the paper
-    took 2.8-14 s; we aim well under 0.2 s on one core. The bound here (0.5 s, best of 3) leaves room
-    for a busy test machine and still catches a fall back to Python loops."""
-    import time
-
-    import tryon.garment.generate as generate
-    from tryon.garment.ingest import load_garment
-
-    monkeypatch.setattr(generate, "SPACING", 0.0124)  # a finer grid: ~7,500 vertices
-    data = generate.obj_text(generate.garment_mesh("longsleeve", "M"), "fine").encode()
-
-    def once() -> tuple[float, int]:
-        t = time.perf_counter()
-        mesh = load_garment(data, "fine.obj", "m")
-        prepare(mesh, id="f", name="f", category="top", size="M", source_sha256="", source_name="fine.obj")
-        return time.perf_counter() - t, len(mesh.vertices)
-
-    once()  # warm-up (numba cache load)
-    best, n = min(once() for _ in range(3))
-    assert 7000 <= n <= 8000
-    assert best < 0.5, f"{best * 1000:.0f} ms for {n} vertices"

@@ -9,13 +9,14 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic):
+def project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic, push=None):
     """Keep points on the outer side of their contact plane, in place: for each i with has_plane[i],
     n . (x_i - q_i) >= 0 (q on the offset body surface + lambda, n its outward normal).
 
     A pushed point loses its normal velocity (x_prev moved along n: inelastic contact) and gets Coulomb friction on positions (Macklin et al. 2014): the tangential
     part of its motion since x_prev is cancelled if shorter than mu_static * d, else shortened by
-    mu_kinetic * d (so garments stay on shoulders instead of creeping down them).
+    mu_kinetic * d (so garments stay on shoulders instead of creeping down them). ``push`` (k,), if
+    given, accumulates each point's pushes (m) for ``apply_friction``.
     """
     for i in range(x.shape[0]):
         if not has_plane[i]:
@@ -29,6 +30,8 @@ def project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, m
         x[i, 0] -= d * nx
         x[i, 1] -= d * ny
         x[i, 2] -= d * nz
+        if push is not None:
+            push[i] -= d
         mx = x[i, 0] - x_prev[i, 0]
         my = x[i, 1] - x_prev[i, 1]
         mz = x[i, 2] - x_prev[i, 2]
@@ -52,8 +55,42 @@ def project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, m
 
 
 @njit(cache=True, nogil=True, fastmath=True)
+def apply_friction(x, x_prev, has_plane, plane_normal, push, mu_static, mu_kinetic):
+    """Coulomb friction for the substep, in place: a contact pushed out by ``push`` (m, summed over the
+    passes: gravity and the cloth's own tension pressing it on the body, e.g. a waistband's hoop tension
+    on the hips) keeps no tangential motion since x_prev if that motion is under mu_static x push (it
+    sticks), else loses mu_kinetic x push of it (it slides). Then ``push`` is reset.
+
+    This is what holds a skirt or trousers on the hips: the band's tension presses it on the slope, and
+    the friction that pressure allows stops it sliding down.
+    """
+    for i in range(x.shape[0]):
+        p = push[i]
+        push[i] = 0.0
+        if not has_plane[i] or p <= 0.0:
+            continue
+        nx = plane_normal[i, 0]
+        ny = plane_normal[i, 1]
+        nz = plane_normal[i, 2]
+        mx = x[i, 0] - x_prev[i, 0]
+        my = x[i, 1] - x_prev[i, 1]
+        mz = x[i, 2] - x_prev[i, 2]
+        mn = mx * nx + my * ny + mz * nz
+        tx = mx - mn * nx
+        ty = my - mn * ny
+        tz = mz - mn * nz
+        tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+        if tl <= 1e-15:
+            continue
+        cut = 1.0 if tl <= mu_static * p else min(mu_kinetic * p / tl, 1.0)
+        x[i, 0] -= cut * tx
+        x[i, 1] -= cut * ty
+        x[i, 2] -= cut * tz
+
+
+@njit(cache=True, nogil=True, fastmath=True)
 def solve_constraints(x, x_prev, inv_mass, springs, rest, kind, limit, compression, passes, has_plane,
-                      plane_point, plane_normal, mu_static, mu_kinetic):
+                      plane_point, plane_normal, mu_static, mu_kinetic, push, relax=1.0):
     """``passes`` Gauss-Seidel passes over the springs (``satisfy_springs``), each followed by the contact
     planes (``project_planes``), in place.
 
@@ -62,12 +99,12 @@ def solve_constraints(x, x_prev, inv_mass, springs, rest, kind, limit, compressi
     solvers such as NVIDIA Flex handle contacts).
     """
     for sweep in range(passes):
-        _spring_pass(x, inv_mass, springs, rest, kind, limit, compression, sweep % 2 == 1)
-        project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic)
+        _spring_pass(x, inv_mass, springs, rest, kind, limit, compression, sweep % 2 == 1, relax)
+        project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic, push)
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def _spring_pass(x, inv_mass, springs, rest, kind, limit, compression, backward):
+def _spring_pass(x, inv_mass, springs, rest, kind, limit, compression, backward, relax=1.0):
     n_springs = springs.shape[0]
     for q in range(n_springs):
         s = n_springs - 1 - q if backward else q
@@ -93,7 +130,7 @@ def _spring_pass(x, inv_mass, springs, rest, kind, limit, compression, backward)
             excess = (d - l0) * compression[k]
         else:
             continue
-        f = excess / (d * wsum)
+        f = relax * excess / (d * wsum)
         x[i, 0] -= wi * f * dx
         x[i, 1] -= wi * f * dy
         x[i, 2] -= wi * f * dz

@@ -35,7 +35,7 @@ from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import relevant_parts, reuse_planes
 from tryon.sim.constraints import (
-    cap_stretch, limit_stretch_downward, project_planes, solve_constraints, spring_lengths, top_down_order,
+    apply_friction, cap_stretch, limit_stretch_downward, project_planes, solve_constraints, spring_lengths, top_down_order,
 )
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.metrics import LENGTH_TOLERANCE, allowed_length, penetration_metrics, strain_metrics
@@ -162,6 +162,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     x_checked = x.copy()
     x_step = x.copy()
     reused = np.zeros(len(x), dtype=np.bool_)
+    push = np.zeros(len(x))
     has_plane = np.zeros(len(x), dtype=np.bool_)
     planes = (has_plane, np.zeros((len(x), 3)), np.zeros((len(x), 3)))
 
@@ -215,14 +216,15 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                 # instead of dragging them in (mass scaling)
                 w_eff = np.where(has_plane, inv_mass * CONTACT_WEIGHT, inv_mass)
             solve_constraints(x, x_prev, w_eff, springs, rest, kind, limits, compression, per_sub, *planes,
-                              0.0, 0.0)
+                              0.0, 0.0, push)
             if step % ORDER_REFRESH == 1 and sub == 0:
                 order = top_down_order(x, springs)
             if not changing:
                 # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its
                 # upward bias would make a tight garment climb off the body
                 limit_stretch_downward(x, x_prev, w_eff, springs, rest, kind, limits, order, has_plane)
-            project_planes(x, x_prev, *planes, 0.0, 0.0)
+            project_planes(x, x_prev, *planes, 0.0, 0.0, push)
+            apply_friction(x, x_prev, has_plane, planes[2], push, mu_s, mu_k)
         # guard: collision wins over the springs within the step, so a garment far too small for its
         # body (a size S shirt on the largest body) would be stretched without bound; past TEAR_GUARD x
         # its natural length a spring wins instead (the point may stay inside the body: the metrics
@@ -264,7 +266,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact,
                          near=NEAR, planes=planes)
         solve_constraints(x, x_prev, inv_mass, springs, rest, kind, limits, compression, settings.passes,
-                          *planes, 0.0, 0.0)
+                          *planes, 0.0, 0.0, push)
         limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limits, order, has_plane)
         project_planes(x, x_prev, *planes, 0.0, 0.0)
         if polish_rounds >= MIN_POLISH_ROUNDS and not np.any(spring_lengths(x, springs) > over_limit):

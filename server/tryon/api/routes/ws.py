@@ -202,7 +202,9 @@ class LiveSession:
         now = time.monotonic()
         if now < self._next_offer_at or self._model is None:
             return True
-        self._next_offer_at = now + self.interval_s
+        # a fixed cadence (not "now + interval"): steps rarely land on the deadline, and waiting a full
+        # interval from a late step would deliver well under fps; the sender still spaces frames 1/fps apart
+        self._next_offer_at = max(self._next_offer_at + self.interval_s, now - self.interval_s)
         payload = encode_positions(self._model.expand(coarse))
         self.loop.call_soon_threadsafe(self._put_frame, (step, payload))
         return True

@@ -143,7 +143,9 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
         note=(f"Median over frames after {10} warm-up frames; stretch = largest grid-edge length / rest - 1 "
               "over all frames (the impact included); penetration = deepest particle inside the true ball. "
               "Taichi's example has a frictionless ball (the cloth slides off); ours uses the default "
-              "SimSettings friction, Newton's example mu = 1."),
+              "SimSettings friction, Newton's example mu = 1. Threads: Taichi uses both cores, ours and "
+              "Warp's CPU kernels one. Newton runs within a wall-time budget, so on the larger cloths its "
+              "figures cover only the frames it reached (see 'frames run')."),
     ))
     for h in ratios:
         cmp = "at equal or lower stretch" if h["equal_or_lower_stretch"] else "(ours stretched more)"

@@ -1,0 +1,77 @@
+"""Drapes of catalogue garments (the repository's generated OBJs) on the real NURBS body."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tryon.body.build import build_body
+from tryon.body.params import Measurements, Pose
+from tryon.garment.catalogue import Catalogue
+from tryon.sim.run import drape
+from tryon.sim.settings import SimSettings
+
+ROOT = Path(__file__).resolve().parents[1]
+MEDIUM = Measurements(height=170, chest=96, waist=82, hips=100)
+
+
+@pytest.fixture(scope="module")
+def catalogue(tmp_path_factory):
+    return Catalogue(tmp_path_factory.mktemp("drape-catalogue"))
+
+
+@pytest.fixture(scope="module")
+def body():
+    return build_body(MEDIUM, Pose())
+
+
+def _model(catalogue, filename, category):
+    meta = catalogue.ingest(ROOT / "garments" / filename, name=filename, category=category, units="m")
+    return catalogue.model(meta.id)
+
+
+def _distance_to_segment(p, a, b):
+    t = np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[:, None] * (b - a)), axis=1)
+
+
+def test_tshirt_drapes_on_the_shoulders_with_sleeves_around_the_arms(catalogue, body):
+    model = _model(catalogue, "tshirt-m.obj", "top")
+    result = drape(body, model, SimSettings())
+    m = result.metrics
+    assert m["rest_reached"], m
+    assert m["penetrating_vertices"] == 0 and m["max_penetration_mm"] <= 2.0
+    n_springs = len(model.springs)
+    assert sum(k["over"] for k in m["strain_by_kind"].values()) <= 0.002 * n_springs, m["strain_by_kind"]
+    v = result.vertices
+    # it hangs from the shoulders: the top of the shirt is at the shoulders, not below the chest
+    assert v[:, 1].max() > body.levels["chest"] + 0.15
+    # sleeves around the arms, not across the torso: 45-60 % of the way from shoulder to elbow (below the
+    # armhole, where a short sleeve is a closed tube) the garment vertices near the arm surround it
+    for side in ("l", "r"):
+        k = body.parts.index(f"upper_arm_{side}")
+        a, b = body.part_axes[k]
+        axis = (b - a) / np.linalg.norm(b - a)
+        t = (v - a) @ axis / np.linalg.norm(b - a)
+        near = (t > 0.45) & (t < 0.6) & (_distance_to_segment(v, a, b) < 0.15)
+        sleeve = v[near]
+        assert len(sleeve) > 15
+        u = np.cross(axis, [0.0, 0.0, 1.0])
+        u /= np.linalg.norm(u)
+        w = np.cross(axis, u)
+        rel = sleeve - a
+        angles = np.sort(np.arctan2(rel @ w, rel @ u))
+        largest_gap = max(np.diff(angles).max(), angles[0] + 2 * np.pi - angles[-1])
+        assert largest_gap < np.radians(75)
+
+
+def test_shorts_stay_on_the_hips(catalogue, body):
+    model = _model(catalogue, "shorts-m.obj", "bottom")
+    result = drape(body, model, SimSettings())
+    m = result.metrics
+    assert m["penetrating_vertices"] == 0
+    top = result.vertices[:, 1].max()
+    assert body.levels["hips"] < top < body.levels["waist"] + 0.03  # held between the hips and the waist
+    assert m["max_strain"] < 1.0  # a tight band is stretched, never torn

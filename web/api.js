@@ -120,7 +120,8 @@ export function liveTryOn(payload, handlers) {
       if (finished) return;
       if (session.cancelled) { reject(new ApiError('You stopped the try-on.', { stopped: true })); return; }
       if (event.code === CLOSE_TRY_AGAIN_LATER) {
-        reject(new ApiError(`The fitting room is busy right now: ${errorReason || 'too many try-ons at once'}.`,
+        const wait = /try again in (\d+) s/.exec(errorReason || '');
+        reject(new ApiError(`Every fitting room is busy right now. Please try again in ${wait ? `${wait[1]} seconds` : 'a few seconds'}.`,
           { busy: true }));
       } else if (errorReason) {
         reject(new ApiError(errorReason));

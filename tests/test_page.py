@@ -9,11 +9,14 @@ from __future__ import annotations
 
 import base64
 import io
+import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
+from websockets.sync.client import connect
 
 from conftest import serve_process
 from tryon.garment.catalogue import Catalogue
@@ -27,18 +30,26 @@ ARTIFACTS = ROOT / "test-artifacts"
 BENIGN = ("GPU stall due to ReadPixels",)
 
 
+@dataclass
+class Shop:
+    url: str
+    skirt_id: str
+
+
 @pytest.fixture(scope="module")
-def shop(tmp_path_factory) -> str:
-    """A server whose catalogue has a T-shirt in S and M and a skirt in M (generated here)."""
+def shop(tmp_path_factory) -> Shop:
+    """A server whose catalogue has a T-shirt in S and M and a skirt in M (generated here), with one
+    simulation worker and no waiting slot (so that a busy fitting room is easy to show)."""
     root = tmp_path_factory.mktemp("page")
     catalogue = Catalogue(root / "data")
+    ids = {}
     for kind, size, name, category in (("tshirt", "S", "T-shirt S", "top"), ("tshirt", "M", "T-shirt M", "top"),
                                        ("skirt", "M", "A-line skirt M", "bottom")):
         path = root / f"{kind}-{size}.obj"
         path.write_text(obj_text(garment_mesh(kind, size), name))
-        catalogue.ingest(path, name=name, category=category, size=size, units="m")
-    with serve_process(root / "data") as url:
-        yield url
+        ids[kind] = catalogue.ingest(path, name=name, category=category, size=size, units="m").id
+    with serve_process(root / "data", env={"TRYON_SIM_WORKERS": "1", "TRYON_SIM_QUEUE": "0"}) as url:
+        yield Shop(url, ids["skirt"])
 
 
 def canvas_pixels(page) -> np.ndarray:
@@ -62,7 +73,7 @@ def page(browser, shop):
             and page.problems.append(f"console {m.type}: {m.text}"))
     page.on("pageerror", lambda e: page.problems.append(f"page error: {e}"))
     page.on("requestfailed", lambda r: page.problems.append(f"request failed: {r.url}"))
-    page.goto(shop + "/")
+    page.goto(shop.url + "/")
     page.wait_for_function("window.tryon && window.tryon.state === 'ready' && window.tryon.bodyRequests > 0",
                            timeout=60_000)
     yield page
@@ -136,3 +147,25 @@ def test_server_errors_are_shown_in_words(page):
     assert page.get_attribute("#field-height", "aria-invalid") == "true"
     assert page.locator("#tryon-button").is_disabled()
     assert [p for p in page.problems if "422" not in p] == []  # the refused request is the only noise
+
+
+def test_a_busy_fitting_room_is_said_in_words(page, shop):
+    page.problems.clear()
+    page.fill("#field-height", "172")
+    page.fill("#field-chest", "100")
+    page.fill("#field-waist", "86")
+    page.wait_for_function("!document.querySelector('#tryon-button').disabled", timeout=30_000)
+    # another shopper holds the only worker with the longest drape a request may ask for
+    long = {"max_steps": 3000, "time_step": 0.005, "passes": 50, "substeps": 16, "simplification": 1.0}
+    other = {"garment_id": shop.skirt_id, "measurements": {"height": 165, "chest": 90, "waist": 75, "hips": 98},
+             "settings": long, "fps": 5}
+    with connect("ws" + shop.url[4:] + "/ws/tryon", max_size=None) as ws:
+        ws.send(json.dumps(other))
+        assert json.loads(ws.recv(timeout=60))["type"] == "init"
+        page.click("#tryon-button")
+        page.wait_for_function("window.tryon.state === 'error'", timeout=30_000)
+    text = page.locator("#notice-text").inner_text()
+    assert "busy" in text and "try again" in text
+    assert page.locator("#notice").is_visible()
+    assert page.locator("#tryon-button").is_enabled()  # the shopper can try again
+    assert page.problems == []

@@ -56,6 +56,11 @@ from tryon.garment.model import GarmentModel
 from tryon.sim.run import TryOnResult, drape
 from tryon.sim.settings import SimSettings
 
+try:  # optional: faster JSON for the init message
+    import orjson
+except ImportError:  # pragma: no cover - the standard library does the same, slower
+    orjson = None
+
 router = APIRouter(tags=["ws"])
 log = logging.getLogger(__name__)
 
@@ -106,10 +111,19 @@ class LiveTryOnRequest(TryOnRequest):
     fps: int = Field(30, ge=1, le=60, description="frames per second of wall time to send, 1/s; range [1, 60]")
 
 
-def mesh_lists(vertices: np.ndarray, faces: np.ndarray, decimals: int = 4) -> dict:
-    """SPEC's JSON mesh (metres rounded to ``decimals``: 0.1 mm at 4)."""
-    return {"vertices": np.round(np.asarray(vertices, float), decimals).tolist(),
-            "faces": np.asarray(faces, dtype=np.int64).tolist()}
+def dumps(message: dict) -> str:
+    """Compact JSON text of a message whose arrays may be numpy arrays (orjson when installed: ~10x
+    faster on the init message's two meshes)."""
+    if orjson is not None:
+        return orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY).decode()
+    return json.dumps(message, separators=(",", ":"),
+                      default=lambda o: o.tolist() if isinstance(o, np.ndarray) else o.item())
+
+
+def mesh_arrays(vertices: np.ndarray, faces: np.ndarray, decimals: int = 4) -> dict:
+    """SPEC's JSON mesh as arrays for :func:`dumps` (metres rounded to ``decimals``: 0.1 mm at 4)."""
+    return {"vertices": np.round(np.asarray(vertices, np.float64), decimals),
+            "faces": np.ascontiguousarray(faces, dtype=np.int32)}
 
 
 def init_message(body: Body, model: GarmentModel, sim_settings: SimSettings) -> dict:
@@ -120,8 +134,8 @@ def init_message(body: Body, model: GarmentModel, sim_settings: SimSettings) -> 
         "type": "init",
         "vertex_count": n,
         "face_count": int(len(model.faces)),
-        "faces": np.asarray(model.faces, dtype=np.int64).tolist(),
-        "body": {**mesh_lists(body.vertices, body.faces), "achieved": body.achieved},
+        "faces": np.ascontiguousarray(model.faces, dtype=np.int32),
+        "body": {**mesh_arrays(body.vertices, body.faces), "achieved": body.achieved},
         "garment": {"id": meta.id, "name": meta.name, "category": meta.category, "size": meta.size,
                     "vertices": meta.vertices, "faces": meta.faces, "coarse_vertices": meta.coarse_vertices},
         "max_steps": int(sim_settings.max_steps),
@@ -150,7 +164,7 @@ def run_live(catalogue: Catalogue, request: LiveTryOnRequest, session: LiveSessi
     body, model, sim_settings = prepare_tryon(catalogue, request)
     # serialised here, on the worker: the init message carries two meshes (~0.5 MB of JSON), too much
     # work for the event loop
-    session.offer_init(json.dumps(init_message(body, model, sim_settings), separators=(",", ":")), model)
+    session.offer_init(dumps(init_message(body, model, sim_settings)), model)
     result = drape(body, model, sim_settings, guard)
     return result, done_message(result, guard)
 

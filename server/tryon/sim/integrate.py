@@ -56,3 +56,15 @@ def kinetic_energy_per_kg(x, x_prev, mass, dt):
     if m <= 0.0:
         return 0.0
     return 0.5 * e / (m * dt * dt)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def keep_above_floor(x, x_prev, floor_y):
+    """Points below the floor plane y = floor_y (m) are put on it, in place, with no downward velocity
+    and their horizontal motion stopped (the floor holds cloth still: friction)."""
+    for i in range(x.shape[0]):
+        if x[i, 1] < floor_y:
+            x[i, 1] = floor_y
+            x_prev[i, 0] = x[i, 0]
+            x_prev[i, 1] = floor_y
+            x_prev[i, 2] = x[i, 2]

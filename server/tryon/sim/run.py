@@ -37,7 +37,7 @@ from tryon.sim.collide import relevant_parts, reuse_planes
 from tryon.sim.constraints import (
     apply_friction, cap_stretch, limit_stretch_downward, project_planes, solve_constraints, spring_lengths, top_down_order,
 )
-from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
+from tryon.sim.integrate import keep_above_floor, kinetic_energy_per_kg, verlet_step
 from tryon.sim.metrics import LENGTH_TOLERANCE, allowed_length, penetration_metrics, strain_metrics
 from tryon.sim.settings import SimSettings
 
@@ -67,6 +67,8 @@ ORDER_REFRESH = 20
 NEAR = 0.005
 # m: a contact plane is reused (no map query) while the point stays this close to where it touched.
 PLANE_REUSE = 0.01
+# m: the floor the body stands on (its feet are on y = 0); trouser legs and long hems rest on it.
+FLOOR_Y = 0.001
 # Largest spring length / natural length the step's last sweeps allow (issue 5: never beyond 3x), and
 # at most how many such sweeps (they stop as soon as one finds nothing to do).
 TEAR_GUARD = 2.5
@@ -225,6 +227,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                 limit_stretch_downward(x, x_prev, w_eff, springs, rest, kind, limits, order, has_plane)
             project_planes(x, x_prev, *planes, 0.0, 0.0, push)
             apply_friction(x, x_prev, has_plane, planes[2], push, mu_s, mu_k)
+            keep_above_floor(x, x_prev, FLOOR_Y)
         # guard: collision wins over the springs within the step, so a garment far too small for its
         # body (a size S shirt on the largest body) would be stretched without bound; past TEAR_GUARD x
         # its natural length a spring wins instead (the point may stay inside the body: the metrics
@@ -269,6 +272,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                           *planes, 0.0, 0.0, push)
         limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limits, order, has_plane)
         project_planes(x, x_prev, *planes, 0.0, 0.0)
+        keep_above_floor(x, x_prev, FLOOR_Y)
         if polish_rounds >= MIN_POLISH_ROUNDS and not np.any(spring_lengths(x, springs) > over_limit):
             break
     active[:] = True
@@ -280,6 +284,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     full_contact = np.zeros(len(full), dtype=np.bool_)
     ones = np.ones(len(full))
     all_active = np.ones(len(full), dtype=np.bool_)
+    np.maximum(full[:, 1], 0.0, out=full[:, 1])
     full_parts = relevant_parts(body.maps, full.min(axis=0), full.max(axis=0), 0.01)
     collider.collide(full, full_prev, ones, all_active, full_parts, settings.contact_offset, 0.0, 0.0, full_contact)
 

@@ -1,0 +1,136 @@
+"""Issue 6 figures, measured through a real server with the default pool: time to the first frame, frames
+per second delivered, bytes per frame, concurrent try-ons held before refusing, health latency while busy.
+
+Written to ``test-artifacts/live-figures.json`` (and printed with ``-s``); the assertions are loose bounds
+that catch a regression (a frame backlog, a blocked event loop, a pool that does not refuse).
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import struct
+import threading
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+from websockets.sync.client import connect
+
+from conftest import serve_process
+from tryon.garment.catalogue import Catalogue
+from tryon.garment.generate import garment_mesh, obj_text
+
+pytestmark = [pytest.mark.e2e, pytest.mark.slow]
+
+ARTIFACTS = Path(__file__).resolve().parents[1] / "test-artifacts"
+BODY = {"height": 172.0, "chest": 98.0, "waist": 84.0, "hips": 100.0}
+HEAVY = {"max_steps": 3000, "time_step": 0.005, "passes": 50, "substeps": 16, "simplification": 1.0}
+
+
+def stream(ws_url: str, request: dict, fps: int = 30) -> dict:
+    t0 = time.monotonic()
+    out = {"frames": 0, "first_frame_s": None, "init_s": None, "init_bytes": 0, "frame_bytes": 0, "close": None}
+    with connect(ws_url, max_size=None) as ws:
+        ws.send(json.dumps({**request, "fps": fps}))
+        try:
+            while True:
+                m = ws.recv(timeout=120)
+                now = time.monotonic() - t0
+                if isinstance(m, bytes):
+                    out["frames"] += 1
+                    out["frame_bytes"] = len(m)
+                    out["first_frame_s"] = out["first_frame_s"] or now
+                    out["last_frame_s"] = now
+                    out["last_step"] = struct.unpack_from("<I", m, 4)[0]
+                else:
+                    d = json.loads(m)
+                    if d["type"] == "init":
+                        out["init_s"], out["init_bytes"] = now, len(m)
+                    else:
+                        out[d["type"]] = d
+        except Exception:
+            pass
+        out["close"] = ws.close_code
+    out["total_s"] = time.monotonic() - t0
+    return out
+
+
+def hold(ws_url: str, request: dict, stop: threading.Event, out: list) -> None:
+    """Start a try-on and keep it running until ``stop``; append the close code (None while admitted)."""
+    with connect(ws_url, max_size=None) as ws:
+        ws.send(json.dumps({**request, "fps": 2}))
+        try:
+            first = json.loads(ws.recv(timeout=60))
+            if first["type"] == "error":
+                ws.recv(timeout=10)
+        except Exception:
+            out.append(ws.close_code)
+            return
+        out.append(None)
+        stop.wait(60)
+
+
+def test_live_figures(tmp_path):
+    data = tmp_path / "data"
+    ids = {}
+    for kind, size, category in (("tshirt", "M", "top"), ("dress", "M", "dress"), ("trousers", "L", "bottom")):
+        path = tmp_path / f"{kind}.obj"
+        path.write_text(obj_text(garment_mesh(kind, size), kind))
+        ids[kind] = Catalogue(data).ingest(path, name=kind, category=category, size=size, units="m").id
+    with serve_process(data) as url:  # the default pool: 2 workers, 2 waiting
+        ws_url = "ws" + url[4:] + "/ws/tryon"
+        stream(ws_url, {"garment_id": ids["tshirt"], "measurements": {**BODY, "height": 150.0},
+                        "settings": {"max_steps": 2}})  # warm-up (numba loads its cache)
+        figures = {"garments": {}}
+        for kind, gid in ids.items():
+            s = stream(ws_url, {"garment_id": gid, "measurements": BODY})
+            live_s = s["last_frame_s"] - s["first_frame_s"]
+            figures["garments"][kind] = {
+                "vertices": (s["frame_bytes"] - 12) // 12, "init_kB": round(s["init_bytes"] / 1e3),
+                "time_to_first_frame_s": round(s["first_frame_s"], 3), "frames": s["frames"],
+                "frames_per_s": round((s["frames"] - 1) / live_s, 1) if live_s > 0 else None,
+                "bytes_per_frame": s["frame_bytes"], "steps": s["done"]["metrics"]["steps"],
+                "sim_wall_s": round(s["done"]["metrics"]["wall_seconds"], 2),
+            }
+            assert s["first_frame_s"] < 5.0 and s["frames"] >= 2
+            assert s["frame_bytes"] == 12 + 12 * figures["garments"][kind]["vertices"]
+            if live_s > 1.0:
+                assert (s["frames"] - 1) / live_s <= 30 * 1.05  # never more than asked for
+        again = stream(ws_url, {"garment_id": ids["tshirt"], "measurements": BODY})
+        figures["cached_total_s"] = round(again["total_s"], 3)
+        assert again["done"]["cached"] is True
+
+        # capacity: heavy try-ons until refused, health latency while they run
+        capacity = httpx.get(f"{url}/api/health").json()["simulations"]["capacity"]
+        results, threads, stop = [], [], threading.Event()
+        for i in range(capacity + 2):
+            request = {"garment_id": ids["trousers"], "measurements": {**BODY, "hips": 101.0 + i},
+                       "settings": HEAVY}
+            t = threading.Thread(target=hold, args=(ws_url, request, stop, results))
+            t.start()
+            threads.append(t)
+            time.sleep(0.3)
+        time.sleep(0.5)
+        latencies = []
+        with httpx.Client(timeout=5) as client:
+            busy = client.get(f"{url}/api/health").json()["simulations"]
+            for _ in range(30):
+                t = time.perf_counter()
+                client.get(f"{url}/api/health")
+                latencies.append(time.perf_counter() - t)
+                time.sleep(0.03)
+        stop.set()  # the heavy ones' clients leave: the pool frees at once
+        for t in threads:
+            t.join(timeout=30)
+        refused = [r for r in results if r == 1013]
+        figures["capacity"] = {"workers": busy["workers"], "queue": busy["queue"], "running": busy["running"],
+                               "waiting": busy["waiting"], "refused": len(refused)}
+        figures["health_ms_while_busy"] = {"median": round(statistics.median(latencies) * 1e3, 1),
+                                           "max": round(max(latencies) * 1e3, 1)}
+        assert len(refused) == 2 and busy["running"] == busy["workers"] and busy["waiting"] == busy["queue"]
+        assert statistics.median(latencies) < 0.05
+    ARTIFACTS.mkdir(exist_ok=True)
+    (ARTIFACTS / "live-figures.json").write_text(json.dumps(figures, indent=1))
+    print(json.dumps(figures, indent=1))

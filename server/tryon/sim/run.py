@@ -69,6 +69,9 @@ NEAR = 0.005
 PLANE_REUSE = 0.01
 # m: the floor the body stands on (its feet are on y = 0); trouser legs and long hems rest on it.
 FLOOR_Y = 0.001
+# Whether the top-down stretch sweep runs after every substep (True) or once per step (False: half the
+# cost, but bottoms then slide off the hips: measured on the catalogue).
+FTL_EVERY_SUBSTEP = True
 # Largest spring length / natural length the step's last sweeps allow (issue 5: never beyond 3x), and
 # at most how many such sweeps (they stop as soon as one finds nothing to do).
 TEAR_GUARD = 2.5
@@ -221,7 +224,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                               0.0, 0.0, push)
             if step % ORDER_REFRESH == 1 and sub == 0:
                 order = top_down_order(x, springs)
-            if not changing:
+            if not changing and (sub == n_sub - 1 or FTL_EVERY_SUBSTEP):
                 # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its
                 # upward bias would make a tight garment climb off the body
                 limit_stretch_downward(x, x_prev, w_eff, springs, rest, kind, limits, order, has_plane)

@@ -79,6 +79,19 @@ class Field {
     unit.className = 'unit';
     unit.textContent = spec.unit;
     numberBox.append(number, unit);
+    if (!spec.required && spec.unit === 'cm') {
+      // back to "estimated from the required measurements"
+      this.reset = document.createElement('button');
+      this.reset.type = 'button';
+      this.reset.className = 'reset';
+      this.reset.textContent = 'auto';
+      this.reset.title = 'Estimate it from height, chest, waist and hips';
+      this.reset.addEventListener('click', () => {
+        number.value = '';
+        number.dispatchEvent(new Event('input'));
+      });
+      label.append(this.reset);
+    }
     wrap.append(label, numberBox, slider);
     container.append(wrap);
     this.wrap = wrap; this.slider = slider; this.number = number;
@@ -112,6 +125,7 @@ class Field {
   refreshAuto() {
     this.wrap.classList.toggle('auto', this.auto);
     this.autoTag.hidden = !this.auto;
+    if (this.reset) this.reset.hidden = this.auto;
   }
 
   validate() {

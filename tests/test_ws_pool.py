@@ -126,3 +126,17 @@ def test_frame_encoding_roundtrip():
     assert FRAME_HEADER.unpack_from(data) == (7, 42, 1.25)
     back = np.frombuffer(data, dtype="<f4", offset=FRAME_HEADER.size).reshape(-1, 3)
     np.testing.assert_allclose(back, v, rtol=1e-6, atol=1e-7)
+
+
+def test_tryon_key_fills_defaults_and_ignores_fps():
+    from tryon.api.pool import tryon_key
+    from tryon.api.routes.ws import LiveTryOnRequest
+    from tryon.api.schemas.tryon import TryOnRequest
+
+    body = {"height": 170, "chest": 96, "waist": 82, "hips": 100}
+    plain = TryOnRequest(garment_id="g", measurements=body)
+    live = LiveTryOnRequest(garment_id="g", measurements={k: float(v) for k, v in body.items()}, fps=12,
+                            settings={"max_steps": plain.settings.max_steps})
+    assert tryon_key(plain) == tryon_key(live)  # defaults written out or not, ints or floats, any fps
+    assert tryon_key(plain) != tryon_key(TryOnRequest(garment_id="g", measurements=body, settings={"max_steps": 7}))
+    assert tryon_key(plain) != tryon_key(TryOnRequest(garment_id="g", measurements=body, pose={"arm_angle": 45}))

@@ -1,7 +1,23 @@
-"""One try-on: align, then step (integrate, constrain, collide) until the garment is at rest.
+"""One try-on: align, then step (integrate, collide, constrain) until the garment is at rest.
 
 State is flat arrays: positions x (k, 3), previous positions (k, 3), inverse masses (k,), the model's
-springs (s, 2) / rest lengths (s,) / kinds (s,), strain limits per kind. Python only loops over steps.
+springs (s, 2) / rest lengths (s,) / kinds (s,), strain limits per kind. Python only loops over steps and
+substeps; every loop over particles or springs is a numba kernel.
+
+One step (time_step dt) is ``substeps`` substeps of dt / substeps ("small steps": the passes spread over
+substeps converge much further than the same passes on one step). Each substep:
+1. Verlet prediction with gravity and air drag (eq. 1);
+2. first substep only: collision against the offset body (paper 3.3-3.4, ``collide.py``), which pushes
+   points out (eq. 4) and leaves a contact plane for each point pushed or within ``NEAR`` of the body;
+   contacts still within ``PLANE_REUSE`` of where they touched only reuse their plane (no map query);
+   later substeps push onto the planes, with friction on the predicted motion;
+3. the strain-limited springs (eq. 2-3), ``passes / substeps`` Gauss-Seidel passes, each followed by the
+   contact planes (springs and contacts converge together);
+4. the top-down sweep for hanging cloth (``limit_stretch_downward``: a sagging free end follows the
+   point above it), the planes again, then Coulomb friction from the summed contact pushes (a band's
+   hoop tension on the hips is what holds a skirt up) and the floor.
+After the step a guard keeps every spring under ``TEAR_GUARD`` x its natural length (never active in a
+normal drape; it keeps a garment far too small for its body from being stretched without bound).
 
 Start-up, for garments that begin tangled with the body (sleeves at another angle than the arms, a
 garment modelled on another body):
@@ -9,16 +25,20 @@ garment modelled on another body):
   steps, so the sleeves are carried onto the arms by collision instead of being cut by them;
 - if any garment point is still inside the body, the body grows from ``grow_from`` of its radius to full
   size over ``grow_steps`` steps (each part scaled toward its axis; Houdini Vellum Drape does the same),
-  pushing the cloth out the way it came in rather than teleporting points through the body.
+  pushing the cloth out the way it came in rather than teleporting points through the body;
 - during these start-up steps gravity is off: a garment held by shoulders or hips would otherwise slide
-  down a body that is not yet its full size. It falls into place once the body is complete.
+  down a body that is not yet its full size. It falls into place once the body is complete;
 - the paper instead pushes such points out and pins them; pinning them for good would hold the garment
   unnaturally, so when growth is disabled (grow_steps = 0) pushed points are pinned only for the first
   ``PIN_STEPS`` steps and then released.
 
 Points at rest cost almost nothing: a point that moved less than ``REST_MOVE`` since it was last found
-outside the (static) body, and was not in contact, cannot be inside it by more than that, so its
-collision test is skipped.
+outside the (static) body, and is not in contact, cannot be inside it by more than that, so its
+collision test is skipped; a contact at rest only re-projects onto its plane.
+
+After the loop: polish rounds (collision + constraints, no gravity) until the strain target is met (or
+``MAX_POLISH_ROUNDS``), then the full mesh is rebuilt from the coarse one (``model.expand``) and its
+vertices are pushed out of the offset body too, so the displayed mesh does not penetrate either.
 """
 
 from __future__ import annotations

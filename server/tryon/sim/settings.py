@@ -17,7 +17,9 @@ class SimSettings:
     passes: constraint (strain-limit) passes per step (paper: several), spread over the substeps.
     substeps: each step is cut into this many substeps (at most ``passes``), collision detection once per
         step and the springs and contact planes every substep: "small steps" converge much further per
-        pass than repeated passes on one step.
+        pass than repeated passes on one step. Default 16 x 1 pass: with 8 x 1 or 16 passes on 4
+        substeps, skirts, shorts and trousers slid off the hips of a medium body (measured on the
+        catalogue); 16 x 1 holds them and brings every catalogue garment to rest in 50-220 steps.
     simplification: B, kept / original garment vertices of the simulated coarse mesh (paper: 20-30 %);
         used by the caller to pick the cached model variant.
     max_steps: hard step limit.

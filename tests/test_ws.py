@@ -169,6 +169,29 @@ def test_full_stream_matches_rest(live: Live):
     assert cached_rest["metrics"]["steps"] == done["metrics"]["steps"]
 
 
+def test_uint16_frames_match_float32(live: Live):
+    live.wait_idle()
+    request = live.request(SHORT, chest=97.5)
+    exact = run_stream(live, {**request, "fps": 60})
+    quant = run_stream(live, {**request, "fps": 60, "encoding": "uint16"})
+    enc = quant.init["encoding"]
+    assert quant.done["cached"] is True  # the encoding is not part of the result: served from the cache
+    assert {**quant.init, "encoding": None} == {**exact.init, "encoding": None}
+    assert enc["type"] == "uint16" and enc["bytes_per_frame"] == 12 + 6 * quant.init["vertex_count"]
+    assert all(len(f[3]) == enc["bytes_per_frame"] for f in quant.frames)
+    q = np.frombuffer(quant.frames[-1][3], dtype="<u2", offset=12).reshape(-1, 3)
+    positions = np.asarray(enc["origin"]) + q * np.asarray(enc["scale"])
+    np.testing.assert_allclose(positions, exact.positions(), atol=max(enc["scale"]))  # ~0.04 mm
+
+    fresh = run_stream(live, {**live.request(SHORT, chest=97.7), "fps": 60, "encoding": "uint16"})
+    enc = fresh.init["encoding"]
+    assert fresh.done["cached"] is False and len(fresh.frames) >= 2
+    assert all(len(f[3]) == enc["bytes_per_frame"] == 12 + 6 * fresh.init["vertex_count"] for f in fresh.frames)
+    q = np.frombuffer(fresh.frames[-1][3], dtype="<u2", offset=12).reshape(-1, 3)
+    final = np.asarray(enc["origin"]) + q * np.asarray(enc["scale"])
+    assert 0.5 < final[:, 1].mean() < 1.6 and (q > 0).all() and (q < 65535).all()  # nothing clamped
+
+
 def test_frames_respect_the_requested_rate(live: Live):
     live.wait_idle()
     fps = 8

@@ -19,7 +19,7 @@ from tryon.api.pool import (
     busy_response_headers,
     request_key,
 )
-from tryon.api.routes.ws import FRAME_HEADER, encode_frame, encoding
+from tryon.api.routes.ws import FRAME_HEADER, FrameCodec, encode_frame, encoding
 
 
 def test_pool_refuses_at_once_when_full_and_frees_slots():
@@ -140,3 +140,18 @@ def test_tryon_key_fills_defaults_and_ignores_fps():
     assert tryon_key(plain) == tryon_key(live)  # defaults written out or not, ints or floats, any fps
     assert tryon_key(plain) != tryon_key(TryOnRequest(garment_id="g", measurements=body, settings={"max_steps": 7}))
     assert tryon_key(plain) != tryon_key(TryOnRequest(garment_id="g", measurements=body, pose={"arm_angle": 45}))
+
+
+def test_uint16_frames_quantize_within_the_box():
+    rng = np.random.default_rng(1)
+    body = rng.uniform([-0.4, 0.0, -0.2], [0.4, 1.8, 0.2], size=(200, 3))
+    codec = FrameCodec.around("uint16", body)
+    garment = rng.uniform([-0.5, 0.3, -0.3], [0.5, 1.6, 0.3], size=(50, 3))
+    data = encode_frame(3, 9, garment, 0.5, codec=codec)
+    assert len(data) == codec.describe(50)["bytes_per_frame"] == 12 + 6 * 50
+    back = codec.decode(data[12:])
+    assert np.abs(back - garment).max() <= max(codec.scale) / 2 + 1e-12  # half a step: ~0.02 mm
+    assert max(codec.scale) < 5e-5
+    far = codec.decode(codec.encode(np.array([[0.0, 9.0, 0.0]])))
+    assert far[0, 1] == pytest.approx(codec.origin[1] + 65535 * codec.scale[1])  # clamped to the box
+    assert FrameCodec.around("float32", body).describe(50)["bytes_per_frame"] == 12 + 12 * 50

@@ -88,6 +88,7 @@ export function liveTryOn(payload, handlers) {
   const ws = new WebSocket(`${scheme}://${location.host}/ws/tryon`);
   ws.binaryType = 'arraybuffer';
   let init = null;
+  let decoded = null;  // reused for every uint16 frame
   let finished = false;
   let session = null;
   const promise = new Promise((resolve, reject) => {
@@ -109,10 +110,25 @@ export function liveTryOn(payload, handlers) {
         return;
       }
       if (!init) return;
-      const header = new DataView(event.data, 0, init.encoding.header_bytes);
+      const enc = init.encoding;
+      const header = new DataView(event.data, 0, enc.header_bytes);
       const frameNo = header.getUint32(0, true);
       const step = header.getUint32(4, true);
-      const positions = new Float32Array(event.data, init.encoding.header_bytes, init.vertex_count * 3);
+      const count = init.vertex_count * 3;
+      let positions;
+      if (enc.type === 'uint16') {  // position = origin + q * scale, per axis (metres)
+        const q = new Uint16Array(event.data, enc.header_bytes, count);
+        positions = decoded ??= new Float32Array(count);
+        const [ox, oy, oz] = enc.origin;
+        const [sx, sy, sz] = enc.scale;
+        for (let i = 0; i < count; i += 3) {
+          positions[i] = ox + q[i] * sx;
+          positions[i + 1] = oy + q[i + 1] * sy;
+          positions[i + 2] = oz + q[i + 2] * sz;
+        }
+      } else {
+        positions = new Float32Array(event.data, enc.header_bytes, count);
+      }
       handlers.onFrame?.(frameNo, step, positions);
     };
     ws.onerror = () => {};  // the close event carries what happened

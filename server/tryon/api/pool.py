@@ -196,10 +196,14 @@ def request_key(garment_id: str, measurements: dict, pose: dict, settings: dict)
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+# Request fields that change how a result is shown, not the result: left out of the cache key.
+DISPLAY_FIELDS = frozenset({"fps", "encoding"})
+
+
 def tryon_key(request: Any) -> str:
-    """:func:`request_key` of a validated try-on request (pydantic; ``fps`` and other display-only fields
-    excluded): garment id, measurements, pose, and the settings with every other field."""
-    data = request.model_dump(mode="json", exclude={"fps"})
+    """:func:`request_key` of a validated try-on request (pydantic; display-only fields excluded):
+    garment id, measurements, pose, and the settings with every other field."""
+    data = request.model_dump(mode="json", exclude=set(DISPLAY_FIELDS))
     settings = {**(data.pop("settings", None) or {}), **{k: v for k, v in data.items()
                                                         if k not in ("garment_id", "measurements", "pose")}}
     return request_key(data["garment_id"], data.get("measurements") or {}, data.get("pose") or {}, settings)

@@ -3,13 +3,16 @@
 Protocol (one try-on per connection):
 
 1. the client sends one JSON text message: the same body as ``POST /api/tryon`` plus an optional
-   ``fps`` (frames per second of wall time it wants, 1-60, default 30);
+   ``fps`` (frames per second of wall time it wants, 1-60, default 30) and ``encoding`` (float32 |
+   uint16, default float32);
 2. the server answers one JSON ``{"type": "init", ...}``: the garment's full-mesh ``faces`` and
    ``vertex_count``, the ``body`` mesh, the garment's catalogue entry and the frame ``encoding``;
 3. then binary frames, each the FULL mesh's vertex positions: a 12-byte header (little-endian uint32
    frame number, counting 0, 1, 2, ... over the frames sent; uint32 simulation step; float32 seconds
    since the request was accepted) followed by ``vertex_count * 3`` little-endian float32 x, y, z in
-   metres (``12 + 12 * vertex_count`` bytes). The last frame is the final state;
+   metres (``12 + 12 * vertex_count`` bytes). The last frame is the final state. With
+   ``"encoding": "uint16"`` in the request the positions are uint16 q instead, position = origin + q *
+   scale (metres, per axis; origin and scale in the init message's ``encoding``): half the bytes;
 4. then one JSON ``{"type": "done", "metrics": {...}, "strain": [...], "cached": bool, ...}`` and a
    normal close (1000).
 
@@ -39,7 +42,8 @@ import threading
 import time
 from concurrent.futures import CancelledError as FutureCancelled
 from concurrent.futures import Future
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Literal
 
 import numpy as np
 from fastapi import APIRouter, HTTPException, WebSocket, WebSocketDisconnect
@@ -71,27 +75,85 @@ CLOSE_TRY_AGAIN_LATER = 1013  # RFC 6455 registry: "Try Again Later"
 REQUEST_TIMEOUT_S = 30.0
 
 
-def encoding(vertex_count: int) -> dict:
+# m: how far beyond the body's bounding box quantized (uint16) positions reach; a garment hanging or
+# sliding further is clamped to the box. 65,535 levels over a 1.8 m body + 2 x 0.25 m: 0.035 mm.
+QUANT_MARGIN = 0.25
+
+
+@dataclass(frozen=True)
+class FrameCodec:
+    """How vertex positions are written in a frame.
+
+    ``float32``: x, y, z little-endian float32, metres (12 bytes per vertex).
+    ``uint16``: x, y, z little-endian uint16 q, with position = origin + q * scale per axis (metres;
+    6 bytes per vertex, resolution ``scale`` ~0.04 mm); positions outside the box are clamped to it.
+    """
+
+    type: str = "float32"
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+    @classmethod
+    def around(cls, type_: str, vertices: np.ndarray) -> "FrameCodec":
+        """The codec ``type_``; for uint16 its box is ``vertices``' bounding box grown by QUANT_MARGIN."""
+        if type_ == "float32":
+            return cls()
+        lo = vertices.min(axis=0) - QUANT_MARGIN
+        hi = vertices.max(axis=0) + QUANT_MARGIN
+        return cls("uint16", tuple(float(v) for v in lo), tuple(float(v) for v in (hi - lo) / 65535.0))
+
+    @property
+    def bytes_per_vertex(self) -> int:
+        return 12 if self.type == "float32" else 6
+
+    def encode(self, vertices: np.ndarray) -> bytes:
+        """(n, 3) metres -> the frame's position bytes."""
+        if self.type == "float32":
+            return np.ascontiguousarray(vertices, dtype="<f4").tobytes()
+        q = np.rint((vertices - np.asarray(self.origin)) / np.asarray(self.scale))
+        return np.clip(q, 0, 65535).astype("<u2").tobytes()
+
+    def decode(self, data: bytes) -> np.ndarray:
+        """Inverse of :meth:`encode` (tests, Python clients): (n, 3) float64 metres."""
+        if self.type == "float32":
+            return np.frombuffer(data, dtype="<f4").reshape(-1, 3).astype(np.float64)
+        q = np.frombuffer(data, dtype="<u2").reshape(-1, 3)
+        return np.asarray(self.origin) + q * np.asarray(self.scale)
+
+    def describe(self, vertex_count: int) -> dict:
+        """The init message's ``encoding``."""
+        out = {
+            "type": self.type,
+            "byte_order": "little",
+            "header_bytes": FRAME_HEADER.size,
+            "header": ["frame:uint32", "step:uint32", "time_s:float32"],
+            "layout": "xyz per vertex, metres" if self.type == "float32"
+                      else "xyz per vertex: position = origin + q * scale, metres",
+            "components": 3,
+            "bytes_per_frame": FRAME_HEADER.size + self.bytes_per_vertex * vertex_count,
+        }
+        if self.type == "uint16":
+            out.update(origin=list(self.origin), scale=list(self.scale))
+        return out
+
+
+FLOAT32 = FrameCodec()
+
+
+def encoding(vertex_count: int, codec: FrameCodec = FLOAT32) -> dict:
     """How a binary frame is laid out; sent in the init message."""
-    return {
-        "type": "float32",
-        "byte_order": "little",
-        "header_bytes": FRAME_HEADER.size,
-        "header": ["frame:uint32", "step:uint32", "time_s:float32"],
-        "layout": "xyz per vertex, metres",
-        "components": 3,
-        "bytes_per_frame": FRAME_HEADER.size + 12 * vertex_count,
-    }
+    return codec.describe(vertex_count)
 
 
-def encode_positions(vertices: np.ndarray) -> bytes:
-    """(n, 3) positions as little-endian float32 bytes (x, y, z per vertex)."""
-    return np.ascontiguousarray(vertices, dtype="<f4").tobytes()
+def encode_positions(vertices: np.ndarray, codec: FrameCodec = FLOAT32) -> bytes:
+    """(n, 3) positions as the codec's bytes (default little-endian float32 x, y, z per vertex)."""
+    return codec.encode(vertices)
 
 
-def encode_frame(frame: int, step: int, vertices: np.ndarray | bytes, time_s: float = 0.0) -> bytes:
+def encode_frame(frame: int, step: int, vertices: np.ndarray | bytes, time_s: float = 0.0,
+                 codec: FrameCodec = FLOAT32) -> bytes:
     """One binary frame: header (frame number, step, seconds since the request) + positions."""
-    payload = vertices if isinstance(vertices, bytes) else encode_positions(vertices)
+    payload = vertices if isinstance(vertices, bytes) else codec.encode(vertices)
     return FRAME_HEADER.pack(frame, max(int(step), 0), time_s) + payload
 
 
@@ -109,6 +171,9 @@ class LiveTryOnRequest(TryOnRequest):
     """``POST /api/tryon``'s body plus the frame rate the client wants."""
 
     fps: int = Field(30, ge=1, le=60, description="frames per second of wall time to send, 1/s; range [1, 60]")
+    encoding: Literal["float32", "uint16"] = Field(
+        "float32", description="frame positions: float32 metres, or uint16 quantized in a box around the "
+                               "body (half the bytes, ~0.04 mm steps)")
 
 
 def dumps(message: dict) -> str:
@@ -127,12 +192,12 @@ def mesh_arrays(vertices: np.ndarray, faces: np.ndarray, decimals: int = 4) -> d
 
 
 def init_message(body: Body, model: GarmentModel, sim_settings: SimSettings) -> dict:
-    """The init message: topology, the body, the garment's catalogue facts, the frame encoding."""
+    """The init message without its ``encoding`` (see :func:`with_encoding`): topology, the body, the
+    garment's catalogue facts, the run's settings."""
     meta = model.meta
-    n = int(len(model.vertices))
     return {
         "type": "init",
-        "vertex_count": n,
+        "vertex_count": int(len(model.vertices)),
         "face_count": int(len(model.faces)),
         "faces": np.ascontiguousarray(model.faces, dtype=np.int32),
         "body": {**mesh_arrays(body.vertices, body.faces), "achieved": body.achieved},
@@ -141,8 +206,13 @@ def init_message(body: Body, model: GarmentModel, sim_settings: SimSettings) -> 
         "max_steps": int(sim_settings.max_steps),
         "time_step": float(sim_settings.time_step),
         "strain_limit": float(sim_settings.strain_limit[0]),  # structural springs' stretch limit
-        "encoding": encoding(n),
     }
+
+
+def with_encoding(init_text: str, codec: FrameCodec, vertex_count: int) -> str:
+    """The init JSON text (an object) with ``"encoding"`` added: the (large) rest is serialised once and
+    kept, so a cached try-on can be replayed in any encoding without re-serialising two meshes."""
+    return init_text[:-1] + ',"encoding":' + json.dumps(codec.describe(vertex_count), separators=(",", ":")) + "}"
 
 
 def done_message(result: TryOnResult, guard: RunGuard) -> dict:
@@ -164,7 +234,9 @@ def run_live(catalogue: Catalogue, request: LiveTryOnRequest, session: LiveSessi
     body, model, sim_settings = prepare_tryon(catalogue, request)
     # serialised here, on the worker: the init message carries two meshes (~0.5 MB of JSON), too much
     # work for the event loop
-    session.offer_init(dumps(init_message(body, model, sim_settings)), model)
+    box = np.stack([body.vertices.min(axis=0), body.vertices.max(axis=0)])
+    session.offer_init(dumps(init_message(body, model, sim_settings)), model,
+                       FrameCodec.around(request.encoding, box), box)
     result = drape(body, model, sim_settings, guard)
     return result, done_message(result, guard)
 
@@ -204,11 +276,19 @@ class LiveSession:
         # simulation-thread side
         self._next_offer_at = 0.0
         self._model: Any = None
+        self.codec = FLOAT32  # set with the init message, before any frame
+        self.init_base: str | None = None
+        self.body_box: np.ndarray | None = None
 
     # -- called on the simulation thread ---------------------------------------------------------
-    def offer_init(self, message: str, model: Any) -> None:
+    def offer_init(self, init_base: str, model: Any, codec: FrameCodec, body_box: np.ndarray) -> None:
+        """The init message (JSON text without ``encoding``), the model whose frames follow, their codec,
+        and the body's bounding box (2, 3) (kept with a cached result, for other codecs)."""
+        self.codec = codec
+        self.init_base = init_base
+        self.body_box = body_box
         self._model = model
-        self.loop.call_soon_threadsafe(self._set_init, message)
+        self.loop.call_soon_threadsafe(self._set_init, with_encoding(init_base, codec, len(model.vertices)))
 
     def on_frame(self, step: int, coarse: np.ndarray) -> bool:
         """Hand a frame over when one is due (at most ``fps`` per second); never blocks. Only these
@@ -219,7 +299,7 @@ class LiveSession:
         # a fixed cadence (not "now + interval"): steps rarely land on the deadline, and waiting a full
         # interval from a late step would deliver well under fps; the sender still spaces frames 1/fps apart
         self._next_offer_at = max(self._next_offer_at + self.interval_s, now - self.interval_s)
-        payload = encode_positions(self._model.expand(coarse))
+        payload = self.codec.encode(self._model.expand(coarse))
         self.loop.call_soon_threadsafe(self._put_frame, (step, payload))
         return True
 
@@ -235,7 +315,7 @@ class LiveSession:
 
     def finish(self, step: int, vertices: np.ndarray) -> None:
         """The final state: always sent, replacing any frame still waiting."""
-        self._put_frame((step, encode_positions(vertices)))
+        self._put_frame((step, self.codec.encode(vertices)))
         self.finished = True
 
     def stop(self) -> None:
@@ -311,10 +391,12 @@ async def _close(ws: WebSocket) -> None:
             pass
 
 
-async def _replay(ws: WebSocket, cached: CachedTryOn) -> None:
-    """Serve a cached try-on: init, the final frame, done with ``cached: true``."""
-    await ws.send_text(cached.extra["init"])
-    frame = encode_frame(0, cached.result.metrics.get("steps", 0), cached.result.vertices)
+async def _replay(ws: WebSocket, cached: CachedTryOn, encoding_type: str) -> None:
+    """Serve a cached try-on in the requested encoding: init, the final frame, done with ``cached: true``."""
+    n = len(cached.result.vertices)
+    codec = FrameCodec.around(encoding_type, cached.extra["body_box"])
+    await ws.send_text(with_encoding(cached.extra["init_base"], codec, n))
+    frame = encode_frame(0, cached.result.metrics.get("steps", 0), cached.result.vertices, codec=codec)
     await ws.send_bytes(frame)
     done = {**cached.extra["done"], "cached": True, "frames_sent": 1, "bytes_sent": len(frame)}
     done.pop("time_to_first_frame_s", None)
@@ -367,9 +449,9 @@ async def _serve(ws: WebSocket) -> None:
     cache = get_result_cache(app)
     key = tryon_key(request)
     cached = cache.get(key)
-    if cached is not None and "init" in cached.extra:
+    if cached is not None and "init_base" in cached.extra:  # (REST keeps no init: simulate again)
         try:
-            await _replay(ws, cached)
+            await _replay(ws, cached, request.encoding)
         except (WebSocketDisconnect, RuntimeError, OSError):
             pass
         return
@@ -410,7 +492,8 @@ async def _serve(ws: WebSocket) -> None:
                 "time_to_first_frame_s": round((session.first_frame_at or time.monotonic()) - session.started_at, 4),
                 "bytes_sent": session.bytes_sent}
         if guard.stopped_by is None:
-            cache.put(key, CachedTryOn(result=result, extra={"init": session.init, "done": done}))
+            cache.put(key, CachedTryOn(result=result, extra={"init_base": session.init_base, "done": done,
+                                                             "body_box": session.body_box}))
         try:
             await ws.send_text(json.dumps(done, separators=(",", ":")))
         except (WebSocketDisconnect, RuntimeError, OSError):

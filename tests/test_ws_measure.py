@@ -101,6 +101,9 @@ def test_live_figures(tmp_path):
         again = stream(ws_url, {"garment_id": ids["tshirt"], "measurements": BODY})
         figures["cached_total_s"] = round(again["total_s"], 3)
         assert again["done"]["cached"] is True
+        small = stream(ws_url, {"garment_id": ids["tshirt"], "measurements": BODY, "encoding": "uint16"})
+        figures["uint16_bytes_per_frame"] = {"tshirt": small["frame_bytes"]}
+        assert small["frame_bytes"] == 12 + 6 * figures["garments"]["tshirt"]["vertices"]
 
         # capacity: heavy try-ons until refused, health latency while they run
         capacity = httpx.get(f"{url}/api/health").json()["simulations"]["capacity"]

@@ -139,6 +139,7 @@ function updateTryOnButton() {
 // ---- body preview ---------------------------------------------------------------------------------
 function scheduleBody() {
   clearTimeout(bodyTimer);
+  if (state.state === 'draping') live?.cancel();  // that drape is for the old measurements
   updateTryOnButton();
   if (!form.valid()) return;
   bodyTimer = setTimeout(refreshBody, BODY_PREVIEW_DELAY_MS);
@@ -236,7 +237,8 @@ async function tryOn() {
   } catch (error) {
     if (error.stopped) {
       state.state = 'ready';
-      setProgress(0, 'Stopped.');
+      stage.clearGarment();
+      setProgress(0, 'Stopped. Press "Try on" to start again.');
     } else {
       state.state = 'error';
       showError(error);

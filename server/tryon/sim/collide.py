@@ -6,10 +6,12 @@ parts the garment comes near are tested at all, ``relevant_parts``):
 
 1. local cylinder coordinates (r, theta, z) of p; its cell of the part's cylinder map;
 2. the ray from p's projection on the part axis through p (perpendicular to the axis, so it keeps theta
-   and z and can only hit that cell's triangles) is intersected with the cell's offset triangles; the
-   hit inside its triangle (``inside_triangle``) farthest along the ray is the part's surface there;
-3. p is inside the part iff it is closer to the axis than that hit (r < t);
-4. response: p moves to hit + lambda * n (eq. 4), n the hit triangle's unit normal.
+   and z and can only hit that cell's triangles) is intersected with the cell's offset triangles, a hit
+   counting when it lies inside its triangle (``inside_triangle``);
+3. p is inside the part iff the ray crosses the surface an odd number of times beyond p (for a convex
+   cross-section: iff p is closer to the axis than the hit, the paper's test; the count also gets the
+   hollows of the surface right);
+4. response: p moves to the first hit beyond it + lambda * n (eq. 4), n the hit triangle's unit normal.
 
 Where the construction has no good answer we fall back to the nearest point of the part's offset
 surface among the faces of the 3 x 3 neighbouring cells:
@@ -42,6 +44,8 @@ FALLBACK_DEPTH = 0.03
 TRUST_SLACK = 0.002
 # m: radial depths below this are used as they are (any way out is then within 0.5 mm of the best).
 SMALL_DEPTH = 0.0005
+# Most ray hits kept per query (a cell's ray crosses a part's surface a handful of times at most).
+MAX_HITS = 32
 # Part-loop repetitions per point: enough for a point in the overlap of two parts (shoulder, hip).
 ROUNDS = 3
 
@@ -229,12 +233,13 @@ def _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces,
 
 @njit(cache=True, nogil=True)
 def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape, cell_base,
-               cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal, scratch, trust, cover, near):
+               cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal, scratch, trust, cover, near,
+               tbuf, fbuf):
     """Is p inside part k of the (offset) body with vertices ``bv`` and face normals ``fn``?
 
     Returns the depth (m, > 0 inside, 0 outside); when inside, ``target`` gets the surface point p must
     move to (before adding lambda * normal) and ``normal`` the outward unit normal there.
-    scratch: (3, 3) float64 work space (no allocation per query).
+    scratch: (3, 3) float64, tbuf (h,) float64, fbuf (h,) int64: work space (no allocation per query).
     trust: m, the deepest radial answer taken without a second opinion. A point cannot have gone deeper
     in one step than it moved, so a deeper radial depth means it came in through another surface (the
     end of a part, the top of a shoulder, where the ray runs along the surface): then the nearest face
@@ -275,10 +280,10 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
         rx = cyl_axes[k, 0, 0]
         ry = cyl_axes[k, 0, 1]
         rz = cyl_axes[k, 0, 2]
-    # Ray (o, dir) against the cell's triangles: plane hit, then the inside-triangle test.
-    best_t = -1.0
-    best_f = -1
+    # Ray (o, dir) against the cell's triangles: plane hit, then the inside-triangle test; the hits are
+    # kept (up to len(tbuf)) to count them.
     hit = scratch[0]
+    nh = 0
     for m in range(cell_start[c], cell_start[c + 1]):
         f = cell_faces[m]
         a = faces[f, 0]
@@ -286,26 +291,53 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
         if abs(den) < 1e-12:
             continue
         t = (fn[f, 0] * (bv[a, 0] - ox) + fn[f, 1] * (bv[a, 1] - oy) + fn[f, 2] * (bv[a, 2] - oz)) / den
-        if t <= best_t or t <= 0.0:
+        if t <= 0.0 or nh >= tbuf.shape[0]:
             continue
         hit[0] = ox + t * rx
         hit[1] = oy + t * ry
         hit[2] = oz + t * rz
         if inside_triangle(hit, bv[a], bv[faces[f, 1]], bv[faces[f, 2]]):
-            best_t = t
-            best_f = f
+            tbuf[nh] = t
+            fbuf[nh] = f
+            nh += 1
+    # p is inside the part iff the ray from p outward crosses its surface an odd number of times (hits
+    # through a shared edge or vertex, found in two or more triangles at the same t, count once); the
+    # way out is the first crossing beyond p. (Taking simply the farthest hit would call a point in a
+    # hollow of the surface, such as the small of the back, inside.)
+    count = 0
+    best_t = np.inf
+    best_f = -1
+    below_t = -np.inf
+    below_f = -1
+    for h in range(nh):
+        t = tbuf[h]
+        dup = False
+        for g in range(h):
+            if abs(tbuf[g] - t) <= 1e-9 + 1e-9 * t:
+                dup = True
+                break
+        if dup:
+            continue
+        if t > r:
+            count += 1
+            if t < best_t:
+                best_t = t
+                best_f = fbuf[h]
+        elif t > below_t:
+            below_t = t
+            below_f = fbuf[h]
     q = scratch[1]
     tmp = scratch[2]
-    if best_f >= 0:
-        if r >= best_t:
-            if r - best_t < near:
+    if nh > 0:
+        if count % 2 == 0:
+            if below_f >= 0 and r - below_t < near:
                 # outside but close: hand back the surface point as a contact plane (negative depth)
-                target[0] = ox + best_t * rx
-                target[1] = oy + best_t * ry
-                target[2] = oz + best_t * rz
+                target[0] = ox + below_t * rx
+                target[1] = oy + below_t * ry
+                target[2] = oz + below_t * rz
                 for ax in range(3):
-                    normal[ax] = fn[best_f, ax]
-                return best_t - r
+                    normal[ax] = fn[below_f, ax]
+                return below_t - r
             return 0.0
         ray_depth = best_t - r
         target[0] = ox + best_t * rx
@@ -366,6 +398,8 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
     target = np.empty(3)
     normal = np.empty(3)
     scratch = np.empty((3, 3))
+    tbuf = np.empty(MAX_HITS)
+    fbuf = np.empty(MAX_HITS, dtype=np.int64)
     moved = 0
     for i in range(x.shape[0]):
         if inv_mass[i] == 0.0 or not active[i]:
@@ -386,7 +420,7 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
                 trust = math.sqrt(mx * mx + my * my + mz * mz) + TRUST_SLACK
                 depth = part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
                                    cyl_shape, cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, target,
-                                   normal, scratch, trust, cover, near)
+                                   normal, scratch, trust, cover, near, tbuf, fbuf)
                 if depth < 0.0:
                     if not has_plane[i]:
                         has_plane[i] = True
@@ -449,6 +483,8 @@ def penetration_depth(points, parts, obb_normals, obb_offsets, cyl_origin, cyl_a
     q = np.empty(3)
     tmp = np.empty(3)
     scratch = np.empty((3, 3))
+    tbuf = np.empty(MAX_HITS)
+    fbuf = np.empty(MAX_HITS, dtype=np.int64)
     for i in range(points.shape[0]):
         p = points[i]
         for kk in range(parts.shape[0]):
@@ -457,7 +493,7 @@ def penetration_depth(points, parts, obb_normals, obb_offsets, cyl_origin, cyl_a
                 continue
             d = part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape,
                            cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal,
-                           scratch, 0.0, cover, 0.0)
+                           scratch, 0.0, cover, 0.0, tbuf, fbuf)
             if d > 0.0:
                 # the true depth is the distance to the nearest surface point, never more than the
                 # distance to the response point

@@ -383,7 +383,7 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
     """Push garment points out of the offset body, in place (paper 3.4, eq. 4 plus the fallbacks above).
 
     x, x_prev (k, 3) m (x_prev: positions at the start of the step; both updated in place); x_pred (k, 3)
-    positions after integration, before the constraints (for friction); inv_mass (k,) (0 = pinned, skipped); active (k,) bool: points to test (the
+    unused (kept for the signature); inv_mass (k,) (0 = pinned, skipped); active (k,) bool: points to test (the
     caller skips points at rest); parts (q,) int64 part ids to test; bv (n, 3) offset body vertices,
     faces (f, 3), fn (f, 3) their unit normals; cell_rmax (C,) from ``cell_max_radius`` for ``bv``;
     lam m (eq. 4's lambda); mu_static, mu_kinetic: Coulomb friction coefficients (position-based, see
@@ -400,6 +400,7 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
     scratch = np.empty((3, 3))
     tbuf = np.empty(MAX_HITS)
     fbuf = np.empty(MAX_HITS, dtype=np.int64)
+    x0 = np.empty(3)
     moved = 0
     for i in range(x.shape[0]):
         if inv_mass[i] == 0.0 or not active[i]:
@@ -407,6 +408,9 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
         contact[i] = False
         has_plane[i] = False
         p = x[i]
+        x0[0] = p[0]
+        x0[1] = p[1]
+        x0[2] = p[2]
         for _ in range(ROUNDS):
             any_inside = False
             for kk in range(parts.shape[0]):
@@ -436,39 +440,39 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
                         p[ax] = target[ax] + lam * normal[ax]
                         plane_point[i, ax] = p[ax]
                         plane_normal[i, ax] = normal[ax]
-                    # Coulomb friction on positions (after Macklin et al. 2014, "Unified particle
-                    # physics"): the tangential part of this step's inertial motion (x_pred - x_prev:
-                    # gravity and momentum, not the springs' corrections, which stand for the cloth's
-                    # tension) is cancelled if it is below mu_s x depth (sticking), else shortened by
-                    # mu_k x depth (sliding).
-                    mx = x_pred[i, 0] - x_prev[i, 0]
-                    my = x_pred[i, 1] - x_prev[i, 1]
-                    mz = x_pred[i, 2] - x_prev[i, 2]
-                    mn = mx * normal[0] + my * normal[1] + mz * normal[2]
-                    tx = mx - mn * normal[0]
-                    ty = my - mn * normal[1]
-                    tz = mz - mn * normal[2]
-                    tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-                    press = depth + lam
-                    if tl <= mu_static * press:
-                        cut = 1.0
-                    else:
-                        cut = min(mu_kinetic * press / tl, 1.0)
-                    p[0] -= cut * tx
-                    p[1] -= cut * ty
-                    p[2] -= cut * tz
             if not any_inside:
                 break
         if contact[i]:
             moved += 1
-            # inelastic contact: the next step starts with the tangential velocity only
-            vx = p[0] - x_prev[i, 0]
-            vy = p[1] - x_prev[i, 1]
-            vz = p[2] - x_prev[i, 2]
-            vn = vx * normal[0] + vy * normal[1] + vz * normal[2]
-            x_prev[i, 0] = p[0] - (vx - vn * normal[0])
-            x_prev[i, 1] = p[1] - (vy - vn * normal[1])
-            x_prev[i, 2] = p[2] - (vz - vn * normal[2])
+            # Response of the motion (the push itself must not become velocity: pushing along a ray that
+            # is not the surface normal would otherwise feed the cloth tangential speed every step).
+            # Coulomb friction on positions (Macklin et al. 2014, "Unified particle physics"): the
+            # tangential part of this step's motion before the push (x0 - x_prev) is undone if shorter
+            # than mu_s x the push (sticking), else shortened by mu_k x the push (sliding); the next step
+            # starts with what is left of it and no normal velocity (inelastic).
+            px = p[0] - x0[0]
+            py = p[1] - x0[1]
+            pz = p[2] - x0[2]
+            press = math.sqrt(px * px + py * py + pz * pz)
+            mx = x0[0] - x_prev[i, 0]
+            my = x0[1] - x_prev[i, 1]
+            mz = x0[2] - x_prev[i, 2]
+            mn = mx * normal[0] + my * normal[1] + mz * normal[2]
+            tx = mx - mn * normal[0]
+            ty = my - mn * normal[1]
+            tz = mz - mn * normal[2]
+            tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+            if tl <= mu_static * press:
+                cut = 1.0
+            else:
+                cut = min(mu_kinetic * press / tl, 1.0)
+            p[0] -= cut * tx
+            p[1] -= cut * ty
+            p[2] -= cut * tz
+            keep = 1.0 - cut
+            x_prev[i, 0] = p[0] - keep * tx
+            x_prev[i, 1] = p[1] - keep * ty
+            x_prev[i, 2] = p[2] - keep * tz
     return moved
 
 

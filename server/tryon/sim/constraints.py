@@ -223,9 +223,8 @@ STEEP = 0.5
 def limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limit, order, touching):
     """One sweep of the stretch limits in ``order`` (springs sorted from the top down), moving only the
     lower end of each too-long steep spring (the upper one if the lower is pinned), in place (in the
-    spirit of follow-the-leader, Mueller et al. 2012); x_prev (k, 3) is adjusted so the move leaves no
-    velocity towards the upper end, and never lifts the lower end above where it started the substep (a
-    guard against sagging, not a lifter). Only a free lower end follows: where it touches the body
+    spirit of follow-the-leader, Mueller et al. 2012): straight up, never above where it started the
+    substep (a guard against sagging, not a lifter), leaving it no upward velocity (x_prev (k, 3)). Only a free lower end follows: where it touches the body
     (``touching`` (k,) bool, e.g. a sleeve around an arm) the cloth does not hang, and pulling it up
     would ratchet a tight garment up the body; such springs are split by inverse mass.
 
@@ -254,33 +253,18 @@ def limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limit, orde
             continue
         f = (d - lmax) / d
         if abs(dy) >= STEEP * d and not touching[j]:
-            # a steep spring: the lower end follows the upper one, but only as far as it fell during this
-            # substep. The move is not momentum-conserving: it may stop a hanging end from sagging
-            # further but must never lift it (the garment would ratchet up the body whenever something
-            # else, such as the chest pushing the cloth out, stretches a steep spring)
-            cx = -f * dx
-            cy = -f * dy
-            cz = -f * dz
+            # a steep spring: the lower end is lifted straight up until the spring is back at its limit,
+            # but only as far as it fell during this substep. The move is not momentum-conserving: it
+            # may stop a hanging end from sagging further but must never lift it (the garment would
+            # ratchet up the body whenever something else, such as the chest pushing the cloth out,
+            # stretches a steep spring), and it is vertical so that it cannot push a hanging panel
+            # sideways (which, repeated, keeps a loose panel swinging)
+            lift = (d - lmax) * d / abs(dy)
             fell = x_prev[j, 1] - x[j, 1]
-            if cy > fell:
-                scale = max(fell, 0.0) / cy
-                cx *= scale
-                cy *= scale
-                cz *= scale
-            x[j, 0] += cx
-            x[j, 1] += cy
-            x[j, 2] += cz
-            cl = math.sqrt(cx * cx + cy * cy + cz * cz)
-            if cl > 0.0:
-                # and the velocity it had towards the upper end is gone (inelastic)
-                ux = cx / cl
-                uy = cy / cl
-                uz = cz / cl
-                vu = (x[j, 0] - x_prev[j, 0]) * ux + (x[j, 1] - x_prev[j, 1]) * uy + (x[j, 2] - x_prev[j, 2]) * uz
-                if vu > 0.0:
-                    x_prev[j, 0] += vu * ux
-                    x_prev[j, 1] += vu * uy
-                    x_prev[j, 2] += vu * uz
+            lift = min(lift, max(fell, 0.0))
+            x[j, 1] += lift
+            if x[j, 1] > x_prev[j, 1]:
+                x_prev[j, 1] = x[j, 1]  # no upward velocity from it (inelastic)
         else:
             # a flat one has no up or down: split by inverse mass, as in eq. 3
             wi = inv_mass[i]

@@ -53,6 +53,9 @@ class BodyCollider:
         self.cell_base = np.ascontiguousarray(m.cell_base, dtype=np.int64)
         self.cell_start = np.ascontiguousarray(m.cell_start, dtype=np.int64)
         self.cell_faces = np.ascontiguousarray(m.cell_faces, dtype=np.int64)
+        self.rest_rmax = np.empty(len(self.cell_start) - 1)
+        cell_max_radius(self.cyl_origin, self.cyl_axes, self.cyl_shape, self.cell_base, self.cell_start,
+                        self.cell_faces, self.faces, self.rest_vertices, self.rest_rmax)
         self.vertices = self.rest_vertices.copy()
         self.normals = self.rest_normals.copy()
         self.offset = np.empty_like(self.vertices)
@@ -77,8 +80,11 @@ class BodyCollider:
         else:
             self.vertices[:] = self._pose_vertices
         offset_body(self.vertices, self._pose_normals, self.faces, self.margin, self.offset, self.offset_normals)
-        cell_max_radius(self.cyl_origin, self.cyl_axes, self.cyl_shape, self.cell_base, self.cell_start,
-                        self.cell_faces, self.faces, self.offset, self.cell_rmax)
+        # Cell radii: growth scales every vertex's distance to its axis by ``scale`` and the offset adds at
+        # most ``margin``, and turning a part rigidly keeps its local radii, so the rest body's radii
+        # bound them (computed once; the exact kernel over all (face, cell) pairs costs a few ms a call)
+        np.multiply(self.rest_rmax, self.scale, out=self.cell_rmax)
+        self.cell_rmax += self.margin
 
     def set_scale(self, scale: float) -> None:
         """Radial scale of every part about its axis (growth phase), 0 < scale <= 1."""

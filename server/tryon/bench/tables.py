@@ -97,7 +97,8 @@ def table2(ctx: Context, sec: Section) -> None:
     verdicts = {k: _verdicts(fn, p, tri) for k, fn in tests.items()}
     agree = {f"{a} vs {b}": float((verdicts[a] == verdicts[b]).mean())
              for a, b in (("angle", "area"), ("angle", "barycentric"), ("area", "barycentric"))}
-    default = getattr(inside, "DEFAULT_METHOD", None) or getattr(inside, "DEFAULT", None)
+    # the test the collision response uses (``inside.inside_triangle`` is one of the three)
+    default = next((k for k, fn in tests.items() if getattr(inside, "inside_triangle", None) is fn), None)
     sec.data = {"tests": n, "methods": res, "agreement": agree, "default": default, "paper": PAPER_TABLE2}
     rows = [[k, fmt(v["ns_per_test"]), fmt(v["ns_per_test"] * PAPER_TABLE2["tests"] * 1e-6), v["inside"]]
             for k, v in res.items()]

@@ -13,7 +13,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 
 from tryon.body.build import build_body
 from tryon.body.params import Measurements, Pose

@@ -75,3 +75,14 @@ def test_shorts_stay_on_the_hips(catalogue, body):
     top = result.vertices[:, 1].max()
     assert body.levels["hips"] < top < body.levels["waist"] + 0.03  # held between the hips and the waist
     assert m["max_strain"] < 1.0  # a tight band is stretched, never torn
+
+
+def test_paper_push_and_pin_start_without_growth(catalogue, body):
+    """With growth off, points inside the body at alignment are pushed out and pinned for a few steps
+    (the paper's start), then released: the shirt still ends on the shoulders, outside the body."""
+    model = _model(catalogue, "tshirt-m.obj", "top")
+    result = drape(body, model, SimSettings(grow_steps=0))
+    m = result.metrics
+    assert not m["grown"]
+    assert m["penetrating_vertices"] == 0
+    assert result.vertices[:, 1].max() > body.levels["chest"] + 0.15

@@ -98,3 +98,34 @@ def test_plots_are_valid_pngs(bench):
     assert {"pareto.png", "peers.png", "scaling.png"} <= set(plots)
     for name in plots:
         assert _png_ok((out / name).read_bytes()), name
+
+
+def test_a_failing_section_is_reported_and_isolated(tmp_path):
+    from tryon.bench.common import Context, SkipSection, run_section
+
+    ctx = Context(tmp_path, quick=True, stress=False, log=lambda msg: None)
+
+    def broken(ctx, sec):
+        raise ValueError("kernel said no")
+
+    def absent(ctx, sec):
+        raise SkipSection("optional input missing")
+
+    failed = run_section("x", "X", broken, ctx)
+    skipped = run_section("y", "Y", absent, ctx)
+    assert failed.status == "failed" and "kernel said no" in failed.error
+    assert skipped.status == "skipped" and skipped.error == "optional input missing"
+
+
+def test_a_missing_peer_is_a_note_not_a_failure(monkeypatch, tmp_path):
+    from tryon.bench import peers
+    from tryon.bench.common import Context, run_section
+
+    monkeypatch.setattr(peers, "peer_available", lambda engine: f"{engine} is not installed")
+    ctx = Context(tmp_path, quick=True, stress=False, log=lambda msg: None)
+    sec = run_section("peers", "Peer engines", peers.run, ctx)
+    assert sec.status == "ok", sec.error
+    assert any("taichi skipped: taichi is not installed" in n for n in sec.notes)
+    rows = sec.data["cloth_on_ball"]["1024"]
+    assert [r["engine"] for r in rows] == ["ours"]
+    assert sec.data["headline"] == []  # no peer, no ratio

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import tempfile
 import time
 from pathlib import Path
 
@@ -17,24 +18,28 @@ BODY_M = dict(height=175.0, chest=96.0, waist=82.0, hips=100.0)
 MAIN_GARMENT = "tshirt-m.obj"
 
 
+_GENERATED: list[Path] = []
+
+
 def garments_dir() -> Path:
-    """The repository's ``garments/`` (catalogue sources); generated there if missing."""
+    """The repository's ``garments/`` (catalogue sources); outside a checkout (an installed package), the
+    catalogue is generated once per process into a temporary directory."""
     here = Path(__file__).resolve()
     for parent in here.parents:
-        if (parent / "pyproject.toml").exists():
+        if (parent / "pyproject.toml").exists() and (parent / "garments" / "catalogue.json").exists():
             return parent / "garments"
-    return Path("garments")
+    if not _GENERATED:
+        from tryon.garment.generate import write_catalogue
+
+        out = Path(tempfile.mkdtemp(prefix="tryon-bench-garments-"))
+        write_catalogue(out)
+        _GENERATED.append(out)
+    return _GENERATED[0]
 
 
 def catalogue_entries() -> list[dict]:
-    """Entries of ``garments/catalogue.json`` (file, name, category, size, units)."""
-    d = garments_dir()
-    index = d / "catalogue.json"
-    if not index.exists():
-        from tryon.garment.generate import write_catalogue
-
-        write_catalogue(d)
-    return json.loads(index.read_text())
+    """Entries of ``catalogue.json`` (file, name, category, size, units)."""
+    return json.loads((garments_dir() / "catalogue.json").read_text())
 
 
 def default_body(ctx: Context, resolution: int | None = None):

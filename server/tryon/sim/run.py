@@ -111,6 +111,8 @@ TEAR_GUARD = 2.5
 TEAR_PASSES = 100
 # Inverse-mass factor of points in contact during the constraint passes (see the loop).
 CONTACT_WEIGHT = 0.2
+# Most collision calls on the full mesh after the polish (each repeats its part loop ROUNDS times).
+FULL_COLLIDE_CALLS = 4
 
 FrameCallback = Callable[[int, np.ndarray], bool]
 
@@ -333,7 +335,11 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     all_active = np.ones(len(full), dtype=np.bool_)
     np.maximum(full[:, 1], 0.0, out=full[:, 1])
     full_parts = relevant_parts(body.maps, full.min(axis=0), full.max(axis=0), 0.01)
-    collider.collide(full, full_prev, ones, all_active, full_parts, settings.contact_offset, 0.0, 0.0, full_contact)
+    for _ in range(FULL_COLLIDE_CALLS):
+        # a point pushed out of one part into another (crotch, armpit) is caught by the next call
+        if not collider.collide(full, full_prev, ones, all_active, full_parts, settings.contact_offset, 0.0, 0.0,
+                                full_contact):
+            break
 
     # --- metrics
     depth = collider.depth(full, full_parts, offset=False)

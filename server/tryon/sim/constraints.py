@@ -328,3 +328,116 @@ def cap_stretch(x, inv_mass, springs, rest, cap, max_passes):
         if not found:
             return sweep + 1
     return max_passes
+
+
+# --- packed variants: the loop's hot kernels read one row per spring -------------------------------------
+
+def pack_springs(springs: np.ndarray, rest: np.ndarray, kind: np.ndarray, limit: np.ndarray,
+                 compression: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ends (s, 2) int32, table (s, 4) float64) for the packed kernels: table rows are (l_max m, rest m,
+    compression fraction, 0). One 32-byte row per spring instead of a kind lookup into two tables (and
+    squared-length tests, so a spring within its range costs no square root): the passes run ~20 %
+    faster on a draped T-shirt (``python3 -m tryon.sim.perf``)."""
+    ends = np.ascontiguousarray(springs, dtype=np.int32)
+    kind = np.asarray(kind, dtype=np.int64)
+    table = np.zeros((len(ends), 4))
+    table[:, 0] = rest * (1.0 + np.asarray(limit)[kind])
+    table[:, 1] = rest
+    table[:, 2] = np.asarray(compression)[kind]
+    return ends, table
+
+
+@njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def _spring_pass_packed(x, inv_mass, ends, table, backward, relax):
+    """One Gauss-Seidel pass of :func:`_spring_pass` over packed springs (``pack_springs``), in place."""
+    n_springs = ends.shape[0]
+    for q in range(n_springs):
+        s = n_springs - 1 - q if backward else q
+        i = ends[s, 0]
+        j = ends[s, 1]
+        dx = x[i, 0] - x[j, 0]
+        dy = x[i, 1] - x[j, 1]
+        dz = x[i, 2] - x[j, 2]
+        d2 = dx * dx + dy * dy + dz * dz
+        lmax = table[s, 0]
+        l0 = table[s, 1]
+        if d2 > lmax * lmax:
+            d = math.sqrt(d2)
+            excess = d - lmax
+        elif d2 < l0 * l0:
+            d = math.sqrt(d2)
+            excess = (d - l0) * table[s, 2]
+        else:
+            continue
+        wi = inv_mass[i]
+        wj = inv_mass[j]
+        wsum = wi + wj
+        if wsum == 0.0 or d < 1e-12:
+            continue
+        f = relax * excess / (d * wsum)
+        x[i, 0] -= wi * f * dx
+        x[i, 1] -= wi * f * dy
+        x[i, 2] -= wi * f * dz
+        x[j, 0] += wj * f * dx
+        x[j, 1] += wj * f * dy
+        x[j, 2] += wj * f * dz
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def solve_constraints_packed(x, x_prev, inv_mass, ends, table, passes, has_plane, plane_point, plane_normal,
+                             mu_static, mu_kinetic, push, relax=1.0):
+    """:func:`solve_constraints` over packed springs (``pack_springs``)."""
+    for sweep in range(passes):
+        _spring_pass_packed(x, inv_mass, ends, table, sweep % 2 == 1, relax)
+        project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic, push)
+
+
+@njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def limit_stretch_downward_packed(x, x_prev, inv_mass, ends, table, order, touching):
+    """:func:`limit_stretch_downward` over packed springs (``pack_springs``), same moves."""
+    for q in range(order.shape[0]):
+        s = order[q]
+        i = ends[s, 0]
+        j = ends[s, 1]
+        dx = x[j, 0] - x[i, 0]
+        dy = x[j, 1] - x[i, 1]
+        dz = x[j, 2] - x[i, 2]
+        d2 = dx * dx + dy * dy + dz * dz
+        lmax = table[s, 0]
+        if d2 <= lmax * lmax:
+            continue
+        if x[i, 1] < x[j, 1]:
+            i, j = j, i  # i is the upper end
+            dx = -dx
+            dy = -dy
+            dz = -dz
+        if inv_mass[j] == 0.0:
+            if inv_mass[i] == 0.0:
+                continue
+            i, j = j, i
+            dx = -dx
+            dy = -dy
+            dz = -dz
+        d = math.sqrt(d2)
+        if d < 1e-12:
+            continue
+        f = (d - lmax) / d
+        if abs(dy) >= STEEP * d and not touching[j]:
+            lift = (d - lmax) * d / abs(dy)
+            fell = x_prev[j, 1] - x[j, 1]
+            lift = min(lift, max(fell, 0.0))
+            x[j, 1] += lift
+            if x[j, 1] > x_prev[j, 1]:
+                x_prev[j, 1] = x[j, 1]
+        else:
+            wi = inv_mass[i]
+            wj = inv_mass[j]
+            wsum = wi + wj
+            a = wi / wsum * f
+            b = wj / wsum * f
+            x[i, 0] += a * dx
+            x[i, 1] += a * dy
+            x[i, 2] += a * dz
+            x[j, 0] -= b * dx
+            x[j, 1] -= b * dy
+            x[j, 2] -= b * dz

@@ -55,7 +55,8 @@ from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import relevant_parts, reuse_planes
 from tryon.sim.constraints import (
-    apply_friction, cap_stretch, limit_stretch_downward, project_planes, solve_constraints, spring_lengths, top_down_order,
+    apply_friction, cap_stretch, limit_stretch_downward_packed, pack_springs, project_planes, solve_constraints_packed,
+    spring_lengths, top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, kinetic_energy_per_kg, verlet_step
 from tryon.sim.metrics import LENGTH_TOLERANCE, allowed_length, penetration_metrics, strain_metrics
@@ -168,6 +169,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     kind = np.ascontiguousarray(model.kind, dtype=np.int64)
     mass = np.ascontiguousarray(model.mass, dtype=np.float64)
     inv_mass = np.where(mass > 0, 1.0 / np.where(mass > 0, mass, 1.0), 0.0)
+    ends, table = pack_springs(springs, rest, kind, limits, compression)
 
     collider = BodyCollider(body, settings.collision_margin)
     if initial is None:
@@ -261,14 +263,13 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                 # points on the body count as heavier in the springs, so hanging cloth hangs from them
                 # instead of dragging them in (mass scaling)
                 w_eff = np.where(has_plane, inv_mass * CONTACT_WEIGHT, inv_mass)
-            solve_constraints(x, x_prev, w_eff, springs, rest, kind, limits, compression, per_sub, *planes,
-                              0.0, 0.0, push)
+            solve_constraints_packed(x, x_prev, w_eff, ends, table, per_sub, *planes, 0.0, 0.0, push)
             if step % ORDER_REFRESH == 1 and sub == 0:
                 order = top_down_order(x, springs)
             if not changing and (sub == n_sub - 1 or FTL_EVERY_SUBSTEP):
                 # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its
                 # upward bias would make a tight garment climb off the body
-                limit_stretch_downward(x, x_prev, w_eff, springs, rest, kind, limits, order, has_plane)
+                limit_stretch_downward_packed(x, x_prev, w_eff, ends, table, order, has_plane)
             project_planes(x, x_prev, *planes, 0.0, 0.0, push)
             apply_friction(x, x_prev, has_plane, planes[2], push, mu_s, mu_k)
             keep_above_floor(x, x_prev, floor_y)
@@ -314,12 +315,12 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         np.logical_not(reused, out=active)
         collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact,
                          near=NEAR, planes=planes)
-        solve_constraints(x, x_prev, inv_mass, springs, rest, kind, limits, compression,
-                          POLISH_PASSES or settings.passes, *planes, 0.0, 0.0, push, POLISH_RELAX)
+        solve_constraints_packed(x, x_prev, inv_mass, ends, table, POLISH_PASSES or settings.passes, *planes,
+                                 0.0, 0.0, push, POLISH_RELAX)
         if POLISH_FREE_LIFT:
-            limit_stretch_downward(x, lift_room, inv_mass, springs, rest, kind, limits, order, has_plane)
+            limit_stretch_downward_packed(x, lift_room, inv_mass, ends, table, order, has_plane)
         else:
-            limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limits, order, has_plane)
+            limit_stretch_downward_packed(x, x_prev, inv_mass, ends, table, order, has_plane)
         project_planes(x, x_prev, *planes, 0.0, 0.0)
         keep_above_floor(x, x_prev, floor_y)
         if polish_rounds >= MIN_POLISH_ROUNDS and not np.any(spring_lengths(x, springs) > over_limit):
@@ -336,10 +337,12 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     np.maximum(full[:, 1], 0.0, out=full[:, 1])
     full_parts = relevant_parts(body.maps, full.min(axis=0), full.max(axis=0), 0.01)
     for _ in range(FULL_COLLIDE_CALLS):
-        # a point pushed out of one part into another (crotch, armpit) is caught by the next call
+        # a point pushed out of one part into another (crotch, armpit) is caught by the next call, which
+        # only tests the points that moved (the others were outside every part)
         if not collider.collide(full, full_prev, ones, all_active, full_parts, settings.contact_offset, 0.0, 0.0,
                                 full_contact):
             break
+        all_active[:] = full_contact
 
     # --- metrics
     depth = collider.depth(full, full_parts, offset=False)

@@ -35,13 +35,19 @@ def vertex_max_strain(n_vertices, springs, strain):
     return out
 
 
-def strain_metrics(coarse: np.ndarray, model, limits: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
-    """Per-spring strain (s,), per full-mesh vertex strain (n,), and per-kind {max, limit, over}.
+def strain_metrics(coarse: np.ndarray, model, limits: np.ndarray,
+                   on_body: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Per-spring strain (s,), per full-mesh vertex strain (n,), and per-kind {max, limit, over} (plus
+    ``over_on_body`` when ``on_body`` (k,) bool, coarse points touching the body, is given).
 
     The full-mesh strain interpolates the coarse vertices' strains with the re-attachment barycentrics.
     ``over``: how many springs exceed their kind's limit by more than 1 % (l > 1.01 l_max), or by 0.2 mm
     for springs shorter than 2 cm (triangle collapse leaves springs down to 1 mm, whose strain is noise:
     a 0.1 mm nudge by the collision is 10 %).
+    ``over_on_body``: how many of those have both ends on the body: stretched around it (a garment too
+    small for the body there, a band on the hips), where the cloth cannot shorten them without entering
+    the body; the others are stretched in free cloth (the solver's residual, or a fold caught between
+    two parts).
     """
     strain = spring_strain(coarse, model.springs, model.rest)
     per_coarse = vertex_max_strain(len(coarse), model.springs, strain)
@@ -53,11 +59,16 @@ def strain_metrics(coarse: np.ndarray, model, limits: np.ndarray) -> tuple[np.nd
         if not sel.any():
             continue
         length = (1.0 + strain[sel]) * model.rest[sel]
+        over = length > allowed_length(model.rest[sel], limits[k])
         by_kind[name] = {
             "max": float(strain[sel].max()),
             "limit": float(limits[k]),
-            "over": int((length > allowed_length(model.rest[sel], limits[k])).sum()),
+            "over": int(over.sum()),
         }
+        if on_body is not None:
+            ends = model.springs[sel]
+            both = on_body[ends[:, 0]] & on_body[ends[:, 1]]
+            by_kind[name]["over_on_body"] = int((over & both).sum())
     return strain, per_full, by_kind
 
 

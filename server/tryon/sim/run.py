@@ -346,7 +346,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
 
     # --- metrics
     depth = collider.depth(full, full_parts, offset=False)
-    spring_strain_, per_vertex, by_kind = strain_metrics(x, model, limits)
+    spring_strain_, per_vertex, by_kind = strain_metrics(x, model, limits, on_body=has_plane.copy())
     wall = time.perf_counter() - t_start
     metrics = {
         "steps": int(step),

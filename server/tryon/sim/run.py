@@ -85,6 +85,7 @@ POLISH_RELAX = 1.0
 # cloth 1.3 mm off its table (compression passes pushing the lifted cloth's neighbours up).
 POLISH_FREE_LIFT = True
 POLISH_LIFT = 0.005
+POLISH_SLACK = 0.0
 # Degrees per step the arms are turned back from the sleeve pose (slow enough that the arm surface
 # moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).
 ARM_DEG_PER_STEP = 1.0
@@ -305,7 +306,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         inv_mass[:] = saved_inv_mass
     active[:] = True
     order = top_down_order(x, springs)
-    over_limit = allowed_length(rest, limits[kind]) - 0.5 * LENGTH_TOLERANCE  # with a little slack
+    over_limit = allowed_length(rest, limits[kind]) - POLISH_SLACK * LENGTH_TOLERANCE  # with a little slack
     polish_rounds = 0
     lift_room = x.copy()
     lift_room[:, 1] += POLISH_LIFT

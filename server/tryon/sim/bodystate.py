@@ -12,7 +12,8 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.sim.collide import (
-    cell_max_radius, collide_points, face_normals, grow_vertices, offset_body, penetration_depth, vertex_parts,
+    cell_max_radius, collide_points, face_boxes, face_normals, grow_vertices, offset_body, penetration_depth,
+    vertex_parts,
 )
 
 
@@ -60,6 +61,9 @@ class BodyCollider:
         self.normals = self.rest_normals.copy()
         self.offset = np.empty_like(self.vertices)
         self.offset_normals = np.empty((len(self.faces), 3))
+        self.face_part = np.ascontiguousarray(body.face_part, dtype=np.int64)
+        self.offset_boxes = np.empty((len(self.faces), 4))
+        self.plain_boxes = np.empty((len(self.faces), 4))
         self.plain_normals = np.empty((len(self.faces), 3))
         self.cell_rmax = np.empty(len(self.cell_start) - 1)
         self.plain_rmax = np.empty(len(self.cell_start) - 1)
@@ -80,6 +84,7 @@ class BodyCollider:
         else:
             self.vertices[:] = self._pose_vertices
         offset_body(self.vertices, self._pose_normals, self.faces, self.margin, self.offset, self.offset_normals)
+        face_boxes(self.offset, self.faces, self.face_part, self.cyl_origin, self.cyl_axes, self.offset_boxes)
         # Cell radii: growth scales every vertex's distance to its axis by ``scale`` and the offset adds at
         # most ``margin``, and turning a part rigidly keeps its local radii, so the rest body's radii
         # bound them (computed once; the exact kernel over all (face, cell) pairs costs a few ms a call)
@@ -128,22 +133,23 @@ class BodyCollider:
             x, x_prev, x if x_pred is None else x_pred, inv_mass, active, parts, self.obb_normals, self.obb_offsets, self.cyl_origin,
             self.cyl_axes, self.cyl_zrange, self.cyl_shape, self.cell_base, self.cell_start, self.cell_faces,
             self.cell_rmax, self.offset, self.faces, self.offset_normals, lam, mu_static, mu_kinetic, contact,
-            self.cover, near, planes[0], planes[1], planes[2],
+            self.cover, near, planes[0], planes[1], planes[2], self.offset_boxes,
         )
 
     def depth(self, points: np.ndarray, parts: np.ndarray, offset: bool = False) -> np.ndarray:
         """Depth (m) of each point (n, 3) inside the body (``offset=False``: the real, un-offset surface of
         the current shape), 0 outside."""
         if offset:
-            bv, fn, rmax = self.offset, self.offset_normals, self.cell_rmax
+            bv, fn, rmax, boxes = self.offset, self.offset_normals, self.cell_rmax, self.offset_boxes
         else:
             bv = self.vertices
             face_normals(bv, self.faces, self.plain_normals)
             cell_max_radius(self.cyl_origin, self.cyl_axes, self.cyl_shape, self.cell_base, self.cell_start,
                             self.cell_faces, self.faces, bv, self.plain_rmax)
-            fn, rmax = self.plain_normals, self.plain_rmax
+            face_boxes(bv, self.faces, self.face_part, self.cyl_origin, self.cyl_axes, self.plain_boxes)
+            fn, rmax, boxes = self.plain_normals, self.plain_rmax, self.plain_boxes
         return penetration_depth(
             np.ascontiguousarray(points, dtype=np.float64), parts, self.obb_normals, self.obb_offsets,
             self.cyl_origin, self.cyl_axes, self.cyl_zrange, self.cyl_shape, self.cell_base, self.cell_start,
-            self.cell_faces, rmax, bv, self.faces, fn, self.cover,
+            self.cell_faces, rmax, bv, self.faces, fn, self.cover, boxes,
         )

@@ -136,6 +136,69 @@ def cell_max_radius(cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell
             out[c] = math.sqrt(r_max)
 
 
+@njit(cache=True, nogil=True)
+def face_boxes(bv, faces, face_part, cyl_origin, cyl_axes, out):
+    """Each face's extent in its part's cylinder coordinates, (f, 4): z min, z max, theta min, theta max
+    (radians, theta max may exceed pi for a face across the theta = +-pi seam; -inf, inf for a face around
+    the axis, such as an end cap), into ``out``.
+
+    The ray of a query keeps its point's (theta, z), and a flat triangle that does not surround the axis
+    spans no more than its corners' theta and z, so a face whose box does not contain the ray's (theta, z)
+    cannot be hit: most of a cell's ~50 faces (its list is grown by the maps' margin) are skipped with
+    two comparisons instead of a plane intersection and an inside-triangle test.
+    """
+    for f in range(faces.shape[0]):
+        k = face_part[f]
+        zmin = np.inf
+        zmax = -np.inf
+        t0 = 0.0
+        t1 = 0.0
+        t2 = 0.0
+        around = False
+        for c in range(3):
+            v = faces[f, c]
+            dx = bv[v, 0] - cyl_origin[k, 0]
+            dy = bv[v, 1] - cyl_origin[k, 1]
+            dz = bv[v, 2] - cyl_origin[k, 2]
+            lx = dx * cyl_axes[k, 0, 0] + dy * cyl_axes[k, 0, 1] + dz * cyl_axes[k, 0, 2]
+            ly = dx * cyl_axes[k, 1, 0] + dy * cyl_axes[k, 1, 1] + dz * cyl_axes[k, 1, 2]
+            lz = dx * cyl_axes[k, 2, 0] + dy * cyl_axes[k, 2, 1] + dz * cyl_axes[k, 2, 2]
+            zmin = min(zmin, lz)
+            zmax = max(zmax, lz)
+            if lx * lx + ly * ly < 1e-12:
+                around = True
+            t = math.atan2(ly, lx)
+            if c == 0:
+                t0 = t
+            elif c == 1:
+                t1 = t
+            else:
+                t2 = t
+        lo = min(t0, min(t1, t2))
+        hi = max(t0, max(t1, t2))
+        if hi - lo > math.pi:
+            # across the seam: shift the negative angles by a full turn
+            if t0 < 0.0:
+                t0 += 2.0 * math.pi
+            if t1 < 0.0:
+                t1 += 2.0 * math.pi
+            if t2 < 0.0:
+                t2 += 2.0 * math.pi
+            lo = min(t0, min(t1, t2))
+            hi = max(t0, max(t1, t2))
+            if hi - lo > math.pi:
+                around = True
+        eps = 1e-7
+        out[f, 0] = zmin - eps
+        out[f, 1] = zmax + eps
+        if around:
+            out[f, 2] = -np.inf
+            out[f, 3] = np.inf
+        else:
+            out[f, 2] = lo - eps
+            out[f, 3] = hi + eps
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _in_obb(px, py, pz, normals, offsets, k):
     for j in range(6):
@@ -234,7 +297,7 @@ def _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces,
 @njit(cache=True, nogil=True)
 def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape, cell_base,
                cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal, scratch, trust, cover, near,
-               tbuf, fbuf):
+               tbuf, fbuf, fbox):
     """Is p inside part k of the (offset) body with vertices ``bv`` and face normals ``fn``?
 
     Returns the depth (m, > 0 inside, 0 outside); when inside, ``target`` gets the surface point p must
@@ -247,6 +310,7 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
     cover: m, how far beyond its cell a cell's face list reaches (the maps' margin minus the offset).
     near: m; a point outside but closer than this to the surface along its ray gets a negative depth
     (minus its distance) and the surface point and normal, for a contact plane.
+    fbox: (f, 4) from ``face_boxes`` for ``bv``: faces whose box misses the ray are not intersected.
     """
     if not _in_obb(p[0], p[1], p[2], obb_normals, obb_offsets, k):
         return 0.0
@@ -284,8 +348,13 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
     # kept (up to len(tbuf)) to count them.
     hit = scratch[0]
     nh = 0
+    theta_up = theta + 2.0 * math.pi
     for m in range(cell_start[c], cell_start[c + 1]):
         f = cell_faces[m]
+        if lz < fbox[f, 0] or lz > fbox[f, 1]:
+            continue
+        if not ((theta >= fbox[f, 2] and theta <= fbox[f, 3]) or (theta_up >= fbox[f, 2] and theta_up <= fbox[f, 3])):
+            continue
         a = faces[f, 0]
         den = fn[f, 0] * rx + fn[f, 1] * ry + fn[f, 2] * rz
         if abs(den) < 1e-12:
@@ -379,7 +448,7 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
 @njit(cache=True, nogil=True)
 def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_offsets, cyl_origin, cyl_axes,
                    cyl_zrange, cyl_shape, cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, lam,
-                   mu_static, mu_kinetic, contact, cover, near, has_plane, plane_point, plane_normal):
+                   mu_static, mu_kinetic, contact, cover, near, has_plane, plane_point, plane_normal, fbox):
     """Push garment points out of the offset body, in place (paper 3.4, eq. 4 plus the fallbacks above).
 
     x, x_prev (k, 3) m (x_prev: positions at the start of the step; both updated in place); x_pred (k, 3)
@@ -424,7 +493,7 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
                 trust = math.sqrt(mx * mx + my * my + mz * mz) + TRUST_SLACK
                 depth = part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
                                    cyl_shape, cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, target,
-                                   normal, scratch, trust, cover, near, tbuf, fbuf)
+                                   normal, scratch, trust, cover, near, tbuf, fbuf, fbox)
                 if depth < 0.0:
                     if not has_plane[i]:
                         has_plane[i] = True
@@ -478,7 +547,7 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
 
 @njit(cache=True, nogil=True)
 def penetration_depth(points, parts, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape,
-                      cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, cover):
+                      cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, cover, fbox):
     """Depth (m) of each point inside the body surface ``bv`` (0 outside), (n,) float64: the largest
     depth over the parts (the same inside test as the collision, with the nearest-surface distance)."""
     out = np.zeros(points.shape[0])
@@ -497,7 +566,7 @@ def penetration_depth(points, parts, obb_normals, obb_offsets, cyl_origin, cyl_a
                 continue
             d = part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape,
                            cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal,
-                           scratch, 0.0, cover, 0.0, tbuf, fbuf)
+                           scratch, 0.0, cover, 0.0, tbuf, fbuf, fbox)
             if d > 0.0:
                 # the true depth is the distance to the nearest surface point, never more than the
                 # distance to the response point

@@ -183,3 +183,23 @@ def test_on_frame_false_stops_the_run(table):
                    on_frame=lambda step, x: seen.append(step) or step < 5)
     assert seen == [1, 2, 3, 4, 5]
     assert result.metrics["steps"] == 5 and result.metrics["stopped"]
+
+
+def test_face_boxes_skip_only_faces_the_ray_cannot_hit(table):
+    """The per-face (theta, z) boxes only skip faces a query ray cannot hit: depths with them equal depths
+    with every face intersected, across the theta = +-pi seam, on the caps and around the rim."""
+    collider = BodyCollider(table, 0.004)
+    rng = np.random.default_rng(5)
+    n = 4000
+    r = rng.uniform(0.0, 0.33, n)
+    a = rng.uniform(-np.pi, np.pi, n)
+    a[: n // 8] = np.pi - rng.uniform(0.0, 1e-3, n // 8)  # at the seam
+    y = rng.uniform(-0.02, 1.02, n)
+    pts = np.stack([r * np.cos(a), y, r * np.sin(a)], axis=1)
+    parts = np.array([0])
+    with_boxes = collider.depth(pts, parts, offset=True)
+    assert (with_boxes > 0).sum() > n // 2  # most points are inside: the test exercises the ray casts
+    collider.offset_boxes[:, [0, 2]] = -np.inf
+    collider.offset_boxes[:, [1, 3]] = np.inf
+    every_face = collider.depth(pts, parts, offset=True)
+    assert np.array_equal(with_boxes, every_face)

@@ -37,8 +37,14 @@ outside the (static) body, and is not in contact, cannot be inside it by more th
 collision test is skipped; a contact at rest only re-projects onto its plane.
 
 After the loop: polish rounds (collision + constraints, no gravity) until the strain target is met (or
-``MAX_POLISH_ROUNDS``), then the full mesh is rebuilt from the coarse one (``model.expand``) and its
-vertices are pushed out of the offset body too, so the displayed mesh does not penetrate either.
+``MAX_POLISH_ROUNDS``); in them the top-down sweep may lift a sagging point up to ``POLISH_LIFT`` above
+where the loop left it (without gravity there is no step-to-step ratchet up the body). Then the full mesh
+is rebuilt from the coarse one (``model.expand``) and its vertices are pushed out of the offset body too
+(again while any still moves: a point pushed out of one thigh into the other), so the displayed mesh does
+not penetrate either.
+
+The floor (y = ``FLOOR_Y``) is put under the offset body's soles, so a trouser hem on the floor beside a
+foot is not caught between the floor and the sole's offset rim.
 """
 
 from __future__ import annotations

@@ -231,6 +231,10 @@ def test_client_leaving_half_way_stops_the_simulation(live: Live):
     ({"measurements": BODY}, "garment_id"),
     ({"garment_id": "x", "measurements": BODY, "fps": 0}, "fps"),
     ({"garment_id": "nope", "measurements": BODY}, "nope"),
+    ('{"garment_id": "x", "measurements": {"height": NaN, "chest": 96, "waist": 82, "hips": 100}}',
+     "height must be a finite number"),
+    # a reason longer than a close frame can carry (123 bytes of UTF-8) still closes normally
+    ({"garment_id": "\u2603" * 60, "measurements": BODY}, "\u2603" * 60),
 ])
 def test_bad_requests_get_an_error_in_words(live: Live, message, words):
     live.wait_idle()

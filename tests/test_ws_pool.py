@@ -19,7 +19,7 @@ from tryon.api.pool import (
     busy_response_headers,
     request_key,
 )
-from tryon.api.routes.ws import FRAME_HEADER, FrameCodec, encode_frame, encoding
+from tryon.api.routes.ws import FRAME_HEADER, MAX_CLOSE_REASON_BYTES, FrameCodec, close_reason, encode_frame, encoding
 
 
 def test_pool_refuses_at_once_when_full_and_frees_slots():
@@ -155,3 +155,13 @@ def test_uint16_frames_quantize_within_the_box():
     far = codec.decode(codec.encode(np.array([[0.0, 9.0, 0.0]])))
     assert far[0, 1] == pytest.approx(codec.origin[1] + 65535 * codec.scale[1])  # clamped to the box
     assert FrameCodec.around("float32", body).describe(50)["bytes_per_frame"] == 12 + 12 * 50
+
+
+@pytest.mark.parametrize("reason", ["short reason", "x" * 300, "\u2603" * 60, "e\u0301" * 70])
+def test_close_reason_fits_a_close_frame(reason):
+    cut = close_reason(reason)
+    assert len(cut.encode("utf-8")) <= MAX_CLOSE_REASON_BYTES
+    if len(reason.encode("utf-8")) <= MAX_CLOSE_REASON_BYTES:
+        assert cut == reason
+    else:
+        assert cut.endswith("...") and reason.startswith(cut[:-3]) and len(cut) > 30

@@ -71,6 +71,8 @@ log = logging.getLogger(__name__)
 FRAME_HEADER = struct.Struct("<IIf")  # frame number, simulation step, seconds since the request
 CLOSE_NORMAL = 1000
 CLOSE_TRY_AGAIN_LATER = 1013  # RFC 6455 registry: "Try Again Later"
+# bytes: a close frame is a control frame (at most 125 bytes of payload), 2 of them the close code
+MAX_CLOSE_REASON_BYTES = 123
 # Seconds to wait for the client's request before giving up on the connection.
 REQUEST_TIMEOUT_S = 30.0
 
@@ -374,11 +376,21 @@ async def _watch_disconnect(ws: WebSocket, session: LiveSession) -> None:
     session.stop()
 
 
+def close_reason(reason: str) -> str:
+    """``reason`` cut to what a close frame can carry (RFC 6455: 123 bytes of UTF-8; a longer one makes
+    the server drop the connection without a close frame), never in the middle of a character."""
+    data = reason.encode("utf-8")
+    if len(data) <= MAX_CLOSE_REASON_BYTES:
+        return reason
+    return data[:MAX_CLOSE_REASON_BYTES - 3].decode("utf-8", errors="ignore") + "..."
+
+
 async def _send_error(ws: WebSocket, reason: str, code: int = CLOSE_NORMAL) -> None:
-    """One JSON error message, then close with ``code`` (quietly if the client is already gone)."""
+    """One JSON error message (the whole reason), then close with ``code`` and the reason cut to fit a
+    close frame (quietly if the client is already gone)."""
     try:
         await ws.send_text(json.dumps({"type": "error", "reason": reason}))
-        await ws.close(code=code, reason=reason[:120])
+        await ws.close(code=code, reason=close_reason(reason))
     except (WebSocketDisconnect, RuntimeError, OSError):
         pass
 

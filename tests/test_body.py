@@ -438,6 +438,22 @@ def test_api_refuses_out_of_range(client, payload, field, words):
     assert field in detail["msg"] and words in detail["msg"]
 
 
+@pytest.mark.parametrize("text, field, words", [
+    ('{"measurements": {"height": NaN, "chest": 100, "waist": 88, "hips": 100}}', "height", "finite"),
+    ('{"measurements": {"height": 1e400, "chest": 100, "waist": 88, "hips": 100}}', "height", "finite"),
+    ('{"measurements": {"height": 175, "chest": 100, "waist": 88, "hips": 100, "neck": Infinity}}', "neck",
+     "finite"),
+    ('{"measurements": {"height": 175, "chest": 100, "waist": 88, "hips": 100}, "pose": {"arm_angle": -Infinity}}',
+     "arm_angle", "finite"),
+])
+def test_api_refuses_non_finite_numbers(client, text, field, words):
+    """Python's json reads NaN / Infinity / 1e400: a 422 naming the field (was a 500: the error echoed NaN)."""
+    r = client.post("/api/bodies", content=text, headers={"content-type": "application/json"})
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"][0]
+    assert detail["loc"][-1] == field and words in detail["msg"]
+
+
 def test_api_refuses_implausible_combinations(client):
     r = client.post("/api/bodies", json={"measurements": {**AVERAGE, "inseam": 105}})
     assert r.status_code == 422

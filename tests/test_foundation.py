@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -52,6 +53,35 @@ def test_page_and_three_served_by_app(settings: Settings):
 def test_cli_serve_defaults():
     args = build_parser().parse_args(["serve"])
     assert (args.host, args.port) == ("127.0.0.1", 8000)
+
+
+M = '{"height": 170, "chest": 100, "waist": 90, "hips": 100}'
+
+
+@pytest.mark.parametrize("path, text, content_type, status, words", [
+    # Python's json reads NaN / Infinity: a 422 naming the field (was a 500: the echoed input was not JSON)
+    ("/api/tryon", '{"garment_id": "x", "measurements": %s, "settings": {"time_step": NaN}}' % M,
+     "application/json", 422, "finite number"),
+    ("/api/tryon", '{"garment_id": "x", "measurements": %s, "settings": {"simplification": 1e400}}' % M,
+     "application/json", 422, "finite number"),
+    ("/api/bodies", '{"measurements": %s}' % M, "text/plain", 422, "Content-Type: application/json"),
+    ("/api/bodies", '{"measurements": ', "application/json", 422, "not valid JSON at offset 17"),
+    ("/api/bodies", b"\xff\xfe{", "application/json", 400, "not UTF-8"),
+    ("/api/bodies", "[" * 100_000 + "]" * 100_000, "application/json", 400, "nested too deeply"),
+])
+def test_unreadable_requests_get_a_reason(settings: Settings, path, text, content_type, status, words):
+    with TestClient(create_app(settings)) as client:
+        r = client.post(path, content=text, headers={"content-type": content_type})
+    assert r.status_code == status, r.text
+    assert words in str(r.json()["detail"]), r.json()
+
+
+def test_validation_errors_echo_bad_input_cut_short(settings: Settings):
+    with TestClient(create_app(settings)) as client:
+        r = client.post("/api/bodies", json={"measurements": json.loads(M), "pad": "x" * 100_000})
+    assert r.status_code == 422
+    detail = r.json()["detail"][0]
+    assert detail["loc"] == ["body", "pad"] and len(detail["input"]) < 300 and "100,000 characters" in detail["input"]
 
 
 @pytest.mark.e2e

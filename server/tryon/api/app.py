@@ -6,6 +6,7 @@ from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
 from tryon import __version__
+from tryon.api import errors
 from tryon.api.routes import bodies, garments, health, tryon, ws
 from tryon.config import Settings, get_settings
 
@@ -16,6 +17,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     settings.ensure_dirs()
     app = FastAPI(title="tryon", version=__version__, docs_url="/api/docs", openapi_url="/api/openapi.json")
     app.state.settings = settings
+    errors.install(app)
 
     for module in (health, bodies, garments, tryon):
         app.include_router(module.router, prefix="/api")

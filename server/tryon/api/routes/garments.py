@@ -77,7 +77,8 @@ async def upload_garment(
     category: Annotated[Category, Form(description="top | bottom | dress")],
     units: Annotated[Units, Form(description="units of the file's coordinates, or auto to guess")] = "auto",
     size: Annotated[str | None, Form(max_length=20, description="size label, e.g. M")] = None,
-    simplify: Annotated[float, Form(ge=0.05, le=1.0, description="simplification degree B (kept / original vertices)")]
+    simplify: Annotated[float, Form(ge=0.05, le=1.0, allow_inf_nan=False,
+                                    description="simplification degree B (kept / original vertices)")]
     = DEFAULT_SIMPLIFICATION,
 ) -> GarmentEntry:
     """Prepare an uploaded garment into the catalogue (admin). 201 with the new entry; 200 with the

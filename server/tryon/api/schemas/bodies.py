@@ -7,6 +7,7 @@ longer than the legs can be, a waist twice the chest) are refused with the ratio
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, create_model, field_validator, model_validator
@@ -37,6 +38,8 @@ def _range_check(kind: str, ranges: dict, unit: str):
 
     def check(cls, value, info: ValidationInfo):
         if isinstance(value, (int, float)) and not isinstance(value, bool):
+            if not math.isfinite(value):  # NaN / Infinity / 1e400 (Python's json reads them)
+                raise ValueError(f"{kind}.{info.field_name} must be a finite number ({unit}), got {value}")
             lo, hi = ranges[info.field_name]
             if not lo <= value <= hi:
                 raise ValueError(f"{kind}.{info.field_name}={value:g} {unit} is outside the range [{lo:g}, {hi:g}] {unit}")
@@ -59,7 +62,7 @@ def _measurement_fields() -> dict:
 
 
 class _MeasurementsBase(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     _in_range = field_validator("*", mode="before")(classmethod(_range_check("measurements", MEASUREMENT_RANGES, "cm")))
 
@@ -89,7 +92,7 @@ def _pose_fields() -> dict:
 
 
 class _PoseBase(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     _in_range = field_validator("*", mode="before")(classmethod(_range_check("pose", POSE_RANGES, "degrees")))
 

@@ -20,7 +20,7 @@ MeshFormatTryOn = Literal["json", "glb"]
 class SimSettingsIn(BaseModel):
     """Simulation settings a client may choose (the rest keep their defaults, see ``SimSettings``)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     time_step: float = Field(_DEFAULT.time_step, ge=0.005, le=0.1,
                              description="time step, s (the paper uses 0.05 s); range [0.005, 0.1]")

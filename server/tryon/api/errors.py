@@ -1,0 +1,91 @@
+"""Error answers in words: request validation (422) and unreadable bodies (400), always valid JSON.
+
+FastAPI's default 422 handler echoes each bad input back; a NaN or an infinity in the request (Python's
+``json`` reads ``NaN``, ``Infinity`` and ``1e400``) then cannot be written as JSON and the client gets a
+500 instead of the 422. These handlers write such numbers as strings, cut long echoed inputs short, and
+say in words what is wrong with a body that is not JSON.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exception_handlers import http_exception_handler
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+# characters of a bad input echoed back in a 422 (a 60 MB string field is not sent back whole)
+ECHO_MAX_CHARS = 200
+# FastAPI's own words for a body it could not read (not JSON-decodable for another reason than syntax)
+_FASTAPI_PARSE_ERROR = "There was an error parsing the body"
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with non-finite floats as the strings ``"NaN"``, ``"Infinity"``, ``"-Infinity"``, long
+    strings and bytes cut to ``ECHO_MAX_CHARS``, exceptions as their message (recursively)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return "NaN" if math.isnan(value) else ("Infinity" if value > 0 else "-Infinity")
+    if isinstance(value, (bytes, bytearray)):
+        value = value.decode("utf-8", errors="replace")
+    if isinstance(value, str):
+        return value if len(value) <= ECHO_MAX_CHARS else value[:ECHO_MAX_CHARS] + f"... ({len(value):,} characters)"
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, BaseException):
+        return str(value)
+    if value is None or isinstance(value, (bool, int, float)):
+        return value
+    return json_safe(str(value))
+
+
+def _is_json(content_type: str | None) -> bool:
+    main = (content_type or "").split(";")[0].strip().lower()
+    return main == "application/json" or (main.startswith("application/") and main.endswith("+json"))
+
+
+def _reworded(error: dict, request: Request) -> dict:
+    """FastAPI's two errors about the body as a whole, in words a client can act on."""
+    loc = tuple(error.get("loc", ()))
+    if error.get("type") == "json_invalid":
+        where = f" at offset {loc[1]}" if len(loc) > 1 else ""
+        reason = (error.get("ctx") or {}).get("error", "")
+        return {**error, "msg": f"the body is not valid JSON{where}" + (f": {reason}" if reason else "")}
+    content_type = request.headers.get("content-type")
+    if loc == ("body",) and error.get("type") == "model_attributes_type" and not _is_json(content_type):
+        return {**error, "msg": "the body must be a JSON object sent with Content-Type: application/json "
+                                f"(got Content-Type: {content_type or 'none'})"}
+    return error
+
+
+async def validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
+    """422 naming every bad field; the echoed inputs made JSON-safe."""
+    errors = [_reworded(e, request) for e in exc.errors()]
+    return JSONResponse(status_code=422, content={"detail": json_safe(errors)})
+
+
+async def http_error(request: Request, exc: StarletteHTTPException):
+    """FastAPI's "There was an error parsing the body" (400) with the reason; everything else as usual."""
+    if exc.status_code == 400 and exc.detail == _FASTAPI_PARSE_ERROR:
+        cause = exc.__cause__
+        if isinstance(cause, UnicodeDecodeError):
+            reason = "it is not UTF-8 text"
+        elif isinstance(cause, RecursionError):
+            reason = "it is nested too deeply"
+        elif isinstance(cause, (ValueError, json.JSONDecodeError)):
+            reason = str(cause)
+        else:
+            reason = f"{type(cause).__name__}: {cause}" if cause is not None else "unknown reason"
+        return JSONResponse({"detail": f"could not read the request body as JSON: {reason}"}, status_code=400)
+    return await http_exception_handler(request, exc)
+
+
+def install(app: FastAPI) -> None:
+    """Register the handlers on ``app``."""
+    app.add_exception_handler(RequestValidationError, validation_error)
+    app.add_exception_handler(StarletteHTTPException, http_error)

@@ -129,3 +129,13 @@ def test_a_missing_peer_is_a_note_not_a_failure(monkeypatch, tmp_path):
     rows = sec.data["cloth_on_ball"]["1024"]
     assert [r["engine"] for r in rows] == ["ours"]
     assert sec.data["headline"] == []  # no peer, no ratio
+
+
+def test_bad_out_or_section_is_refused_before_running(tmp_path, capsys):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    assert main(["bench", "--quick", "--only", "table1", "--out", str(blocker / "out")]) == 2
+    assert "cannot write to --out" in capsys.readouterr().err
+    assert main(["bench", "--quick", "--only", "tabel1", "--out", str(tmp_path / "out")]) == 2
+    assert "unknown section 'tabel1'" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

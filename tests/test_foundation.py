@@ -12,7 +12,7 @@ from fastapi.testclient import TestClient
 
 from tryon import __version__
 from tryon.api.app import create_app
-from tryon.cli import build_parser
+from tryon.cli import build_parser, main
 from tryon.config import Settings
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -53,6 +53,30 @@ def test_page_and_three_served_by_app(settings: Settings):
 def test_cli_serve_defaults():
     args = build_parser().parse_args(["serve"])
     assert (args.host, args.port) == ("127.0.0.1", 8000)
+
+
+@pytest.mark.parametrize("port", ["99999", "-1", "http"])
+def test_cli_serve_refuses_a_port_out_of_range(port, capsys):
+    """99999 used to bind port 34463 (the socket layer takes it modulo 65536)."""
+    with pytest.raises(SystemExit) as exit_:
+        build_parser().parse_args(["serve", "--port", port])
+    assert exit_.value.code == 2 and "--port" in capsys.readouterr().err
+
+
+def test_cli_serve_refuses_an_unusable_data_dir_or_setting(tmp_path, monkeypatch, capsys):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    monkeypatch.setenv("TRYON_DATA_DIR", str(blocker / "data"))
+    assert main(["serve", "--port", "0"]) == 2
+    assert "cannot write to the data directory" in capsys.readouterr().err
+    monkeypatch.setenv("TRYON_DATA_DIR", str(tmp_path / "data"))
+    (tmp_path / "data").mkdir()
+    (tmp_path / "data" / "catalogue.sqlite").write_text("not a database")
+    assert main(["serve", "--port", "0"]) == 2
+    assert "cannot open the catalogue" in capsys.readouterr().err
+    monkeypatch.setenv("TRYON_SIM_WORKERS", "two")
+    assert main(["serve", "--port", "0"]) == 2
+    assert "TRYON_SIM_WORKERS='two'" in capsys.readouterr().err
 
 
 M = '{"height": 170, "chest": 100, "waist": 90, "hips": 100}'

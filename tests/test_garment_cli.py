@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from tryon.cli import main
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.generate import garment_mesh, obj_text
@@ -48,6 +50,50 @@ def test_usage_errors(tmp_path, capsys):
     assert main(["ingest", "a.obj", "--simplify", "1.5", "--data-dir", str(tmp_path)]) == 2
     assert main(["ingest", str(tmp_path / "missing.obj"), "--data-dir", str(tmp_path)]) == 1
     assert "no such file" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("listing, words", [
+    (None, "no such file"),  # a directory without catalogue.json
+    ("{not json", "expecting property name"),
+    ('{"file": "x.obj"}', "expected a json list"),
+    ('[{"name": "no file"}]', 'entry 0 is not an object with a "file"'),
+    ('["x.obj"]', "entry 0"),
+])
+def test_bad_catalogue_directory_is_a_usage_error(tmp_path, capsys, listing, words):
+    src = tmp_path / "src"
+    src.mkdir()
+    if listing is not None:
+        (src / "catalogue.json").write_text(listing)
+    assert main(["ingest", "--catalogue", str(src), "--data-dir", str(tmp_path / "data")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("tryon ingest: cannot read") and words in err.lower(), err
+
+
+def test_unusable_data_dir_or_settings_are_usage_errors(tmp_path, capsys, monkeypatch):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a directory")
+    assert main(["ingest", str(blocker), "--data-dir", str(blocker / "data")]) == 2
+    assert "cannot open the catalogue in" in capsys.readouterr().err
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    (broken / "catalogue.sqlite").write_text("not a database")
+    assert main(["ingest", str(blocker), "--data-dir", str(broken)]) == 2
+    assert "not a database" in capsys.readouterr().err
+    monkeypatch.setenv("TRYON_MAX_FACES", "lots")
+    assert main(["ingest", str(blocker), "--data-dir", str(tmp_path / "d")]) == 2
+    assert "TRYON_MAX_FACES='lots'" in capsys.readouterr().err
+
+
+def test_a_directory_given_as_a_file_is_refused_by_name(tmp_path, capsys):
+    assert main(["ingest", str(tmp_path), "--data-dir", str(tmp_path / "data")]) == 1
+    assert "is a directory" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("flag, value", [("--units", "furlong"), ("--category", "hat"), ("--simplify", "abc")])
+def test_bad_flag_values_are_refused_by_argparse(tmp_path, capsys, flag, value):
+    with pytest.raises(SystemExit) as exit_:
+        main(["ingest", "a.obj", flag, value, "--data-dir", str(tmp_path)])
+    assert exit_.value.code == 2 and flag in capsys.readouterr().err
 
 
 def test_category_guessed_from_the_file_name():

@@ -1,7 +1,7 @@
 """``tryon`` command line: a thin layer over the package's functions.
 
 Each command is a module with ``add_parser(subparsers)``; the parser's ``func`` runs it and returns the
-exit code.
+exit code. A ``CliError`` (a mistake the user can fix) is printed as one line, without a traceback.
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ import sys
 
 from tryon import __version__
 from tryon.cli import bench, ingest, serve
+from tryon.cli.common import CliError
 
 COMMANDS = [serve, ingest, bench]
 
@@ -26,7 +27,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return int(args.func(args) or 0)
+    try:
+        return int(args.func(args) or 0)
+    except CliError as exc:
+        print(f"tryon {args.command}: {exc}", file=sys.stderr)
+        return exc.code
 
 
 if __name__ == "__main__":

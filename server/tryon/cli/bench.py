@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from tryon.cli.common import CliError, writable_dir
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("bench", help="benchmark: paper tables, run time vs error, peers, stability, scaling")
@@ -17,8 +19,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tryon.bench import run_bench
+    from tryon.bench import run_bench, sections
 
+    known = [name for name, _, _ in sections()]
+    unknown = [name for name in args.only or () if name not in known]
+    if unknown:
+        raise CliError(f"unknown section {', '.join(map(repr, unknown))} for --only: choose from {' '.join(known)}")
+    writable_dir(args.out, "--out")  # before the run, not after minutes of it
     report, code = run_bench(args.out, quick=args.quick, stress=args.stress, only=args.only)
     for s in report["sections"]:
         for h in s["headline"]:

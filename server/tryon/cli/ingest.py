@@ -13,10 +13,12 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import sqlite3
 import sys
 import time
 from pathlib import Path
 
+from tryon.cli.common import CliError, load_settings
 from tryon.garment.ingest import UNITS, GarmentError
 
 DRESS_WORDS = r"dress|gown|robe|outfit|suit|jumpsuit|overall"
@@ -56,7 +58,11 @@ def _jobs(args: argparse.Namespace) -> list[dict]:
     if args.catalogue is not None:
         listing = args.catalogue / "catalogue.json"
         entries = json.loads(listing.read_text())
-        for e in entries:
+        if not isinstance(entries, list):
+            raise ValueError(f"expected a JSON list of entries, got a {type(entries).__name__}")
+        for i, e in enumerate(entries):
+            if not isinstance(e, dict) or not isinstance(e.get("file"), str):
+                raise ValueError(f"entry {i} is not an object with a \"file\" name: {json.dumps(e)[:80]}")
             jobs.append(dict(path=args.catalogue / e["file"], name=e.get("name"), category=e.get("category", "top"),
                              units=e.get("units", "auto"), size=e.get("size")))
     for path in args.paths:
@@ -71,7 +77,6 @@ def _jobs(args: argparse.Namespace) -> list[dict]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tryon.config import Settings
     from tryon.garment.catalogue import Catalogue
 
     if not args.paths and args.catalogue is None:
@@ -88,9 +93,12 @@ def run(args: argparse.Namespace) -> int:
     except (OSError, ValueError, KeyError) as exc:
         print(f"tryon ingest: cannot read {args.catalogue}/catalogue.json: {exc}", file=sys.stderr)
         return 2
-    settings = Settings()
+    settings = load_settings()
     data_dir = args.data_dir or settings.data_dir
-    catalogue = Catalogue(data_dir)
+    try:
+        catalogue = Catalogue(data_dir)
+    except (OSError, sqlite3.Error) as exc:
+        raise CliError(f"cannot open the catalogue in {data_dir}: {getattr(exc, 'strerror', None) or exc}") from None
     refused = 0
     total = len(jobs)
     width = len(str(total))
@@ -101,12 +109,19 @@ def run(args: argparse.Namespace) -> int:
         print(f"{prefix} ...", end="\r", flush=True, file=sys.stderr) if sys.stderr.isatty() else None
         t0 = time.perf_counter()
         try:
+            if path.is_dir():
+                raise GarmentError(f"{path} is a directory: give mesh files, or --catalogue DIR for a "
+                                   f"directory with a catalogue.json")
             if not path.is_file():
                 raise GarmentError(f"no such file: {path}")
             meta, created = catalogue.ingest_with_status(path, max_faces=settings.max_faces, **job)
         except GarmentError as exc:
             refused += 1
             print(f"{prefix}: REFUSED: {exc}")
+            continue
+        except OSError as exc:  # unreadable file, or the catalogue could not be written (disk full)
+            refused += 1
+            print(f"{prefix}: REFUSED: {exc.strerror or exc}{f': {exc.filename}' if exc.filename else ''}")
             continue
         dt = time.perf_counter() - t0
         s = meta.springs

@@ -108,6 +108,20 @@ def test_validation_errors_echo_bad_input_cut_short(settings: Settings):
     assert detail["loc"] == ["body", "pad"] and len(detail["input"]) < 300 and "100,000 characters" in detail["input"]
 
 
+@pytest.mark.parametrize("method, path, status, allow, words", [
+    ("GET", "/api/tryon", 405, "POST", "use POST"),  # was a bare 404 from the static files
+    ("PUT", "/api/garments", 405, "GET, POST", "use GET or POST"),  # was a 405 allowing GET, HEAD
+    ("PATCH", "/api/garments/abc", 405, "GET, DELETE", "use GET or DELETE"),
+    ("GET", "/api/nope", 404, None, "no API route GET /api/nope"),
+    ("GET", "/api/garments/abc", 404, None, "no garment with id 'abc'"),  # a route's own 404 is kept
+])
+def test_wrong_method_or_path_under_api_is_named(settings: Settings, method, path, status, allow, words):
+    with TestClient(create_app(settings)) as client:
+        r = client.request(method, path)
+    assert r.status_code == status and r.headers.get("allow") == allow
+    assert words in r.json()["detail"]
+
+
 @pytest.mark.e2e
 def test_real_server_health_page_and_three(live_server: str):
     health = httpx.get(f"{live_server}/api/health", timeout=5)

@@ -3,7 +3,9 @@
 FastAPI's default 422 handler echoes each bad input back; a NaN or an infinity in the request (Python's
 ``json`` reads ``NaN``, ``Infinity`` and ``1e400``) then cannot be written as JSON and the client gets a
 500 instead of the 422. These handlers write such numbers as strings, cut long echoed inputs short, and
-say in words what is wrong with a body that is not JSON.
+say in words what is wrong with a body that is not JSON. An ``/api/`` request that no route takes (the
+page's static files, mounted at ``/``, would answer a bare 404, or a 405 allowing GET) gets a 405 with the
+methods the path does take, or a 404 naming the path.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from starlette.routing import Match, Mount
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 # characters of a bad input echoed back in a 422 (a 60 MB string field is not sent back whole)
@@ -70,7 +73,8 @@ async def validation_error(request: Request, exc: RequestValidationError) -> JSO
 
 
 async def http_error(request: Request, exc: StarletteHTTPException):
-    """FastAPI's "There was an error parsing the body" (400) with the reason; everything else as usual."""
+    """FastAPI's "There was an error parsing the body" (400) with the reason, unrouted ``/api/`` requests
+    in words (``_no_api_route``); everything else as usual."""
     if exc.status_code == 400 and exc.detail == _FASTAPI_PARSE_ERROR:
         cause = exc.__cause__
         if isinstance(cause, UnicodeDecodeError):
@@ -82,7 +86,37 @@ async def http_error(request: Request, exc: StarletteHTTPException):
         else:
             reason = f"{type(cause).__name__}: {cause}" if cause is not None else "unknown reason"
         return JSONResponse({"detail": f"could not read the request body as JSON: {reason}"}, status_code=400)
+    if exc.status_code in (404, 405) and request.url.path.startswith("/api/") and _unrouted(request):
+        return _no_api_route(request)
     return await http_exception_handler(request, exc)
+
+
+# methods an API route may answer, tried in turn to tell a wrong method (405) from a wrong path (404)
+_METHODS = ("GET", "POST", "PUT", "PATCH", "DELETE")
+
+
+def _api_methods(request: Request) -> list[str]:
+    """Methods some API route answers on the request's path."""
+    routes = [r for r in request.app.routes if not isinstance(r, Mount)]
+    return [m for m in _METHODS
+            if any(r.matches({**request.scope, "method": m})[0] == Match.FULL for r in routes)]
+
+
+def _unrouted(request: Request) -> bool:
+    """True when no API route took the request: the page's static files (mounted at /) answered it."""
+    return not any(r.matches(request.scope)[0] == Match.FULL for r in request.app.routes if not isinstance(r, Mount))
+
+
+def _no_api_route(request: Request) -> JSONResponse:
+    """An /api/ request no route takes (the static files at / would answer a bare 404 or a 405 allowing
+    GET): 405 with ``Allow`` when the path exists for other methods (``GET /api/tryon``), else 404."""
+    allowed = _api_methods(request)
+    if allowed:
+        return JSONResponse({"detail": f"{request.method} is not allowed on {request.url.path}: use "
+                                       f"{' or '.join(allowed)} (see /api/docs)"},
+                            status_code=405, headers={"Allow": ", ".join(allowed)})
+    return JSONResponse({"detail": f"no API route {request.method} {request.url.path} (see /api/docs)"},
+                        status_code=404)
 
 
 def install(app: FastAPI) -> None:

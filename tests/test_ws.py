@@ -19,7 +19,7 @@ import pytest
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
-from conftest import serve_process
+from conftest import ADMIN_TOKEN, serve_process
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.generate import garment_mesh, obj_text
 
@@ -257,6 +257,8 @@ def test_overload_is_refused_at_once_and_health_stays_fast(live: Live):
         refused = run_stream(live, {**live.request(SHORT, chest=102.0), "fps": 30}, timeout_s=10)
         assert time.monotonic() - t0 < 1.0
         assert refused.close_code == 1013 and "busy" in refused.error["reason"]
+        unknown = run_stream(live, {"garment_id": "nope", "measurements": BODY}, timeout_s=10)
+        assert unknown.close_code == 1000 and "no garment with id 'nope'" in unknown.error["reason"]  # not "busy"
         r = httpx.post(f"{live.url}/api/tryon", json=live.request(SHORT, chest=102.0), timeout=10)
         assert r.status_code == 503 and int(r.headers["Retry-After"]) > 0
 
@@ -270,6 +272,21 @@ def test_overload_is_refused_at_once_and_health_stays_fast(live: Live):
         # a few tens of milliseconds while a simulation runs (2 shared cores: some slack on the worst one)
         assert statistics.median(latencies) < 0.05 and max(latencies) < 0.25, latencies
     live.wait_idle(timeout_s=3)
+
+
+def test_a_deleted_garment_is_not_served_from_the_result_cache(live: Live):
+    live.wait_idle()
+    auth = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
+    source = obj_text(garment_mesh("skirt", "S"), "skirt").encode()
+    r = httpx.post(f"{live.url}/api/garments", headers=auth, files={"file": ("skirt-s.obj", source)},
+                   data={"name": "Skirt to delete", "category": "bottom", "units": "m"}, timeout=60)
+    assert r.status_code in (200, 201), r.text
+    request = {"garment_id": r.json()["id"], "measurements": BODY, "settings": {"max_steps": 5}}
+    assert run_stream(live, request).done is not None
+    assert run_stream(live, request).done["cached"] is True
+    assert httpx.delete(f"{live.url}/api/garments/{request['garment_id']}", headers=auth).status_code == 204
+    s = run_stream(live, request, timeout_s=10)
+    assert s.done is None and s.init is None and "no garment with id" in s.error["reason"]
 
 
 def test_wall_clock_limit_stops_a_long_simulation_and_says_so(live: Live):

@@ -458,6 +458,12 @@ async def _serve(ws: WebSocket) -> None:
         await _send_error(ws, validation_reason(e))
         return
 
+    # an unknown (or deleted) garment: said at once, before the result cache (which may still hold a
+    # deleted garment's try-on) and without taking a pool slot (a busy server would answer "busy")
+    if get_catalogue(ws).get(request.garment_id) is None:
+        await _send_error(ws, failure_reason(KeyError(request.garment_id), request))
+        return
+
     cache = get_result_cache(app)
     key = tryon_key(request)
     cached = cache.get(key)

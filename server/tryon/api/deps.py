@@ -1,10 +1,11 @@
-"""Shared FastAPI dependencies (``Annotated`` aliases): settings, the catalogue, the admin check."""
+"""Shared FastAPI dependencies (``Annotated`` aliases): settings, the catalogue, the admin check; and
+``app_state``, the one way an app's shared objects are made on first use."""
 
 from __future__ import annotations
 
 import secrets
 import threading
-from typing import Annotated
+from typing import Annotated, Any, Callable, TypeVar
 
 from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
@@ -12,7 +13,23 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from tryon.config import Settings
 from tryon.garment.catalogue import Catalogue
 
-_catalogue_lock = threading.Lock()
+T = TypeVar("T")
+
+# Guards the first creation of an app's shared objects (catalogue, pool, result cache); re-entrant so
+# that one factory may ask for another.
+_state_lock = threading.RLock()
+
+
+def app_state(app: Any, name: str, create: Callable[[], T]) -> T:
+    """``app.state.<name>``, made by ``create()`` on first use (once, even with concurrent requests)."""
+    value = getattr(app.state, name, None)
+    if value is None:
+        with _state_lock:
+            value = getattr(app.state, name, None)
+            if value is None:
+                value = create()
+                setattr(app.state, name, value)
+    return value
 
 
 def get_settings(request: Request) -> Settings:
@@ -25,15 +42,8 @@ SettingsDep = Annotated[Settings, Depends(get_settings)]
 
 def get_catalogue(request: Request) -> Catalogue:
     """The one Catalogue of this app, opened on first use over ``settings.data_dir``."""
-    state = request.app.state
-    catalogue = getattr(state, "catalogue", None)
-    if catalogue is None:
-        with _catalogue_lock:
-            catalogue = getattr(state, "catalogue", None)
-            if catalogue is None:
-                catalogue = Catalogue(state.settings.data_dir)
-                state.catalogue = catalogue
-    return catalogue
+    app = request.app
+    return app_state(app, "catalogue", lambda: Catalogue(app.state.settings.data_dir))
 
 
 CatalogueDep = Annotated[Catalogue, Depends(get_catalogue)]

@@ -30,6 +30,8 @@ from typing import Any
 
 import numpy as np
 
+from tryon.api.deps import app_state
+
 # Seconds a refused client is told to wait (Retry-After): about one typical drape on this hardware.
 RETRY_AFTER_S = 5
 
@@ -263,32 +265,15 @@ class ResultCache:
 
 
 # -- the app's pool ----------------------------------------------------------------------------
-_create_lock = threading.Lock()
-
-
 def get_pool(app: Any) -> SimPool:
     """The app's :class:`SimPool`, created on first use from ``app.state.settings``."""
-    pool = getattr(app.state, "sim_pool", None)
-    if pool is None:
-        with _create_lock:
-            pool = getattr(app.state, "sim_pool", None)
-            if pool is None:
-                s = app.state.settings
-                pool = SimPool(s.sim_workers, s.sim_queue, s.sim_wall_limit_s)
-                app.state.sim_pool = pool
-    return pool
+    s = app.state.settings
+    return app_state(app, "sim_pool", lambda: SimPool(s.sim_workers, s.sim_queue, s.sim_wall_limit_s))
 
 
 def get_result_cache(app: Any) -> ResultCache:
     """The app's :class:`ResultCache`, created on first use (``settings.result_cache_size`` entries)."""
-    cache = getattr(app.state, "result_cache", None)
-    if cache is None:
-        with _create_lock:
-            cache = getattr(app.state, "result_cache", None)
-            if cache is None:
-                cache = ResultCache(app.state.settings.result_cache_size)
-                app.state.result_cache = cache
-    return cache
+    return app_state(app, "result_cache", lambda: ResultCache(app.state.settings.result_cache_size))
 
 
 def busy_response_headers(error: PoolFull) -> dict[str, str]:

@@ -8,7 +8,7 @@ from fastapi import APIRouter, File, Form, HTTPException, Query, Response, Uploa
 from fastapi.concurrency import run_in_threadpool
 
 from tryon.api.deps import AdminDep, CatalogueDep, SettingsDep
-from tryon.api.export import MEDIA_TYPES, mesh_bytes, mesh_json
+from tryon.api.export import MEDIA_TYPES, json_bytes, mesh_bytes, mesh_json
 from tryon.api.schemas.garments import Category, GarmentEntry, GarmentList, MeshFormat, Units
 from tryon.garment.ingest import GarmentError, file_extension
 from tryon.garment.prepare import DEFAULT_SIMPLIFICATION
@@ -53,16 +53,10 @@ async def garment_mesh(
     else:
         vertices, faces = model.coarse_vertices, model.coarse_faces
     if format == "json":
-        return Response(content=_json_bytes(mesh_json(vertices, faces)), media_type=MEDIA_TYPES["json"])
+        return Response(content=json_bytes(mesh_json(vertices, faces)), media_type=MEDIA_TYPES["json"])
     data = await run_in_threadpool(mesh_bytes, vertices, faces, format)
     return Response(content=data, media_type=MEDIA_TYPES[format],
                     headers={"Content-Disposition": f'inline; filename="{garment_id}.{format}"'})
-
-
-def _json_bytes(obj: dict) -> bytes:
-    import json
-
-    return json.dumps(obj, separators=(",", ":")).encode()
 
 
 @router.post("/garments", response_model=GarmentEntry, status_code=status.HTTP_201_CREATED,

@@ -51,6 +51,7 @@ from pydantic import Field, ValidationError
 from starlette.websockets import WebSocketState
 
 from tryon.api.deps import get_catalogue
+from tryon.api.export import json_bytes, mesh_arrays
 from tryon.api.pool import CachedTryOn, PoolFull, RunCancelled, RunGuard, get_pool, get_result_cache, tryon_key
 from tryon.api.routes.tryon import prepare_tryon, result_json
 from tryon.api.schemas.tryon import TryOnRequest
@@ -59,11 +60,6 @@ from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
 from tryon.sim.run import TryOnResult, drape
 from tryon.sim.settings import SimSettings
-
-try:  # optional: faster JSON for the init message
-    import orjson
-except ImportError:  # pragma: no cover - the standard library does the same, slower
-    orjson = None
 
 router = APIRouter(tags=["ws"])
 log = logging.getLogger(__name__)
@@ -178,21 +174,6 @@ class LiveTryOnRequest(TryOnRequest):
                                "body (half the bytes, ~0.04 mm steps)")
 
 
-def dumps(message: dict) -> str:
-    """Compact JSON text of a message whose arrays may be numpy arrays (orjson when installed: ~10x
-    faster on the init message's two meshes)."""
-    if orjson is not None:
-        return orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY).decode()
-    return json.dumps(message, separators=(",", ":"),
-                      default=lambda o: o.tolist() if isinstance(o, np.ndarray) else o.item())
-
-
-def mesh_arrays(vertices: np.ndarray, faces: np.ndarray, decimals: int = 4) -> dict:
-    """SPEC's JSON mesh as arrays for :func:`dumps` (metres rounded to ``decimals``: 0.1 mm at 4)."""
-    return {"vertices": np.round(np.asarray(vertices, np.float64), decimals),
-            "faces": np.ascontiguousarray(faces, dtype=np.int32)}
-
-
 def init_message(body: Body, model: GarmentModel, sim_settings: SimSettings) -> dict:
     """The init message without its ``encoding`` (see :func:`with_encoding`): topology, the body, the
     garment's catalogue facts, the run's settings."""
@@ -237,7 +218,7 @@ def run_live(catalogue: Catalogue, request: LiveTryOnRequest, session: LiveSessi
     # serialised here, on the worker: the init message carries two meshes (~0.5 MB of JSON), too much
     # work for the event loop
     box = np.stack([body.vertices.min(axis=0), body.vertices.max(axis=0)])
-    session.offer_init(dumps(init_message(body, model, sim_settings)), model,
+    session.offer_init(json_bytes(init_message(body, model, sim_settings)).decode(), model,
                        FrameCodec.around(request.encoding, box), box)
     result = drape(body, model, sim_settings, guard)
     return result, done_message(result, guard)

@@ -92,6 +92,9 @@ M = '{"height": 170, "chest": 100, "waist": 90, "hips": 100}'
     ("/api/bodies", '{"measurements": ', "application/json", 422, "not valid JSON at offset 17"),
     ("/api/bodies", b"\xff\xfe{", "application/json", 400, "not UTF-8"),
     ("/api/bodies", "[" * 100_000 + "]" * 100_000, "application/json", 400, "nested too deeply"),
+    # deep enough for the echo of the bad input to exhaust the stack (was a 500), not for the JSON reader
+    ("/api/bodies", '{"measurements": {"height": %s170%s}}' % ("[" * 500, "]" * 500), "application/json", 422,
+     "valid number"),
 ])
 def test_unreadable_requests_get_a_reason(settings: Settings, path, text, content_type, status, words):
     with TestClient(create_app(settings)) as client:

@@ -23,13 +23,19 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 # characters of a bad input echoed back in a 422 (a 60 MB string field is not sent back whole)
 ECHO_MAX_CHARS = 200
+# items of an echoed list, and levels of nesting, past which the echo is cut (same reason)
+ECHO_MAX_ITEMS = 50
+ECHO_MAX_DEPTH = 12
 # FastAPI's own words for a body it could not read (not JSON-decodable for another reason than syntax)
 _FASTAPI_PARSE_ERROR = "There was an error parsing the body"
 
 
-def json_safe(value: Any) -> Any:
+def json_safe(value: Any, depth: int = 0) -> Any:
     """``value`` with non-finite floats as the strings ``"NaN"``, ``"Infinity"``, ``"-Infinity"``, long
-    strings and bytes cut to ``ECHO_MAX_CHARS``, exceptions as their message (recursively)."""
+    strings and bytes cut to ``ECHO_MAX_CHARS``, lists to ``ECHO_MAX_ITEMS``, anything nested deeper than
+    ``ECHO_MAX_DEPTH`` as ``"..."`` (a 500-deep list would exhaust the stack), exceptions as their message."""
+    if depth > ECHO_MAX_DEPTH:
+        return "..."
     if isinstance(value, float) and not math.isfinite(value):
         return "NaN" if math.isnan(value) else ("Infinity" if value > 0 else "-Infinity")
     if isinstance(value, (bytes, bytearray)):
@@ -37,14 +43,15 @@ def json_safe(value: Any) -> Any:
     if isinstance(value, str):
         return value if len(value) <= ECHO_MAX_CHARS else value[:ECHO_MAX_CHARS] + f"... ({len(value):,} characters)"
     if isinstance(value, dict):
-        return {str(k): json_safe(v) for k, v in value.items()}
+        return {str(k): json_safe(v, depth + 1) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [json_safe(v) for v in value]
+        items = [json_safe(v, depth + 1) for v in value[:ECHO_MAX_ITEMS]]
+        return items + ([f"... ({len(value):,} items)"] if len(value) > ECHO_MAX_ITEMS else [])
     if isinstance(value, BaseException):
         return str(value)
     if value is None or isinstance(value, (bool, int, float)):
         return value
-    return json_safe(str(value))
+    return json_safe(str(value), depth)
 
 
 def _is_json(content_type: str | None) -> bool:

@@ -75,6 +75,12 @@ def test_shorts_stay_on_the_hips(catalogue, body):
     top = result.vertices[:, 1].max()
     assert body.levels["hips"] < top < body.levels["waist"] + 0.03  # held between the hips and the waist
     assert m["max_strain"] < 1.0  # a tight band is stretched, never torn
+    # the band's springs on the hips get extra passes (run.CONTACT_PASSES): the shorts rest where their
+    # band is within ~10 % of its limit instead of sliding down until it is 30 % over (measured 0.19;
+    # 0.32 before); a few springs over the target remain where the band is tight on the hips
+    assert m["max_strain"] < 0.25, m["strain_by_kind"]
+    n_springs = len(model.springs)
+    assert sum(k["over"] for k in m["strain_by_kind"].values()) <= 0.01 * n_springs, m["strain_by_kind"]
 
 
 def test_paper_push_and_pin_start_without_growth(catalogue, body):

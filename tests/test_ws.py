@@ -228,6 +228,7 @@ def test_client_leaving_half_way_stops_the_simulation(live: Live):
 @pytest.mark.parametrize("message, words", [
     ("{not json", "not valid JSON"),
     ("[1, 2, 3]", "JSON object"),
+    ("[" * 100_000 + "]" * 100_000, "nested too deeply"),  # was "internal error (RecursionError)"
     (b"\x00\x01", "binary"),
     ({"garment_id": "x", "measurements": {**BODY, "height": 500}}, "height"),
     ({"measurements": BODY}, "garment_id"),

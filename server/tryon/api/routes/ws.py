@@ -430,6 +430,9 @@ async def _serve(ws: WebSocket) -> None:
     except json.JSONDecodeError as e:
         await _send_error(ws, f"the request is not valid JSON: {e.msg} at line {e.lineno} column {e.colno}")
         return
+    except RecursionError:
+        await _send_error(ws, "the request is not usable JSON: it is nested too deeply")
+        return
     if not isinstance(payload, dict):
         await _send_error(ws, "the request must be a JSON object with garment_id, measurements, pose, settings")
         return

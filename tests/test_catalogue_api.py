@@ -118,6 +118,7 @@ BAD_UPLOADS = [
     ("sub path", dict(filename="a/b.obj"), 400, "directory"),
     ("bad category", dict(category="hat"), 422, "category"),
     ("bad units", dict(units="furlong"), 422, "units"),
+    ("blank name", dict(name="   "), 422, "name: must not be blank"),
     ("simplify not a number", dict(simplify="abc"), 422, "simplify"),
     ("simplify NaN", dict(simplify="nan"), 422, "simplify.*finite"),
     ("simplify infinite", dict(simplify="inf"), 422, "simplify.*finite"),

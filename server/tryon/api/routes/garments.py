@@ -77,6 +77,9 @@ async def upload_garment(
 ) -> GarmentEntry:
     """Prepare an uploaded garment into the catalogue (admin). 201 with the new entry; 200 with the
     existing one if the same file was already ingested with the same parameters."""
+    name, size = name.strip(), (size or "").strip() or None
+    if not name:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_ENTITY, "name: must not be blank")
     filename = file.filename or ""
     try:
         file_extension(filename)
@@ -90,7 +93,7 @@ async def upload_garment(
                                 f"file: larger than the limit of {settings.max_upload_bytes:,} bytes")
     try:
         meta, created = await run_in_threadpool(
-            catalogue.ingest_with_status, bytes(data), name, category, units, simplify, size or None, filename,
+            catalogue.ingest_with_status, bytes(data), name, category, units, simplify, size, filename,
             max_faces=settings.max_faces,
         )
     except GarmentError as exc:

@@ -10,7 +10,7 @@ import trimesh
 from scipy.spatial import ConvexHull
 
 from tryon.body import nurbs
-from tryon.body.build import DEFAULT_RESOLUTION, build_body, grid
+from tryon.body.build import DEFAULT_RESOLUTION, build_body
 from tryon.body.kernels import hull_perimeter_2d
 from tryon.body.params import (
     MEASUREMENT_RANGES,

@@ -7,7 +7,7 @@ import pytest
 
 from tryon.sim.bodystate import BodyCollider
 from tryon.sim.constraints import (
-    limit_stretch_downward, satisfy_springs, satisfy_springs_numpy, spring_strain, top_down_order,
+    limit_stretch_downward, pack_springs, satisfy_springs, satisfy_springs_numpy, spring_strain, top_down_order,
 )
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.run import drape
@@ -60,11 +60,11 @@ def test_pinned_points_stay():
     w[pinned] = 0.0
     springs = model.springs.astype(np.int64)
     kind = model.kind.astype(np.int64)
+    ends, table = pack_springs(springs, model.rest, kind, LIMITS, COMPRESSION)
     for _ in range(50):
         verlet_step(x, x_prev, w, 0.02, 9.81, 1.0, 10.0)
-        satisfy_springs(x, w, springs, model.rest, kind, LIMITS, COMPRESSION, 8)
-        limit_stretch_downward(x, x_prev, w, springs, model.rest, kind, LIMITS, top_down_order(x, springs),
-                               np.zeros(len(x), dtype=bool))
+        satisfy_springs(x, w, ends, table, 8)
+        limit_stretch_downward(x, x_prev, w, ends, table, top_down_order(x, springs), np.zeros(len(x), dtype=bool))
     assert np.array_equal(x[pinned], model.coarse_vertices[pinned])
     assert x[5, 1] < 0.9  # the rest fell
 
@@ -75,7 +75,7 @@ def test_springs_within_limits_after_the_passes():
     x = model.coarse_vertices + rng.normal(scale=0.02, size=(len(model.mass), 3))
     springs = model.springs.astype(np.int64)
     kind = model.kind.astype(np.int64)
-    satisfy_springs(x, np.ones(len(x)), springs, model.rest, kind, LIMITS, COMPRESSION, 300)
+    satisfy_springs(x, np.ones(len(x)), *pack_springs(springs, model.rest, kind, LIMITS, COMPRESSION), 300)
     strain = spring_strain(x, springs, model.rest)
     assert np.all(strain <= LIMITS[kind] + 1e-3)
     structural_or_shear = kind < 2
@@ -92,7 +92,7 @@ def test_numba_passes_match_the_numpy_oracle():
     kind = model.kind.astype(np.int64)
     expected = satisfy_springs_numpy(x, w, springs, model.rest, kind, LIMITS, COMPRESSION, 3)
     got = x.copy()
-    satisfy_springs(got, w, springs, model.rest, kind, LIMITS, COMPRESSION, 3)
+    satisfy_springs(got, w, *pack_springs(springs, model.rest, kind, LIMITS, COMPRESSION), 3)
     assert np.allclose(got, expected, atol=1e-12)
 
 
@@ -106,11 +106,11 @@ def test_hanging_cloth_keeps_its_strain_limit():
     w[x[:, 1] > x[:, 1].max() - 1e-6] = 0.0
     springs = model.springs.astype(np.int64)
     kind = model.kind.astype(np.int64)
+    ends, table = pack_springs(springs, model.rest, kind, LIMITS, COMPRESSION)
     for step in range(200):
         verlet_step(x, x_prev, w, 0.02, 9.81, 1.0, 10.0)
-        satisfy_springs(x, w, springs, model.rest, kind, LIMITS, COMPRESSION, 4)
-        limit_stretch_downward(x, x_prev, w, springs, model.rest, kind, LIMITS, top_down_order(x, springs),
-                               np.zeros(len(x), dtype=bool))
+        satisfy_springs(x, w, ends, table, 4)
+        limit_stretch_downward(x, x_prev, w, ends, table, top_down_order(x, springs), np.zeros(len(x), dtype=bool))
     strain = spring_strain(x, springs, model.rest)
     assert np.all(strain <= 1.01 * (1 + LIMITS[kind]) - 1)
     assert x[:, 1].min() < 0.45  # it hangs (1 m cloth, 10 % stretch at most)

@@ -89,79 +89,6 @@ def apply_friction(x, x_prev, has_plane, plane_normal, push, mu_static, mu_kinet
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def solve_constraints(x, x_prev, inv_mass, springs, rest, kind, limit, compression, passes, has_plane,
-                      plane_point, plane_normal, mu_static, mu_kinetic, push, relax=1.0):
-    """``passes`` Gauss-Seidel passes over the springs (``satisfy_springs``), each followed by the contact
-    planes (``project_planes``), in place.
-
-    Contacts found once per step (the expensive map query) become planes that every pass respects, so
-    springs and contacts converge together instead of undoing each other's work (the way position-based
-    solvers such as NVIDIA Flex handle contacts).
-    """
-    for sweep in range(passes):
-        _spring_pass(x, inv_mass, springs, rest, kind, limit, compression, sweep % 2 == 1, relax)
-        project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic, push)
-
-
-@njit(cache=True, nogil=True, fastmath=True)
-def _spring_pass(x, inv_mass, springs, rest, kind, limit, compression, backward, relax=1.0):
-    n_springs = springs.shape[0]
-    for q in range(n_springs):
-        s = n_springs - 1 - q if backward else q
-        i = springs[s, 0]
-        j = springs[s, 1]
-        wi = inv_mass[i]
-        wj = inv_mass[j]
-        wsum = wi + wj
-        if wsum == 0.0:
-            continue
-        dx = x[i, 0] - x[j, 0]
-        dy = x[i, 1] - x[j, 1]
-        dz = x[i, 2] - x[j, 2]
-        d = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if d < 1e-12:
-            continue
-        k = kind[s]
-        l0 = rest[s]
-        lmax = l0 * (1.0 + limit[k])
-        if d > lmax:
-            excess = d - lmax
-        elif d < l0:
-            excess = (d - l0) * compression[k]
-        else:
-            continue
-        f = relax * excess / (d * wsum)
-        x[i, 0] -= wi * f * dx
-        x[i, 1] -= wi * f * dy
-        x[i, 2] -= wi * f * dz
-        x[j, 0] += wj * f * dx
-        x[j, 1] += wj * f * dy
-        x[j, 2] += wj * f * dz
-
-
-@njit(cache=True, nogil=True, fastmath=True)
-def satisfy_springs(x, inv_mass, springs, rest, kind, limit, compression, passes):
-    """Project every spring onto its allowed length range, ``passes`` times, in place.
-
-    x (k, 3) m; inv_mass (k,) 1/kg (0 = pinned, never moved); springs (s, 2) int32; rest (s,) m;
-    kind (s,) int8; limit (3,) maximum strain per kind (l_max = rest (1 + limit)); compression (3,)
-    fraction of the shortfall below the natural length corrected per pass, per kind.
-
-    Eq. 3: V = (p_i - p_j) / |p_i - p_j| (|p_i - p_j| - l_target); p_i -= w_i / (w_i + w_j) V;
-    p_j += w_j / (w_i + w_j) V, with l_target = l_max when the spring is too long, and rest (scaled by
-    ``compression``) when it is too short.
-
-    Serial Gauss-Seidel in spring order, forward on even passes and backward on odd ones (symmetric
-    Gauss-Seidel): a correction travels the whole length of a chain in one pass in the direction of the
-    sweep, so alternating lets hanging cloth feel its support within two passes whichever end that
-    is. No races: one thread owns the whole loop (parallelism comes from running several try-ons at
-    once, each kernel releasing the GIL).
-    """
-    for sweep in range(passes):
-        _spring_pass(x, inv_mass, springs, rest, kind, limit, compression, sweep % 2 == 1)
-
-
-@njit(cache=True, nogil=True, fastmath=True)
 def spring_lengths(x, springs):
     """Length of every spring, (s,) float64, m."""
     out = np.empty(springs.shape[0])
@@ -219,67 +146,6 @@ def satisfy_springs_numpy(x, inv_mass, springs, rest, kind, limit, compression, 
 STEEP = 0.5
 
 
-@njit(cache=True, nogil=True, fastmath=True)
-def limit_stretch_downward(x, x_prev, inv_mass, springs, rest, kind, limit, order, touching):
-    """One sweep of the stretch limits in ``order`` (springs sorted from the top down), moving only the
-    lower end of each too-long steep spring (the upper one if the lower is pinned), in place (in the
-    spirit of follow-the-leader, Mueller et al. 2012): straight up, never above where it started the
-    substep (a guard against sagging, not a lifter), leaving it no upward velocity (x_prev (k, 3)). Only a free lower end follows: where it touches the body
-    (``touching`` (k,) bool, e.g. a sleeve around an arm) the cloth does not hang, and pulling it up
-    would ratchet a tight garment up the body; such springs are split by inverse mass.
-
-    Garments hang from their top (shoulders, waist): corrected from the support down, each correction
-    sees an already corrected upper end, so a hanging chain of any length is within its limits after
-    one sweep, where mass-weighted Gauss-Seidel needs a number of passes that grows with the square of
-    its length (a sagging, over-stretched hem). Only stretch is limited here (compression is the
-    symmetric passes' job). No races: serial.
-    """
-    for q in range(order.shape[0]):
-        s = order[q]
-        i = springs[s, 0]
-        j = springs[s, 1]
-        if x[i, 1] < x[j, 1]:
-            i, j = j, i  # i is the upper end
-        if inv_mass[j] == 0.0:
-            if inv_mass[i] == 0.0:
-                continue
-            i, j = j, i
-        dx = x[j, 0] - x[i, 0]
-        dy = x[j, 1] - x[i, 1]
-        dz = x[j, 2] - x[i, 2]
-        d = math.sqrt(dx * dx + dy * dy + dz * dz)
-        lmax = rest[s] * (1.0 + limit[kind[s]])
-        if d <= lmax or d < 1e-12:
-            continue
-        f = (d - lmax) / d
-        if abs(dy) >= STEEP * d and not touching[j]:
-            # a steep spring: the lower end is lifted straight up until the spring is back at its limit,
-            # but only as far as it fell during this substep. The move is not momentum-conserving: it
-            # may stop a hanging end from sagging further but must never lift it (the garment would
-            # ratchet up the body whenever something else, such as the chest pushing the cloth out,
-            # stretches a steep spring), and it is vertical so that it cannot push a hanging panel
-            # sideways (which, repeated, keeps a loose panel swinging)
-            lift = (d - lmax) * d / abs(dy)
-            fell = x_prev[j, 1] - x[j, 1]
-            lift = min(lift, max(fell, 0.0))
-            x[j, 1] += lift
-            if x[j, 1] > x_prev[j, 1]:
-                x_prev[j, 1] = x[j, 1]  # no upward velocity from it (inelastic)
-        else:
-            # a flat one has no up or down: split by inverse mass, as in eq. 3
-            wi = inv_mass[i]
-            wj = inv_mass[j]
-            wsum = wi + wj
-            a = wi / wsum * f
-            b = wj / wsum * f
-            x[i, 0] += a * dx
-            x[i, 1] += a * dy
-            x[i, 2] += a * dz
-            x[j, 0] -= b * dx
-            x[j, 1] -= b * dy
-            x[j, 2] -= b * dz
-
-
 def top_down_order(x: np.ndarray, springs: np.ndarray, steep_only: bool = True) -> np.ndarray:
     """Spring indices (q,) int64 sorted by the height of their upper end, highest first; with
     ``steep_only`` only the springs steeper than STEEP / 2 now (the sweep's flat springs are the
@@ -330,7 +196,7 @@ def cap_stretch(x, inv_mass, springs, rest, cap, max_passes):
     return max_passes
 
 
-# --- packed variants: the loop's hot kernels read one row per spring -------------------------------------
+# --- springs packed one row each: what the loop's passes and sweep read --------------------------------
 
 def pack_springs(springs: np.ndarray, rest: np.ndarray, kind: np.ndarray, limit: np.ndarray,
                  compression: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -348,8 +214,8 @@ def pack_springs(springs: np.ndarray, rest: np.ndarray, kind: np.ndarray, limit:
 
 
 @njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
-def _spring_pass_packed(x, inv_mass, ends, table, backward, relax):
-    """One Gauss-Seidel pass of :func:`_spring_pass` over packed springs (``pack_springs``), in place."""
+def _spring_pass(x, inv_mass, ends, table, backward, relax):
+    """One Gauss-Seidel pass over packed springs (``pack_springs``), forward or backward, in place."""
     n_springs = ends.shape[0]
     for q in range(n_springs):
         s = n_springs - 1 - q if backward else q
@@ -384,17 +250,57 @@ def _spring_pass_packed(x, inv_mass, ends, table, backward, relax):
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def solve_constraints_packed(x, x_prev, inv_mass, ends, table, passes, has_plane, plane_point, plane_normal,
-                             mu_static, mu_kinetic, push, relax=1.0):
-    """:func:`solve_constraints` over packed springs (``pack_springs``)."""
+def solve_constraints(x, x_prev, inv_mass, ends, table, passes, has_plane, plane_point, plane_normal,
+                      mu_static, mu_kinetic, push, relax=1.0):
+    """``passes`` Gauss-Seidel passes over the springs (``satisfy_springs``), each followed by the contact
+    planes (``project_planes``), in place.
+
+    Contacts found once per step (the expensive map query) become planes that every pass respects, so
+    springs and contacts converge together instead of undoing each other's work (the way position-based
+    solvers such as NVIDIA Flex handle contacts).
+    """
     for sweep in range(passes):
-        _spring_pass_packed(x, inv_mass, ends, table, sweep % 2 == 1, relax)
+        _spring_pass(x, inv_mass, ends, table, sweep % 2 == 1, relax)
         project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic, push)
 
 
+@njit(cache=True, nogil=True, fastmath=True)
+def satisfy_springs(x, inv_mass, ends, table, passes):
+    """Project every spring onto its allowed length range, ``passes`` times, in place.
+
+    x (k, 3) m; inv_mass (k,) 1/kg (0 = pinned, never moved); ends (s, 2) int32 and table (s, 4) from
+    ``pack_springs`` (l_max = rest (1 + limit of its kind); compression: the fraction of the shortfall
+    below the natural length corrected per pass).
+
+    Eq. 3: V = (p_i - p_j) / |p_i - p_j| (|p_i - p_j| - l_target); p_i -= w_i / (w_i + w_j) V;
+    p_j += w_j / (w_i + w_j) V, with l_target = l_max when the spring is too long, and rest (scaled by
+    ``compression``) when it is too short.
+
+    Serial Gauss-Seidel in spring order, forward on even passes and backward on odd ones (symmetric
+    Gauss-Seidel): a correction travels the whole length of a chain in one pass in the direction of the
+    sweep, so alternating lets hanging cloth feel its support within two passes whichever end that
+    is. No races: one thread owns the whole loop (parallelism comes from running several try-ons at
+    once, each kernel releasing the GIL).
+    """
+    for sweep in range(passes):
+        _spring_pass(x, inv_mass, ends, table, sweep % 2 == 1, 1.0)
+
+
 @njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
-def limit_stretch_downward_packed(x, x_prev, inv_mass, ends, table, order, touching):
-    """:func:`limit_stretch_downward` over packed springs (``pack_springs``), same moves."""
+def limit_stretch_downward(x, x_prev, inv_mass, ends, table, order, touching):
+    """One sweep of the stretch limits in ``order`` (springs sorted from the top down), moving only the
+    lower end of each too-long steep spring (the upper one if the lower is pinned), in place (in the
+    spirit of follow-the-leader, Mueller et al. 2012): straight up, never above where it started the
+    substep (a guard against sagging, not a lifter), leaving it no upward velocity (x_prev (k, 3)). Only a free lower end follows: where it touches the body
+    (``touching`` (k,) bool, e.g. a sleeve around an arm) the cloth does not hang, and pulling it up
+    would ratchet a tight garment up the body; such springs are split by inverse mass.
+
+    Garments hang from their top (shoulders, waist): corrected from the support down, each correction
+    sees an already corrected upper end, so a hanging chain of any length is within its limits after
+    one sweep, where mass-weighted Gauss-Seidel needs a number of passes that grows with the square of
+    its length (a sagging, over-stretched hem). Only stretch is limited here (compression is the
+    symmetric passes' job). No races: serial.
+    """
     for q in range(order.shape[0]):
         s = order[q]
         i = ends[s, 0]

@@ -46,7 +46,7 @@ def fine_garment(data_dir: Path, kind: str = "tshirt", size: str = "M", spacing:
 class _Timer:
     """Wraps the kernels the loop calls (module globals of ``run``) and sums their wall time."""
 
-    NAMES = ("verlet_step", "solve_constraints_packed", "limit_stretch_downward_packed", "project_planes", "apply_friction",
+    NAMES = ("verlet_step", "solve_constraints", "limit_stretch_downward", "project_planes", "apply_friction",
              "reuse_planes", "cap_stretch", "kinetic_energy_per_kg")
 
     def __init__(self):

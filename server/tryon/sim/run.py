@@ -61,7 +61,7 @@ from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import relevant_parts, reuse_planes
 from tryon.sim.constraints import (
-    apply_friction, cap_stretch, limit_stretch_downward_packed, pack_springs, project_planes, solve_constraints_packed,
+    apply_friction, cap_stretch, limit_stretch_downward, pack_springs, project_planes, solve_constraints,
     spring_lengths, top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, kinetic_energy_per_kg, verlet_step
@@ -282,16 +282,16 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                     body_ends = np.ascontiguousarray(ends[on_body])
                     body_table = np.ascontiguousarray(table[on_body])
                     body_table[:, 2] = 0.0  # stretch only: cloth pressed on the body must still be free to buckle
-            solve_constraints_packed(x, x_prev, w_eff, ends, table, per_sub, *planes, 0.0, 0.0, push)
+            solve_constraints(x, x_prev, w_eff, ends, table, per_sub, *planes, 0.0, 0.0, push)
             if CONTACT_PASSES and not changing:
-                solve_constraints_packed(x, x_prev, w_eff, body_ends, body_table, CONTACT_PASSES, *planes, 0.0, 0.0,
+                solve_constraints(x, x_prev, w_eff, body_ends, body_table, CONTACT_PASSES, *planes, 0.0, 0.0,
                                          push)
             if step % ORDER_REFRESH == 1 and sub == 0:
                 order = top_down_order(x, springs)
             if not changing and (sub == n_sub - 1 or FTL_EVERY_SUBSTEP):
                 # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its
                 # upward bias would make a tight garment climb off the body
-                limit_stretch_downward_packed(x, x_prev, w_eff, ends, table, order, has_plane)
+                limit_stretch_downward(x, x_prev, w_eff, ends, table, order, has_plane)
             project_planes(x, x_prev, *planes, 0.0, 0.0, push)
             apply_friction(x, x_prev, has_plane, planes[2], push, mu_s, mu_k)
             keep_above_floor(x, x_prev, floor_y)
@@ -337,12 +337,12 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         np.logical_not(reused, out=active)
         collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact,
                          near=NEAR, planes=planes)
-        solve_constraints_packed(x, x_prev, inv_mass, ends, table, POLISH_PASSES or settings.passes, *planes,
+        solve_constraints(x, x_prev, inv_mass, ends, table, POLISH_PASSES or settings.passes, *planes,
                                  0.0, 0.0, push, POLISH_RELAX)
         if POLISH_FREE_LIFT:
-            limit_stretch_downward_packed(x, lift_room, inv_mass, ends, table, order, has_plane)
+            limit_stretch_downward(x, lift_room, inv_mass, ends, table, order, has_plane)
         else:
-            limit_stretch_downward_packed(x, x_prev, inv_mass, ends, table, order, has_plane)
+            limit_stretch_downward(x, x_prev, inv_mass, ends, table, order, has_plane)
         project_planes(x, x_prev, *planes, 0.0, 0.0)
         keep_above_floor(x, x_prev, floor_y)
         if polish_rounds >= MIN_POLISH_ROUNDS and not np.any(spring_lengths(x, springs) > over_limit):

@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import ConvexHull
+from scipy.spatial import ConvexHull, QhullError
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
@@ -103,7 +103,7 @@ def _girth(points: np.ndarray) -> float:
         return 0.0
     try:
         return float(ConvexHull(points[:, [0, 2]]).area)  # in 2-D, ``area`` is the perimeter
-    except Exception:
+    except QhullError:  # all points on a line: no girth to speak of
         return 0.0
 
 

@@ -125,11 +125,7 @@ def cell_max_radius(cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell
                 f = cell_faces[m]
                 for j in range(3):
                     v = faces[f, j]
-                    dx = bv[v, 0] - cyl_origin[k, 0]
-                    dy = bv[v, 1] - cyl_origin[k, 1]
-                    dz = bv[v, 2] - cyl_origin[k, 2]
-                    lx = dx * cyl_axes[k, 0, 0] + dy * cyl_axes[k, 0, 1] + dz * cyl_axes[k, 0, 2]
-                    ly = dx * cyl_axes[k, 1, 0] + dy * cyl_axes[k, 1, 1] + dz * cyl_axes[k, 1, 2]
+                    lx, ly, lz = _to_local(bv[v, 0], bv[v, 1], bv[v, 2], cyl_origin, cyl_axes, k)
                     r = lx * lx + ly * ly
                     if r > r_max:
                         r_max = r
@@ -157,12 +153,7 @@ def face_boxes(bv, faces, face_part, cyl_origin, cyl_axes, out):
         around = False
         for c in range(3):
             v = faces[f, c]
-            dx = bv[v, 0] - cyl_origin[k, 0]
-            dy = bv[v, 1] - cyl_origin[k, 1]
-            dz = bv[v, 2] - cyl_origin[k, 2]
-            lx = dx * cyl_axes[k, 0, 0] + dy * cyl_axes[k, 0, 1] + dz * cyl_axes[k, 0, 2]
-            ly = dx * cyl_axes[k, 1, 0] + dy * cyl_axes[k, 1, 1] + dz * cyl_axes[k, 1, 2]
-            lz = dx * cyl_axes[k, 2, 0] + dy * cyl_axes[k, 2, 1] + dz * cyl_axes[k, 2, 2]
+            lx, ly, lz = _to_local(bv[v, 0], bv[v, 1], bv[v, 2], cyl_origin, cyl_axes, k)
             zmin = min(zmin, lz)
             zmax = max(zmax, lz)
             if lx * lx + ly * ly < 1e-12:
@@ -197,6 +188,17 @@ def face_boxes(bv, faces, face_part, cyl_origin, cyl_axes, out):
         else:
             out[f, 2] = lo - eps
             out[f, 3] = hi + eps
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _to_local(px, py, pz, cyl_origin, cyl_axes, k):
+    """A point in part k's cylinder frame: (x, y, z) local, m (z along the part's axis)."""
+    dx = px - cyl_origin[k, 0]
+    dy = py - cyl_origin[k, 1]
+    dz = pz - cyl_origin[k, 2]
+    return (dx * cyl_axes[k, 0, 0] + dy * cyl_axes[k, 0, 1] + dz * cyl_axes[k, 0, 2],
+            dx * cyl_axes[k, 1, 0] + dy * cyl_axes[k, 1, 1] + dz * cyl_axes[k, 1, 2],
+            dx * cyl_axes[k, 2, 0] + dy * cyl_axes[k, 2, 1] + dz * cyl_axes[k, 2, 2])
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -314,12 +316,7 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
     """
     if not _in_obb(p[0], p[1], p[2], obb_normals, obb_offsets, k):
         return 0.0
-    dx = p[0] - cyl_origin[k, 0]
-    dy = p[1] - cyl_origin[k, 1]
-    dz = p[2] - cyl_origin[k, 2]
-    lx = dx * cyl_axes[k, 0, 0] + dy * cyl_axes[k, 0, 1] + dz * cyl_axes[k, 0, 2]
-    ly = dx * cyl_axes[k, 1, 0] + dy * cyl_axes[k, 1, 1] + dz * cyl_axes[k, 1, 2]
-    lz = dx * cyl_axes[k, 2, 0] + dy * cyl_axes[k, 2, 1] + dz * cyl_axes[k, 2, 2]
+    lx, ly, lz = _to_local(p[0], p[1], p[2], cyl_origin, cyl_axes, k)
     n_theta = cyl_shape[k, 0]
     n_z = cyl_shape[k, 1]
     z0 = cyl_zrange[k, 0]
@@ -572,12 +569,7 @@ def penetration_depth(points, parts, obb_normals, obb_offsets, cyl_origin, cyl_a
                 # distance to the response point
                 n_theta = cyl_shape[k, 0]
                 n_z = cyl_shape[k, 1]
-                dx = p[0] - cyl_origin[k, 0]
-                dy = p[1] - cyl_origin[k, 1]
-                dz = p[2] - cyl_origin[k, 2]
-                lx = dx * cyl_axes[k, 0, 0] + dy * cyl_axes[k, 0, 1] + dz * cyl_axes[k, 0, 2]
-                ly = dx * cyl_axes[k, 1, 0] + dy * cyl_axes[k, 1, 1] + dz * cyl_axes[k, 1, 2]
-                lz = dx * cyl_axes[k, 2, 0] + dy * cyl_axes[k, 2, 1] + dz * cyl_axes[k, 2, 2]
+                lx, ly, lz = _to_local(p[0], p[1], p[2], cyl_origin, cyl_axes, k)
                 z0 = cyl_zrange[k, 0]
                 z1 = cyl_zrange[k, 1]
                 iz = min(int((lz - z0) / (z1 - z0) * n_z), n_z - 1)

@@ -105,15 +105,7 @@ def spring_lengths(x, springs):
 @njit(cache=True, nogil=True, fastmath=True)
 def spring_strain(x, springs, rest):
     """Strain l / l0 - 1 per spring, (s,) float64."""
-    out = np.empty(springs.shape[0])
-    for s in range(springs.shape[0]):
-        i = springs[s, 0]
-        j = springs[s, 1]
-        dx = x[i, 0] - x[j, 0]
-        dy = x[i, 1] - x[j, 1]
-        dz = x[i, 2] - x[j, 2]
-        out[s] = math.sqrt(dx * dx + dy * dy + dz * dz) / rest[s] - 1.0
-    return out
+    return spring_lengths(x, springs) / rest - 1.0
 
 
 def satisfy_springs_numpy(x, inv_mass, springs, rest, kind, limit, compression, passes):

@@ -29,9 +29,12 @@ from tryon.sim.pieces import bottom_mask
 SHOULDER_CLEARANCE = 0.01
 # Target girth ratio garment / body when a garment's units were guessed (a loose but not baggy fit).
 GUESSED_UNITS_EASE = 1.15
-# The same for a bottom, at the hips: snug, since the band's grip on the hips is what holds it up (at
-# 1.15 a MakeHuman outfit's trousers slid down to the floor).
+# The same for a bottom, at its waistband: snug, since the band's grip is what holds it up (at 1.15 of
+# the hips a MakeHuman outfit's trousers slid down to the floor, at 1.0 of the hips its skirt did).
 GUESSED_UNITS_BOTTOM_EASE = 1.0
+# m: a bottom's waistband girth is measured in a band this far below the body's waist line, and as deep
+# (the top 4 cm of a bottom placed with its top at the waist).
+BAND_BELOW_WAIST = 0.02
 # Largest local-alignment turn about X, radians: the construction is a correction, not a re-posing.
 MAX_LOCAL_TURN = np.radians(15.0)
 # Smallest difference between sleeve and arm angles worth posing the arms for, radians.
@@ -189,8 +192,10 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
         anchor = np.array([lm.center_x, lm.shoulder_y if top else lm.waist_y, x[:, 2].mean()])
         if scale is None:
             scale = 1.0
-            g_band = _band(x, level, lm.center_x, 1.2 * lm.shoulder_half)
-            gg, bg = _girth(g_band), _girth(body_band)
+            # a bottom is fitted by its waistband (what holds it up), just under the body's waist line
+            fit_y, dy = (level, 0.04) if top else (lm.waist_y - BAND_BELOW_WAIST, BAND_BELOW_WAIST)
+            g_band = _band(x, fit_y, lm.center_x, 1.2 * lm.shoulder_half, dy)
+            gg, bg = _girth(g_band), _girth(_band(torso, fit_y, lm.center_x, 2.0 * lm.shoulder_half, dy))
             if gg > 0 and bg > 0:
                 ratio = gg / bg
                 if not 0.95 <= ratio <= 1.6:

@@ -152,20 +152,20 @@ class _ArmSchedule:
     def __init__(self, body: Body, collider: BodyCollider, plan, settings: SimSettings):
         self.collider = collider
         self.parts = {}
-        for side, angle, sign in (("l", plan.left, 1.0), ("r", plan.right, -1.0)):
+        for side, angle, axis in (("l", plan.left, plan.left_axis), ("r", plan.right, plan.right_axis)):
             if angle == 0.0 or f"upper_arm_{side}" not in body.parts:
                 continue
             k_up = body.parts.index(f"upper_arm_{side}")
             ks = [k_up] + ([body.parts.index(f"forearm_{side}")] if f"forearm_{side}" in body.parts else [])
-            self.parts[side] = (body.part_axes[k_up, 0].copy(), sign * angle, ks)
-        biggest = max((abs(a) for _, a, _ in self.parts.values()), default=0.0)
+            self.parts[side] = (body.part_axes[k_up, 0].copy(), angle, np.asarray(axis, dtype=np.float64), ks)
+        biggest = max((abs(a) for _, a, _, _ in self.parts.values()), default=0.0)
         self.steps = int(np.ceil(np.degrees(biggest) / ARM_DEG_PER_STEP)) if self.parts else 0
 
     def apply(self, step: int) -> None:
         fraction = 1.0 - min(1.0, step / self.steps) if self.steps else 0.0
         turns = {}
-        for pivot, angle, ks in self.parts.values():
-            rot = _rotation(np.array([0.0, 0.0, 1.0]), angle * fraction)
+        for pivot, angle, axis, ks in self.parts.values():
+            rot = _rotation(axis, angle * fraction)
             for k in ks:
                 turns[k] = (pivot, rot)
         self.collider.pose_arms(turns)
@@ -189,7 +189,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     collider = BodyCollider(body, settings.collision_margin)
     if initial is None:
         x = align_garment(body, model)
-        plan = plan_arms(body, x, model.meta.category)
+        plan = plan_arms(body, x, model.meta.category, model.coarse_faces)
     else:
         x = np.array(initial, dtype=np.float64)
         plan = ArmPlan(0.0, 0.0)
@@ -198,7 +198,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     parts = relevant_parts(body.maps, lo, hi, PART_REACH)
     if arms.steps:
         arms.apply(0)
-        turned = [k for _, _, ks in arms.parts.values() for k in ks]  # the sleeves are around them
+        turned = [k for _, _, _, ks in arms.parts.values() for k in ks]  # the sleeves are around them
         parts = np.union1d(parts, turned).astype(np.int64)
 
     # --- tangled start: grow the body, or (growth off) push out and pin for a few steps

@@ -8,66 +8,82 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _project_point(i, x, x_prev, plane_point, plane_normal, mu_static, mu_kinetic, push):
+    """``project_planes`` for point i (which has a plane)."""
+    nx = plane_normal[i, 0]
+    ny = plane_normal[i, 1]
+    nz = plane_normal[i, 2]
+    d = (x[i, 0] - plane_point[i, 0]) * nx + (x[i, 1] - plane_point[i, 1]) * ny + (x[i, 2] - plane_point[i, 2]) * nz
+    if d >= 0.0:
+        return
+    x[i, 0] -= d * nx
+    x[i, 1] -= d * ny
+    x[i, 2] -= d * nz
+    if push is not None:
+        push[i] -= d
+    mx = x[i, 0] - x_prev[i, 0]
+    my = x[i, 1] - x_prev[i, 1]
+    mz = x[i, 2] - x_prev[i, 2]
+    mn = mx * nx + my * ny + mz * nz
+    # inelastic: the push must not become a velocity away from the body (no bounce)
+    x_prev[i, 0] += mn * nx
+    x_prev[i, 1] += mn * ny
+    x_prev[i, 2] += mn * nz
+    if mu_static <= 0.0:
+        return
+    tx = mx - mn * nx
+    ty = my - mn * ny
+    tz = mz - mn * nz
+    tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+    if tl <= 1e-15:
+        return
+    cut = 1.0 if tl <= -mu_static * d else min(-mu_kinetic * d / tl, 1.0)
+    x[i, 0] -= cut * tx
+    x[i, 1] -= cut * ty
+    x[i, 2] -= cut * tz
+
+
 @njit(cache=True, nogil=True, fastmath=True)
 def project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic, push=None):
     """Keep points on the outer side of their contact plane, in place: for each i with has_plane[i],
     n . (x_i - q_i) >= 0 (q on the offset body surface + lambda, n its outward normal).
 
-    A pushed point loses its normal velocity (x_prev moved along n: inelastic contact) and gets Coulomb friction on positions (Macklin et al. 2014): the tangential
-    part of its motion since x_prev is cancelled if shorter than mu_static * d, else shortened by
-    mu_kinetic * d (so garments stay on shoulders instead of creeping down them). ``push`` (k,), if
-    given, accumulates each point's pushes (m) for ``apply_friction``.
+    A pushed point loses its normal velocity (x_prev moved along n: inelastic contact) and gets Coulomb
+    friction on positions (Macklin et al. 2014): the tangential part of its motion since x_prev is
+    cancelled if shorter than mu_static * d, else shortened by mu_kinetic * d (so garments stay on
+    shoulders instead of creeping down them). ``push`` (k,), if given, accumulates each point's pushes (m)
+    for ``apply_friction``.
     """
     for i in range(x.shape[0]):
-        if not has_plane[i]:
-            continue
-        nx = plane_normal[i, 0]
-        ny = plane_normal[i, 1]
-        nz = plane_normal[i, 2]
-        d = (x[i, 0] - plane_point[i, 0]) * nx + (x[i, 1] - plane_point[i, 1]) * ny + (x[i, 2] - plane_point[i, 2]) * nz
-        if d >= 0.0:
-            continue
-        x[i, 0] -= d * nx
-        x[i, 1] -= d * ny
-        x[i, 2] -= d * nz
-        if push is not None:
-            push[i] -= d
-        mx = x[i, 0] - x_prev[i, 0]
-        my = x[i, 1] - x_prev[i, 1]
-        mz = x[i, 2] - x_prev[i, 2]
-        mn = mx * nx + my * ny + mz * nz
-        # inelastic: the push must not become a velocity away from the body (no bounce)
-        x_prev[i, 0] += mn * nx
-        x_prev[i, 1] += mn * ny
-        x_prev[i, 2] += mn * nz
-        if mu_static <= 0.0:
-            continue
-        tx = mx - mn * nx
-        ty = my - mn * ny
-        tz = mz - mn * nz
-        tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-        if tl <= 1e-15:
-            continue
-        cut = 1.0 if tl <= -mu_static * d else min(-mu_kinetic * d / tl, 1.0)
-        x[i, 0] -= cut * tx
-        x[i, 1] -= cut * ty
-        x[i, 2] -= cut * tz
+        if has_plane[i]:
+            _project_point(i, x, x_prev, plane_point, plane_normal, mu_static, mu_kinetic, push)
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def apply_friction(x, x_prev, has_plane, plane_normal, push, mu_static, mu_kinetic):
-    """Coulomb friction for the substep, in place: a contact pushed out by ``push`` (m, summed over the
-    passes: gravity and the cloth's own tension pressing it on the body, e.g. a waistband's hoop tension
-    on the hips) keeps no tangential motion since x_prev if that motion is under mu_static x push (it
-    sticks), else loses mu_kinetic x push of it (it slides). Then ``push`` is reset.
+def project_listed(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_kinetic, push=None):
+    """``project_planes`` for the points ``listed`` (q,) int64 (those with a plane, in increasing order:
+    the same result, without visiting the ~2/3 of a garment that touches nothing)."""
+    for q in range(listed.shape[0]):
+        _project_point(listed[q], x, x_prev, plane_point, plane_normal, mu_static, mu_kinetic, push)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def apply_friction(x, x_prev, listed, plane_normal, push, mu_static, mu_kinetic):
+    """Coulomb friction for the substep, in place, for the points ``listed`` (q,) int64 (those with a
+    contact plane; the others are never pushed): a contact pushed out by ``push`` (k,) (m, summed over
+    the passes: gravity and the cloth's own tension pressing it on the body, e.g. a waistband's hoop
+    tension on the hips) keeps no tangential motion since x_prev if that motion is under mu_static x push
+    (it sticks), else loses mu_kinetic x push of it (it slides). Then ``push`` is reset.
 
     This is what holds a skirt or trousers on the hips: the band's tension presses it on the slope, and
     the friction that pressure allows stops it sliding down.
     """
-    for i in range(x.shape[0]):
+    for q in range(listed.shape[0]):
+        i = listed[q]
         p = push[i]
         push[i] = 0.0
-        if not has_plane[i] or p <= 0.0:
+        if p <= 0.0:
             continue
         nx = plane_normal[i, 0]
         ny = plane_normal[i, 1]
@@ -254,6 +270,16 @@ def solve_constraints(x, x_prev, inv_mass, ends, table, passes, has_plane, plane
     for sweep in range(passes):
         _spring_pass(x, inv_mass, ends, table, sweep % 2 == 1, relax)
         project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic, push)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def solve_listed(x, x_prev, inv_mass, ends, table, passes, listed, plane_point, plane_normal, mu_static,
+                 mu_kinetic, push, relax=1.0):
+    """``solve_constraints`` with the contact planes of the points ``listed`` (q,) int64 (those with a
+    plane, increasing): the same result, the projections visiting only the points in contact."""
+    for sweep in range(passes):
+        _spring_pass(x, inv_mass, ends, table, sweep % 2 == 1, relax)
+        project_listed(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_kinetic, push)
 
 
 @njit(cache=True, nogil=True, fastmath=True)

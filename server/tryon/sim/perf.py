@@ -46,8 +46,9 @@ def fine_garment(data_dir: Path, kind: str = "tshirt", size: str = "M", spacing:
 class _Timer:
     """Wraps the kernels the loop calls (module globals of ``run``) and sums their wall time."""
 
-    NAMES = ("verlet_step", "solve_listed", "solve_constraints", "limit_stretch_downward", "project_listed",
-             "project_planes", "apply_friction", "reuse_planes", "cap_stretch", "kinetic_energy_per_kg")
+    NAMES = ("verlet_step", "solve_listed", "solve_constraints", "sweep_downward", "limit_stretch_downward",
+             "project_listed", "project_planes", "apply_friction", "reuse_planes", "cap_stretch",
+             "kinetic_energy_per_kg")
 
     def __init__(self):
         self.totals = {}

@@ -8,46 +8,11 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, nogil=True, fastmath=True, inline="always")
-def _project_point(i, x, x_prev, plane_point, plane_normal, mu_static, mu_kinetic, push):
-    """``project_planes`` for point i (which has a plane)."""
-    nx = plane_normal[i, 0]
-    ny = plane_normal[i, 1]
-    nz = plane_normal[i, 2]
-    d = (x[i, 0] - plane_point[i, 0]) * nx + (x[i, 1] - plane_point[i, 1]) * ny + (x[i, 2] - plane_point[i, 2]) * nz
-    if d >= 0.0:
-        return
-    x[i, 0] -= d * nx
-    x[i, 1] -= d * ny
-    x[i, 2] -= d * nz
-    if push is not None:
-        push[i] -= d
-    mx = x[i, 0] - x_prev[i, 0]
-    my = x[i, 1] - x_prev[i, 1]
-    mz = x[i, 2] - x_prev[i, 2]
-    mn = mx * nx + my * ny + mz * nz
-    # inelastic: the push must not become a velocity away from the body (no bounce)
-    x_prev[i, 0] += mn * nx
-    x_prev[i, 1] += mn * ny
-    x_prev[i, 2] += mn * nz
-    if mu_static <= 0.0:
-        return
-    tx = mx - mn * nx
-    ty = my - mn * ny
-    tz = mz - mn * nz
-    tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-    if tl <= 1e-15:
-        return
-    cut = 1.0 if tl <= -mu_static * d else min(-mu_kinetic * d / tl, 1.0)
-    x[i, 0] -= cut * tx
-    x[i, 1] -= cut * ty
-    x[i, 2] -= cut * tz
-
-
 @njit(cache=True, nogil=True, fastmath=True)
-def project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic, push=None):
-    """Keep points on the outer side of their contact plane, in place: for each i with has_plane[i],
-    n . (x_i - q_i) >= 0 (q on the offset body surface + lambda, n its outward normal).
+def project_listed(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_kinetic, push=None):
+    """Keep the points ``listed`` (q,) int64 (those with a contact plane, increasing) on the outer side of
+    their contact plane, in place: n . (x_i - q_i) >= 0 (q on the offset body surface + lambda, n its
+    outward normal).
 
     A pushed point loses its normal velocity (x_prev moved along n: inelastic contact) and gets Coulomb
     friction on positions (Macklin et al. 2014): the tangential part of its motion since x_prev is
@@ -55,17 +20,45 @@ def project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, m
     shoulders instead of creeping down them). ``push`` (k,), if given, accumulates each point's pushes (m)
     for ``apply_friction``.
     """
-    for i in range(x.shape[0]):
-        if has_plane[i]:
-            _project_point(i, x, x_prev, plane_point, plane_normal, mu_static, mu_kinetic, push)
+    for q in range(listed.shape[0]):
+        i = listed[q]
+        nx = plane_normal[i, 0]
+        ny = plane_normal[i, 1]
+        nz = plane_normal[i, 2]
+        d = (x[i, 0] - plane_point[i, 0]) * nx + (x[i, 1] - plane_point[i, 1]) * ny + (x[i, 2] - plane_point[i, 2]) * nz
+        if d >= 0.0:
+            continue
+        x[i, 0] -= d * nx
+        x[i, 1] -= d * ny
+        x[i, 2] -= d * nz
+        if push is not None:
+            push[i] -= d
+        mx = x[i, 0] - x_prev[i, 0]
+        my = x[i, 1] - x_prev[i, 1]
+        mz = x[i, 2] - x_prev[i, 2]
+        mn = mx * nx + my * ny + mz * nz
+        # inelastic: the push must not become a velocity away from the body (no bounce)
+        x_prev[i, 0] += mn * nx
+        x_prev[i, 1] += mn * ny
+        x_prev[i, 2] += mn * nz
+        if mu_static <= 0.0:
+            continue
+        tx = mx - mn * nx
+        ty = my - mn * ny
+        tz = mz - mn * nz
+        tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+        if tl <= 1e-15:
+            continue
+        cut = 1.0 if tl <= -mu_static * d else min(-mu_kinetic * d / tl, 1.0)
+        x[i, 0] -= cut * tx
+        x[i, 1] -= cut * ty
+        x[i, 2] -= cut * tz
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def project_listed(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_kinetic, push=None):
-    """``project_planes`` for the points ``listed`` (q,) int64 (those with a plane, in increasing order:
-    the same result, without visiting the ~2/3 of a garment that touches nothing)."""
-    for q in range(listed.shape[0]):
-        _project_point(listed[q], x, x_prev, plane_point, plane_normal, mu_static, mu_kinetic, push)
+def project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic, push=None):
+    """``project_listed`` for the points with ``has_plane`` (k,) bool."""
+    project_listed(x, x_prev, np.flatnonzero(has_plane), plane_point, plane_normal, mu_static, mu_kinetic, push)
 
 
 @njit(cache=True, nogil=True, fastmath=True)
@@ -267,9 +260,8 @@ def solve_constraints(x, x_prev, inv_mass, ends, table, passes, has_plane, plane
     springs and contacts converge together instead of undoing each other's work (the way position-based
     solvers such as NVIDIA Flex handle contacts).
     """
-    for sweep in range(passes):
-        _spring_pass(x, inv_mass, ends, table, sweep % 2 == 1, relax)
-        project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, mu_kinetic, push)
+    solve_listed(x, x_prev, inv_mass, ends, table, passes, np.flatnonzero(has_plane), plane_point, plane_normal,
+                 mu_static, mu_kinetic, push, relax)
 
 
 @njit(cache=True, nogil=True, fastmath=True)

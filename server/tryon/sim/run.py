@@ -61,8 +61,8 @@ from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import relevant_parts, reuse_planes
 from tryon.sim.constraints import (
-    apply_friction, cap_stretch, limit_stretch_downward, pack_springs, pack_sweep, project_listed, project_planes,
-    solve_constraints, solve_listed, spring_lengths, sweep_downward, top_down_order,
+    apply_friction, cap_stretch, contact_springs, limit_stretch_downward, pack_springs, project_listed,
+    project_planes, solve_constraints, solve_listed, spring_lengths, sweep_downward, sweep_springs, top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, kinetic_energy_per_kg, verlet_step
 from tryon.sim.metrics import LENGTH_TOLERANCE, allowed_length, penetration_metrics, strain_metrics
@@ -278,14 +278,8 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                 # points on the body count as heavier in the springs, so hanging cloth hangs from them
                 # instead of dragging them in (mass scaling)
                 w_eff = np.where(has_plane, inv_mass * CONTACT_WEIGHT, inv_mass)
-                if CONTACT_PASSES:
-                    on_body = np.flatnonzero(has_plane[ends[:, 0]] & has_plane[ends[:, 1]])
-                    body_ends = np.ascontiguousarray(ends[on_body])
-                    body_table = np.ascontiguousarray(table[on_body])
-                    # stretch only: cloth pressed on the body must still be free to buckle (l0 = 0: a
-                    # compressed spring is not even visited for a zero correction)
-                    body_table[:, 1] = 0.0
-                    body_table[:, 2] = 0.0
+                if CONTACT_PASSES and not changing:
+                    body_ends, body_table = contact_springs(ends, table, has_plane)
             solve_listed(x, x_prev, w_eff, ends, table, per_sub, touching, planes[1], planes[2], 0.0, 0.0, push)
             if CONTACT_PASSES and not changing:
                 solve_listed(x, x_prev, w_eff, body_ends, body_table, CONTACT_PASSES, touching, planes[1],
@@ -293,10 +287,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
             if step % ORDER_REFRESH == 1 and sub == 0:
                 order = top_down_order(x, springs)
             if sub == 0 and not changing:
-                # springs with both ends on the body are the contact passes' job (the sweep would only
-                # split them by inverse mass: one more stretch pass over them)
-                hanging = order[~(has_plane[ends[order, 0]] & has_plane[ends[order, 1]])]
-                sweep_ends, sweep_lmax = pack_sweep(ends, table, hanging)
+                sweep_ends, sweep_lmax = sweep_springs(ends, table, order, has_plane)
             if not changing and (sub == n_sub - 1 or FTL_EVERY_SUBSTEP):
                 # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its
                 # upward bias would make a tight garment climb off the body

@@ -296,11 +296,13 @@ def _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces,
     return best_f, best
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape, cell_base,
                cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal, scratch, trust, cover, near,
                tbuf, fbuf, fbox):
-    """Is p inside part k of the (offset) body with vertices ``bv`` and face normals ``fn``?
+    """Is p (inside part k's OBB: the callers test that first) inside part k of the (offset) body with
+    vertices ``bv`` and face normals ``fn``? Inlined into its callers (a call with ~25 array arguments
+    costs about as much as the query's first tests: collision ~15 % faster on a draped T-shirt).
 
     Returns the depth (m, > 0 inside, 0 outside); when inside, ``target`` gets the surface point p must
     move to (before adding lambda * normal) and ``normal`` the outward unit normal there.
@@ -314,8 +316,6 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
     (minus its distance) and the surface point and normal, for a contact plane.
     fbox: (f, 4) from ``face_boxes`` for ``bv``: faces whose box misses the ray are not intersected.
     """
-    if not _in_obb(p[0], p[1], p[2], obb_normals, obb_offsets, k):
-        return 0.0
     lx, ly, lz = _to_local(p[0], p[1], p[2], cyl_origin, cyl_axes, k)
     n_theta = cyl_shape[k, 0]
     n_z = cyl_shape[k, 1]

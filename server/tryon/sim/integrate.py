@@ -28,9 +28,9 @@ def verlet_step(x, x_prev, inv_mass, dt, gravity, air_drag, max_speed):
         vx = (x[i, 0] - x_prev[i, 0]) * damp
         vy = (x[i, 1] - x_prev[i, 1]) * damp - g
         vz = (x[i, 2] - x_prev[i, 2]) * damp
-        s = math.sqrt(vx * vx + vy * vy + vz * vz)
-        if s > limit:
-            f = limit / s
+        s2 = vx * vx + vy * vy + vz * vz
+        if s2 > limit * limit:
+            f = limit / math.sqrt(s2)
             vx *= f
             vy *= f
             vz *= f

@@ -66,8 +66,8 @@ from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import relevant_parts, reuse_planes
 from tryon.sim.constraints import (
-    apply_friction, cap_stretch, limit_stretch_downward, pack_springs, project_planes, solve_constraints,
-    spring_lengths, top_down_order,
+    apply_friction, cap_stretch, contact_springs, limit_stretch_downward, pack_springs, project_listed,
+    project_planes, solve_constraints, solve_listed, spring_lengths, sweep_downward, sweep_springs, top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, kinetic_energy_per_kg, verlet_step
 from tryon.sim.metrics import allowed_length, penetration_metrics, strain_metrics
@@ -259,7 +259,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
             if sub > 0:
                 # friction acts on the inertial motion only (x - x_prev right after the prediction), never
                 # on the springs' corrections (which stand for the cloth's tension)
-                project_planes(x, x_prev, *planes, mu_s, mu_k)
+                project_listed(x, x_prev, touching, planes[1], planes[2], mu_s, mu_k)
             if sub == 0:
                 # collision (paper 3.3-3.4) on the predicted positions, leaving a contact plane for every
                 # point pushed out or lying within NEAR of the body; the substeps keep to those planes
@@ -275,26 +275,26 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                 collided = collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset,
                                             mu_s, mu_k, contact, near=NEAR, planes=planes)
                 x_checked[active] = x[active]
+                touching = np.flatnonzero(has_plane)  # the points with a contact plane this step
                 # points on the body count as heavier in the springs, so hanging cloth hangs from them
                 # instead of dragging them in (mass scaling)
                 w_eff = np.where(has_plane, inv_mass * CONTACT_WEIGHT, inv_mass)
-                if CONTACT_PASSES:
-                    on_body = np.flatnonzero(has_plane[ends[:, 0]] & has_plane[ends[:, 1]])
-                    body_ends = np.ascontiguousarray(ends[on_body])
-                    body_table = np.ascontiguousarray(table[on_body])
-                    body_table[:, 2] = 0.0  # stretch only: cloth pressed on the body must still be free to buckle
-            solve_constraints(x, x_prev, w_eff, ends, table, per_sub, *planes, 0.0, 0.0, push)
+                if CONTACT_PASSES and not changing:
+                    body_ends, body_table = contact_springs(ends, table, has_plane)
+            solve_listed(x, x_prev, w_eff, ends, table, per_sub, touching, planes[1], planes[2], 0.0, 0.0, push)
             if CONTACT_PASSES and not changing:
-                solve_constraints(x, x_prev, w_eff, body_ends, body_table, CONTACT_PASSES, *planes, 0.0, 0.0,
-                                         push)
+                solve_listed(x, x_prev, w_eff, body_ends, body_table, CONTACT_PASSES, touching, planes[1],
+                             planes[2], 0.0, 0.0, push)
             if step % ORDER_REFRESH == 1 and sub == 0:
                 order = top_down_order(x, springs)
+            if sub == 0 and not changing:
+                sweep_ends, sweep_lmax = sweep_springs(ends, table, order, has_plane)
             if not changing and (sub == n_sub - 1 or FTL_EVERY_SUBSTEP):
                 # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its
                 # upward bias would make a tight garment climb off the body
-                limit_stretch_downward(x, x_prev, w_eff, ends, table, order, has_plane)
-            project_planes(x, x_prev, *planes, 0.0, 0.0, push)
-            apply_friction(x, x_prev, has_plane, planes[2], push, mu_s, mu_k)
+                sweep_downward(x, x_prev, w_eff, sweep_ends, sweep_lmax, has_plane)
+            project_listed(x, x_prev, touching, planes[1], planes[2], 0.0, 0.0, push)
+            apply_friction(x, x_prev, touching, planes[2], push, mu_s, mu_k)
             keep_above_floor(x, x_prev, floor_y)
         # guard: collision wins over the springs within the step, so a garment far too small for its
         # body (a size S shirt on the largest body) would be stretched without bound; past TEAR_GUARD x

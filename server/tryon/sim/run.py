@@ -66,7 +66,7 @@ from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import relevant_parts, reuse_planes
 from tryon.sim.constraints import (
-    apply_friction, cap_stretch, contact_springs, limit_stretch_downward, pack_springs, project_listed,
+    apply_friction, cap_stretch, contact_springs, pack_springs, project_listed,
     project_planes, solve_constraints, solve_listed, spring_lengths, sweep_downward, sweep_springs, top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, kinetic_energy_per_kg, verlet_step

@@ -43,7 +43,8 @@ shoulders) a few % over their limits, and a band that sagged too low cannot shor
 up the body, a coordinated motion that damped passes make only a little of per round (hundreds of rounds).
 Without gravity the over-long springs are the only force left (and only they act: stretch-only, so no
 compression pushes cloth up off the body); with little drag the motion they start is kept (momentum: the
-heavy-ball acceleration of an iterative solver), so the band climbs to where it fits in 10-40 rounds. The garment moves only as far as its over-stretch asks (a few mm, a band up to a few cm). Then the full mesh
+heavy-ball acceleration of an iterative solver), so the band climbs to where it fits in 10-40 rounds.
+The garment moves only as far as its over-stretch asks (a few mm, a band up to a few cm). Then the full mesh
 is rebuilt from the coarse one (``model.expand``) and its vertices are pushed out of the offset body too
 (again while any still moves: a point pushed out of one thigh into the other), so the displayed mesh does
 not penetrate either.
@@ -86,7 +87,8 @@ PIN_STEPS = 5
 # until every spring meets the strain target (``metrics.allowed_length``), at most MAX. Over the 54
 # catalogue drapes (18 garments x small / medium / large bodies) the springs over the target fell from
 # 623 / 792 / 6439 with the earlier polish (60 rounds of collision + passes + a top-down lift, no momentum)
-# to 79 / 223 / 6271 with this (at most 60 rounds; 37 of the 54 drapes meet the target, against 2).
+# to 33 / 258 / 6258 with this (at most 60 rounds; 36 of the 54 drapes meet the target, against 2;
+# ``tryon bench --only fit``).
 # The large body is bigger than the size chart's L: most of its excess is S and M garments too small for it.
 MIN_POLISH_ROUNDS = 3
 MAX_POLISH_ROUNDS = 60

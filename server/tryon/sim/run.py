@@ -69,8 +69,8 @@ from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import relevant_parts, reuse_planes
 from tryon.sim.constraints import (
-    apply_friction, cap_stretch, contact_springs, pack_springs, project_listed,
-    project_planes, solve_constraints, solve_listed, spring_lengths, sweep_downward, sweep_springs, top_down_order,
+    apply_friction, cap_stretch, contact_springs, pack_springs, project_listed, solve_listed, spring_lengths,
+    sweep_downward, sweep_springs, top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, kinetic_energy_per_kg, verlet_step
 from tryon.sim.metrics import allowed_length, penetration_metrics, strain_metrics
@@ -343,8 +343,10 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                 active[:] = True
                 collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact,
                                  near=NEAR, planes=planes)
-            solve_constraints(x, x_prev, inv_mass, ends, stretch_only, per_sub, *planes, 0.0, 0.0, push)
-            project_planes(x, x_prev, *planes, 0.0, 0.0)
+                touching = np.flatnonzero(has_plane)
+            solve_listed(x, x_prev, inv_mass, ends, stretch_only, per_sub, touching, planes[1], planes[2], 0.0, 0.0,
+                         push)
+            project_listed(x, x_prev, touching, planes[1], planes[2], 0.0, 0.0)
             np.maximum(x[:, 1], floor_y, out=x[:, 1])  # a frictionless floor: a hem on it may still slide
         cap_stretch(x, inv_mass, springs, rest, TEAR_GUARD, TEAR_PASSES)
         if polish_rounds >= MIN_POLISH_ROUNDS:

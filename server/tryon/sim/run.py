@@ -356,8 +356,9 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
             collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
             if not np.any(spring_lengths(x, springs) > target):
                 break
-    active[:] = True
-    collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
+    else:  # out of rounds: the last positions still get their final collision
+        active[:] = True
+        collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
 
     # --- full mesh: follow the coarse one, then push it out of the offset body too
     full = np.ascontiguousarray(model.expand(x))

@@ -15,7 +15,7 @@ import pytest
 
 from tryon.cli import main
 
-SECTIONS = {"table1", "table2", "table3", "pareto", "simplify", "peers", "stability", "scaling"}
+SECTIONS = {"table1", "table2", "table3", "fit", "pareto", "simplify", "peers", "stability", "scaling"}
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
@@ -70,6 +70,10 @@ def test_sections_carry_their_figures(bench):
     assert set(t2["methods"]) == {"angle", "area", "barycentric"}
     # the three tests decide the same random hits alike (ties on edges aside)
     assert min(t2["agreement"].values()) > 0.999
+    fit = _section(report, "fit")["data"]["drapes"]
+    assert [d["body"] for d in fit] == ["small", "medium", "large"]
+    # the main garment (T-shirt M) on the three bodies: no penetration, at rest, springs within the target
+    assert all(d["penetrating"] == 0 and d["rest"] and d["over"] == 0 for d in fit), fit
     pareto = _section(report, "pareto")["data"]
     assert len(pareto["points"]) >= 2 and pareto["pick"] in pareto["points"]
     assert all(p["rms_mm"] >= 0 for p in pareto["points"])

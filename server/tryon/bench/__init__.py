@@ -19,12 +19,13 @@ from tryon.bench.report import now, write_report
 
 def sections():
     """(name, title, function) of every section, in report order."""
-    from tryon.bench import pareto, peers, scaling, simplify_compare, stability, tables
+    from tryon.bench import fit, pareto, peers, scaling, simplify_compare, stability, tables
 
     return [
         ("table1", "Paper table 1: simplification and collision time", tables.table1),
         ("table2", "Paper table 2: inside-triangle tests", tables.table2),
         ("table3", "Paper table 3: pipeline stages", tables.table3),
+        ("fit", "Catalogue fit on three bodies", fit.run),
         ("pareto", "Run time against error", pareto.run),
         ("simplify", "Simplification compared", simplify_compare.run),
         ("peers", "Peer engines", peers.run),

@@ -18,20 +18,45 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
+from tryon.sim.pieces import bottom_mask
 
 # m: the garment's shoulder line is placed this far above the body's (a few mm of air, so the first
 # step does not start in contact; gravity closes the gap at once).
 SHOULDER_CLEARANCE = 0.01
 # Target girth ratio garment / body when a garment's units were guessed (a loose but not baggy fit).
 GUESSED_UNITS_EASE = 1.15
+# The same for a bottom, at its waistband: snug, since the band's grip is what holds it up (at 1.15 of
+# the hips a MakeHuman outfit's trousers slid down to the floor, at 1.0 of the hips its skirt did).
+GUESSED_UNITS_BOTTOM_EASE = 1.0
+# m: a bottom's waistband girth is measured in a band this far below the body's waist line, and as deep
+# (the top 4 cm of a bottom placed with its top at the waist).
+BAND_BELOW_WAIST = 0.02
 # Largest local-alignment turn about X, radians: the construction is a correction, not a re-posing.
 MAX_LOCAL_TURN = np.radians(15.0)
 # Smallest difference between sleeve and arm angles worth posing the arms for, radians.
 MIN_ARM_TURN = np.radians(6.0)
+# m: a bottom's crotch is put at least this far below the body's (a low-rise pair of trousers, whose top
+# sits at the hips, is lowered from the waist until it is); the crotch seam then hangs clear of the body.
+CROTCH_DROP = 0.02
+# m: half-width of the centre line on which a bottom's crotch is looked for (the coarse mesh's edges are
+# 2-3 cm: a seam vertex lies within 2 cm of the centre).
+CENTRE_BAND = 0.02
+# A bottom has legs when its crotch is higher than this fraction of its height above its hem (shorts:
+# ~0.3, trousers ~0.75; a skirt's centre line reaches its hem: 0).
+MIN_LEG_FRACTION = 0.15
+# m: height of the bands in which a trouser leg's centre is measured, and the height below the crotch
+# over which the leg's shift onto the body's leg blends in.
+LEG_BIN = 0.08
+LEG_BLEND = 0.10
+# m: smallest offset between a trouser leg's centre and the body's leg axis worth moving the legs for:
+# a leg within 5 cm still has the body's leg inside it (the catalogue's trousers, made for a reference
+# body, are 0-4.3 cm off on the small, medium and large bodies, and moving them changed their drapes both
+# ways; the MakeHuman outfits' trousers are 12-22 cm off).
+MIN_LEG_SHIFT = 0.05
 
 
 @dataclass(frozen=True)
@@ -46,15 +71,20 @@ class BodyLandmarks:
     hips_y: float
     shoulder_l: np.ndarray  # (3,) left shoulder joint (+x)
     shoulder_r: np.ndarray
+    crotch_y: float  # lowest point of the torso between the legs
 
 
 @dataclass(frozen=True)
 class ArmPlan:
-    """Arm abduction turns (radians, about the body's z axis through each shoulder joint) that put each
-    arm along its sleeve; 0 when no turn is needed. Left arm is towards +x."""
+    """Arm turns (radians) about each shoulder joint that put each arm along its sleeve; 0 when no turn is
+    needed. ``left_axis`` / ``right_axis`` (3,) unit: the axis of each turn (right-handed); the default,
+    the body's z axis (+z for the left arm, towards +x, and -z for the right), makes the angles plain
+    abductions in the frontal plane."""
 
     left: float
     right: float
+    left_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    right_axis: tuple[float, float, float] = (0.0, 0.0, -1.0)
 
 
 def _part(body: Body, name: str) -> int | None:
@@ -89,6 +119,7 @@ def body_landmarks(body: Body) -> BodyLandmarks:
         hips_y=float(levels.get("hips", y0 + 0.15 * length)),
         shoulder_l=sh_l,
         shoulder_r=sh_r,
+        crotch_y=float(body.vertices[np.unique(body.faces[body.face_part == kt]), 1].min()),
     )
 
 
@@ -116,14 +147,34 @@ def torso_points(body: Body) -> np.ndarray:
 def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = None) -> np.ndarray:
     """Aligned copy (k, 3) of ``points`` (default: the garment's coarse rest positions), see module doc.
 
+    Each piece of a garment file is aligned by its own kind (``pieces.bottom_mask``): the pieces over the
+    shoulders as the garment's category says, the pieces hanging from a waist as a bottom (each fitted by
+    its own girth when the units were guessed: an outfit's top and bottom were made for one body, which
+    is not this one).
+
     The same rigid transform (plus scale) is what one would apply to the full mesh; we only need it
     for the coarse one, since the full mesh follows the coarse one through the re-attachment.
     """
     x = np.array(model.coarse_vertices if points is None else points, dtype=np.float64)
     lm = body_landmarks(body)
     torso = torso_points(body)
-    category = model.meta.category
-    top = category in ("top", "dress")
+    guessed = bool(getattr(model.meta, "units_guessed", False))
+    bottom = bottom_mask(x, model.coarse_faces, model.meta.category)
+    legs = leg_axes(body)
+    for is_top, sel in ((True, ~bottom), (False, bottom)):
+        if sel.any():
+            x[sel], _ = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs)
+    return x
+
+
+def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool, guessed: bool,
+                 scale: float | None, legs: dict[float, np.ndarray] | None = None
+                 ) -> tuple[np.ndarray, float | None]:
+    """Global then local alignment of the points (k, 3) of one kind of piece (``top``: hung from the
+    shoulders, else from the waist). ``scale``: the factor a guessed-units garment was already scaled by
+    (None: decide it here from the girth); ``legs``: the body's leg axes (``leg_axes``), over which a
+    bottom's legs are put. Returns the aligned copy and the scale used (None if not guessed)."""
+    x = x.copy()
     level = lm.chest_y if top else lm.hips_y
 
     # --- global: centre x, place vertically, centre z
@@ -137,14 +188,23 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
         x[:, 1] += lm.waist_y - x[:, 1].max()
 
     body_band = _band(torso, level, lm.center_x, 2.0 * lm.shoulder_half)
-    if getattr(model.meta, "units_guessed", False):
-        g_band = _band(x, level, lm.center_x, 1.2 * lm.shoulder_half)
-        gg, bg = _girth(g_band), _girth(body_band)
-        if gg > 0 and bg > 0:
-            ratio = gg / bg
-            if not 0.95 <= ratio <= 1.6:
-                anchor = np.array([lm.center_x, lm.shoulder_y if top else lm.waist_y, x[:, 2].mean()])
-                x = anchor + (x - anchor) * (GUESSED_UNITS_EASE / ratio)
+    if guessed:
+        anchor = np.array([lm.center_x, lm.shoulder_y if top else lm.waist_y, x[:, 2].mean()])
+        if scale is None:
+            scale = 1.0
+            # a bottom is fitted by its waistband (what holds it up), just under the body's waist line
+            fit_y, dy = (level, 0.04) if top else (lm.waist_y - BAND_BELOW_WAIST, BAND_BELOW_WAIST)
+            g_band = _band(x, fit_y, lm.center_x, 1.2 * lm.shoulder_half, dy)
+            gg, bg = _girth(g_band), _girth(_band(torso, fit_y, lm.center_x, 2.0 * lm.shoulder_half, dy))
+            if gg > 0 and bg > 0:
+                ratio = gg / bg
+                if not 0.95 <= ratio <= 1.6:
+                    scale = (GUESSED_UNITS_EASE if top else GUESSED_UNITS_BOTTOM_EASE) / ratio
+        if scale != 1.0:
+            # around the body only (x, z): the guessed unit already gives a wearable length (ingestion
+            # checks it), and a garment modelled on a slimmer or broader body differs in girth; scaling the
+            # length too made a MakeHuman outfit's trousers 1.4-1.9 x too long on medium and large bodies
+            x[:, [0, 2]] = anchor[[0, 2]] + (x[:, [0, 2]] - anchor[[0, 2]]) * scale
 
     g_band = _band(x, level, lm.center_x, 0.8 * lm.shoulder_half)
     if len(g_band) and len(body_band):
@@ -152,6 +212,81 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
 
     # --- local: turn about X through the collar / waistband centre (paper 3.1)
     x = local_alignment(x, torso, lm, top)
+    if not top:
+        crotch = garment_crotch(x, lm.center_x)
+        if crotch is not None and crotch > lm.crotch_y - CROTCH_DROP:
+            # a low-rise bottom (its top at the hips on the body it was made for), or one the turn lifted:
+            # lowered until its crotch is under the body's, rather than cut the body's crotch with its seam
+            x[:, 1] += lm.crotch_y - CROTCH_DROP - crotch
+        if legs is not None:
+            x = fit_legs(x, lm, legs)
+    return x, scale
+
+
+def garment_crotch(x: np.ndarray, cx: float) -> float | None:
+    """Height (m) of a bottom's crotch: the lowest of its points (k, 3) on the centre line x = ``cx``
+    (the seams meet there above the legs); None for a skirt, whose centre line runs down to its hem."""
+    # a coarse piece (a MakeHuman skirt keeps 49 vertices) may have no vertex within CENTRE_BAND of the
+    # centre line on some of its rings: the band is at least the points' typical spacing
+    spacing = float(np.median(cKDTree(x).query(x, k=2)[0][:, 1])) if len(x) > 2 else 0.0
+    centre = np.abs(x[:, 0] - cx) < max(CENTRE_BAND, spacing)
+    if centre.sum() < 3:
+        return None
+    y0, y1 = float(x[:, 1].min()), float(x[:, 1].max())
+    crotch = float(x[centre, 1].min())
+    return crotch if crotch - y0 > MIN_LEG_FRACTION * (y1 - y0) else None
+
+
+def leg_axes(body: Body) -> dict[float, np.ndarray] | None:
+    """Each leg's axis as a polyline (3, 3) from the hip joint through the knee to the ankle, keyed by
+    side (+1.0: the left leg, towards +x; -1.0: the right); None if the body has no legs."""
+    out = {}
+    for sign, side in ((1.0, "l"), (-1.0, "r")):
+        kt, ks = _part(body, f"thigh_{side}"), _part(body, f"shin_{side}")
+        if kt is None or ks is None:
+            return None
+        thigh, shin = body.part_axes[kt], body.part_axes[ks]
+        out[sign] = np.array([thigh[0], 0.5 * (thigh[1] + shin[0]), shin[1]])
+    return out
+
+
+def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray]) -> np.ndarray:
+    """Move each trouser leg of the bottom points (k, 3) over the body's leg: the leg's centre at each
+    height (mean of its points in a band) is moved onto the body's leg axis at that height, blending in
+    over ``LEG_BLEND`` below the crotch so the seat does not move. A garment modelled on a body standing
+    with its feet further apart (MakeHuman) otherwise starts with the body's shins outside its legs, and
+    the collision pulls the legs across (twisted or splayed legs). Nothing moves for a skirt, or when no
+    leg is off by ``MIN_LEG_SHIFT``."""
+    cx = lm.center_x
+    crotch = garment_crotch(x, cx)
+    if crotch is None:
+        return x
+    y = x[:, 1]
+    low = float(y.min())
+    n_bins = max(2, int(np.ceil((crotch - low) / LEG_BIN)))
+    edges = np.linspace(low, crotch, n_bins + 1)
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    shifts = {}
+    for sign, axis in legs.items():
+        leg = (sign * (x[:, 0] - cx) > 0) & (y < crotch)
+        if leg.sum() < 3 * n_bins:
+            return x
+        b = np.clip(np.searchsorted(edges, y[leg]) - 1, 0, n_bins - 1)
+        count = np.bincount(b, minlength=n_bins)
+        if (count == 0).any():
+            return x
+        centre = np.stack([np.bincount(b, weights=x[leg, c], minlength=n_bins) / count for c in (0, 2)], axis=1)
+        # the body's axis at the bins' heights (the polyline runs downwards: reverse it for np.interp)
+        ay = axis[::-1, 1]
+        target = np.stack([np.interp(centres, ay, axis[::-1, c]) for c in (0, 2)], axis=1)
+        shifts[sign] = (leg, target - centre)
+    if max(np.abs(d).max() for _, d in shifts.values()) < MIN_LEG_SHIFT:
+        return x
+    x = x.copy()
+    for leg, d in shifts.values():
+        blend = np.clip((crotch - y[leg]) / LEG_BLEND, 0.0, 1.0)
+        for j, c in enumerate((0, 2)):
+            x[leg, c] += blend * np.interp(y[leg], centres, d[:, j])
     return x
 
 
@@ -188,26 +323,51 @@ def arm_angle(body: Body, side: str) -> float:
     return float(np.arctan2(abs(d[0]), -d[1]))
 
 
-def plan_arms(body: Body, x: np.ndarray, category: str) -> ArmPlan:
+def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None = None) -> ArmPlan:
     """Turns that put each arm along its sleeve, measured from the aligned garment points (k, 3).
 
-    Sleeve points: garment points beyond 1.4 x the shoulder-joint half-width from the centre (past the
-    bodice of a fitted top or dress), above the chest-to-waist mid level; the sleeve direction is from
-    the shoulder joint to their centroid.
+    Sleeve points: points of the pieces over the shoulders (``faces`` (f, 3), if given, tells the pieces
+    apart; a bottom has no sleeves) beyond 1.4 x the shoulder-joint half-width from the centre (past the
+    bodice of a fitted top or dress), above the chest-to-waist mid level. The sleeve direction is from
+    the shoulder joint to their centroid, in 3-D: a sleeve made on a body whose arms hang further forward
+    (DiffAvatar's long-sleeve shirt: 9 cm in front of this body's arm at the cuff, with a 5 cm cuff
+    radius) is missed by an arm turned only in the frontal plane, which then cuts through the sleeve's
+    back and bunches it on the upper arm. The turn is about the axis normal to both the arm (shoulder to
+    wrist) and the sleeve direction.
     No sleeve (bottoms, sleeveless dresses, too few points): no turn.
     """
     if category == "bottom":
         return ArmPlan(0.0, 0.0)
     lm = body_landmarks(body)
-    turns = []
+    upper = np.ones(len(x), dtype=np.bool_) if faces is None else ~bottom_mask(x, faces, category)
+    turns, axes = [], []
     for side, sign, joint in (("l", 1.0, lm.shoulder_l), ("r", -1.0, lm.shoulder_r)):
         rel = (x[:, 0] - lm.center_x) * sign
-        sel = (rel > 1.4 * lm.shoulder_half) & (x[:, 1] > 0.5 * (lm.chest_y + lm.waist_y))
+        sel = upper & (rel > 1.4 * lm.shoulder_half) & (x[:, 1] > 0.5 * (lm.chest_y + lm.waist_y))
+        default_axis = (0.0, 0.0, sign)
         if sel.sum() < 8:
             turns.append(0.0)
+            axes.append(default_axis)
             continue
-        d = x[sel].mean(axis=0) - joint
-        sleeve = float(np.arctan2(abs(d[0]), -d[1]))
-        turn = sleeve - arm_angle(body, side)
-        turns.append(turn if abs(turn) >= MIN_ARM_TURN else 0.0)
-    return ArmPlan(left=turns[0], right=turns[1])
+        sleeve = x[sel].mean(axis=0) - joint
+        arm = arm_direction(body, side)
+        sleeve /= np.linalg.norm(sleeve)
+        normal = np.cross(arm, sleeve)
+        turn = float(np.arctan2(np.linalg.norm(normal), arm @ sleeve))
+        if turn < MIN_ARM_TURN or np.linalg.norm(normal) < 1e-9:
+            turns.append(0.0)
+            axes.append(default_axis)
+            continue
+        turns.append(turn)
+        axes.append(tuple(float(c) for c in normal / np.linalg.norm(normal)))
+    return ArmPlan(left=turns[0], right=turns[1], left_axis=axes[0], right_axis=axes[1])
+
+
+def arm_direction(body: Body, side: str) -> np.ndarray:
+    """(3,) unit direction from the shoulder joint to the wrist (the end of the forearm's axis, else of
+    the upper arm's)."""
+    k = _part(body, f"upper_arm_{side}")
+    kf = _part(body, f"forearm_{side}")
+    end = body.part_axes[kf, 1] if kf is not None else body.part_axes[k, 1]
+    d = end - body.part_axes[k, 0]
+    return d / np.linalg.norm(d)

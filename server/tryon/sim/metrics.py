@@ -40,7 +40,8 @@ def strain_metrics(coarse: np.ndarray, model, limits: np.ndarray,
     """Per-spring strain (s,), per full-mesh vertex strain (n,), and per-kind {max, limit, over} (plus
     ``over_on_body`` when ``on_body`` (k,) bool, coarse points touching the body, is given).
 
-    The full-mesh strain interpolates the coarse vertices' strains with the re-attachment barycentrics.
+    The full-mesh strain interpolates the coarse vertices' strains with the re-attachment barycentrics
+    (within the range of its triangle's corners).
     ``over``: how many springs exceed their kind's limit by more than 1 % (l > 1.01 l_max), or by 0.2 mm
     for springs shorter than 2 cm (triangle collapse leaves springs down to 1 mm, whose strain is noise:
     a 0.1 mm nudge by the collision is 10 %).
@@ -52,7 +53,11 @@ def strain_metrics(coarse: np.ndarray, model, limits: np.ndarray,
     strain = spring_strain(coarse, model.springs, model.rest)
     per_coarse = vertex_max_strain(len(coarse), model.springs, strain)
     corners = model.coarse_faces[model.attach_face]  # (n, 3)
-    per_full = np.einsum("nj,nj->n", model.attach_bary, per_coarse[corners])
+    # re-attachment barycentrics may lie a little outside [0, 1] (a full vertex just off its coarse
+    # triangle): keep the interpolation within its corners' strains
+    corner_strain = per_coarse[corners]
+    per_full = np.clip(np.einsum("nj,nj->n", model.attach_bary, corner_strain), corner_strain.min(axis=1),
+                       corner_strain.max(axis=1))
     by_kind = {}
     for k, name in enumerate(SPRING_KINDS):
         sel = model.kind == k

@@ -1,0 +1,146 @@
+"""Garment files of several pieces (an outfit: a top and trousers) and sleeves off the arms' line: each
+piece aligned by its own kind, legs over legs, arms turned onto their sleeves in 3-D."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tryon.body.build import build_body
+from tryon.body.params import Measurements, Pose
+from tryon.garment.generate import garment_mesh
+from tryon.garment.ingest import CleanMesh
+from tryon.garment.prepare import prepare
+from tryon.sim.align import align_garment, arm_direction, body_landmarks, garment_crotch, leg_axes, plan_arms
+from tryon.sim.bodystate import _rotation
+from tryon.sim.pieces import bottom_mask, piece_labels
+from tryon.sim.run import drape
+from tryon.sim.settings import SimSettings
+
+MEDIUM = Measurements(height=170, chest=96, waist=82, hips=100)
+# How the synthetic outfit's trousers were "modelled on another body": 0.10 m lower than a waist under
+# the shirt's shoulders, and each leg splayed outwards, 0 at the crotch to SPLAY at the hem.
+LIFT = -0.10
+SPLAY = 0.10
+
+
+@pytest.fixture(scope="module")
+def body():
+    return build_body(MEDIUM, Pose())
+
+
+def _prepared(vertices, faces, category):
+    mesh = CleanMesh(vertices=vertices, faces=faces.astype(np.int32), units="m", units_guessed=False)
+    return prepare(mesh, id="t", name="t", category=category, size="M", source_sha256="0", source_name="t.obj")
+
+
+@pytest.fixture(scope="module")
+def outfit():
+    """A T-shirt and a pair of trousers in one mesh (two connected pieces), the trousers lifted and
+    splayed; returns (model, number of shirt vertices)."""
+    shirt = garment_mesh("tshirt", "M")
+    trousers = garment_mesh("trousers", "M")
+    tv = np.array(trousers.vertices, dtype=np.float64)
+    crotch = 0.55  # below the generated trousers' crotch (Y_CROTCH): the seat does not move
+    depth = np.clip((crotch - tv[:, 1]) / (crotch - tv[:, 1].min()), 0.0, 1.0)
+    tv[:, 0] += np.sign(tv[:, 0]) * SPLAY * depth
+    tv[:, 1] += LIFT
+    sv = np.array(shirt.vertices, dtype=np.float64)
+    vertices = np.vstack([sv, tv])
+    faces = np.vstack([np.asarray(shirt.faces), np.asarray(trousers.faces) + len(sv)])
+    return _prepared(vertices, faces, "dress"), len(sv)
+
+
+def test_pieces_are_the_connected_components():
+    faces = np.array([[0, 1, 2], [1, 2, 3], [4, 5, 6]])
+    assert piece_labels(faces, 7).tolist() == [0, 0, 0, 0, 1, 1, 1]
+
+
+def test_the_piece_hanging_from_a_waist_is_the_bottom(outfit):
+    model, n_shirt = outfit
+    x = model.coarse_vertices
+    bottom = bottom_mask(x, model.coarse_faces, "dress")
+    assert np.array_equal(bottom, model.coarse_index >= n_shirt)
+    # a garment catalogued as a bottom is one bottom; a single top has no bottom piece
+    assert bottom_mask(x, model.coarse_faces, "bottom").all()
+    shirt_faces = model.coarse_faces[~bottom[model.coarse_faces].any(axis=1)]
+    keep = np.flatnonzero(~bottom)
+    remap = np.full(len(x), -1)
+    remap[keep] = np.arange(len(keep))
+    assert not bottom_mask(x[keep], remap[shirt_faces], "top").any()
+
+
+def test_each_piece_is_aligned_by_its_kind_with_its_legs_over_the_legs(outfit, body):
+    model, n_shirt = outfit
+    lm = body_landmarks(body)
+    x = align_garment(body, model)
+    trousers = model.coarse_index >= n_shirt
+    shirt_top = x[~trousers, 1].max()
+    assert lm.shoulder_y - 0.03 < shirt_top < lm.shoulder_y + 0.05
+    # the trousers hang from the body's waist (the local turn may lift the back of the band a little),
+    # not |LIFT| below where the shirt would have put them
+    assert abs(x[trousers, 1].max() - lm.waist_y) < 0.03
+    crotch = garment_crotch(x[trousers], lm.center_x)
+    assert crotch is not None and crotch < lm.crotch_y
+    # each leg's centre is on the body's leg axis at the shin (it was SPLAY / 2 or more off there)
+    y = x[:, 1]
+    for sign, axis in leg_axes(body).items():
+        for height in (0.2, 0.35):
+            band = trousers & (sign * x[:, 0] > 0) & (np.abs(y - height) < 0.03)
+            assert band.sum() >= 6
+            centre = x[band].mean(axis=0)
+            target_x = np.interp(height, axis[::-1, 1], axis[::-1, 0])
+            assert abs(centre[0] - target_x) < 0.02, (sign, height, centre[0], target_x)
+
+
+def test_a_skirt_has_no_crotch_and_its_points_keep_their_shape(body):
+    skirt = garment_mesh("skirt", "M")
+    model = _prepared(np.array(skirt.vertices, dtype=np.float64), np.asarray(skirt.faces), "bottom")
+    assert garment_crotch(model.coarse_vertices, 0.0) is None
+    x = align_garment(body, model)
+    # a rigid motion (translation and a turn about x): every distance is kept
+    d0 = np.linalg.norm(model.coarse_vertices[1:] - model.coarse_vertices[:-1], axis=1)
+    d1 = np.linalg.norm(x[1:] - x[:-1], axis=1)
+    assert np.allclose(d0, d1, atol=1e-9)
+
+
+def test_arms_turn_in_3d_onto_sleeves_in_front_of_them(body):
+    top = garment_mesh("longsleeve", "M")
+    v = np.array(top.vertices, dtype=np.float64)
+    model = _prepared(v, np.asarray(top.faces), "top")
+    x = align_garment(body, model)
+    lm = body_landmarks(body)
+    # move the sleeves 8 cm forward (a garment made on a body whose arms hang further forward)
+    sleeves = np.abs(x[:, 0] - lm.center_x) > 1.4 * lm.shoulder_half
+    x[sleeves, 2] += 0.08
+    plan = plan_arms(body, x, "top", model.coarse_faces)
+    for side, sign, angle, axis, joint in (("l", 1.0, plan.left, plan.left_axis, lm.shoulder_l),
+                                           ("r", -1.0, plan.right, plan.right_axis, lm.shoulder_r)):
+        assert angle > np.radians(6.0)
+        assert abs(axis[0]) > 0.3  # part of the turn is about x: the arm swings forward, not only out
+        sel = sleeves & (sign * (x[:, 0] - lm.center_x) > 0) & (x[:, 1] > 0.5 * (lm.chest_y + lm.waist_y))
+        want = x[sel].mean(axis=0) - joint
+        turned = _rotation(np.asarray(axis), angle) @ arm_direction(body, side)
+        cos = turned @ want / np.linalg.norm(want)
+        assert cos > np.cos(np.radians(0.5))
+
+
+@pytest.mark.slow
+def test_outfit_drapes_with_legs_around_legs(outfit, body):
+    model, n_shirt = outfit
+    result = drape(body, model, SimSettings())
+    m = result.metrics
+    assert m["rest_reached"], m
+    assert m["penetrating_vertices"] == 0
+    v = result.vertices
+    trousers = np.arange(len(v)) >= n_shirt
+    # around each shin at mid height the trouser leg's vertices surround the axis (no gap over 90 degrees)
+    for sign, axis in leg_axes(body).items():
+        a = axis[1] + 0.5 * (axis[2] - axis[1])
+        band = trousers & (np.abs(v[:, 1] - a[1]) < 0.03) & (sign * v[:, 0] > 0)
+        rel = v[band] - a
+        assert len(rel) > 10
+        angles = np.sort(np.arctan2(rel[:, 2], rel[:, 0]))
+        gap = max(np.diff(angles).max(), angles[0] + 2 * np.pi - angles[-1])
+        assert gap < np.radians(90), np.degrees(gap)
+        assert np.median(np.hypot(rel[:, 0], rel[:, 2])) < 0.12

@@ -344,23 +344,25 @@ def contact_springs(ends, table, on_body):
 
 
 @njit(cache=True, nogil=True)
-def sweep_springs(ends, table, order, on_body):
-    """``pack_sweep`` of the springs of ``order`` with an end off the body (``on_body`` (k,) bool):
-    springs with both ends on the body are the contact passes' job (the sweep would only split them by
-    inverse mass: one more stretch pass over them)."""
+def sweep_springs(sweep_ends, sweep_lmax, on_body):
+    """The springs of a packed sweep (``pack_sweep``) with an end off the body (``on_body`` (k,) bool), in
+    the same order: springs with both ends on the body are the contact passes' job (the sweep would only
+    split them by inverse mass: one more stretch pass over them). Returns (ends (q, 2) uint32,
+    l_max (q,))."""
     n = 0
-    for q in range(order.shape[0]):
-        s = order[q]
-        if not (on_body[ends[s, 0]] and on_body[ends[s, 1]]):
+    for q in range(sweep_ends.shape[0]):
+        if not (on_body[sweep_ends[q, 0]] and on_body[sweep_ends[q, 1]]):
             n += 1
-    kept = np.empty(n, dtype=np.int64)
+    kept_ends = np.empty((n, 2), dtype=np.uint32)
+    kept_lmax = np.empty(n)
     m = 0
-    for q in range(order.shape[0]):
-        s = order[q]
-        if not (on_body[ends[s, 0]] and on_body[ends[s, 1]]):
-            kept[m] = s
+    for q in range(sweep_ends.shape[0]):
+        if not (on_body[sweep_ends[q, 0]] and on_body[sweep_ends[q, 1]]):
+            kept_ends[m, 0] = sweep_ends[q, 0]
+            kept_ends[m, 1] = sweep_ends[q, 1]
+            kept_lmax[m] = sweep_lmax[q]
             m += 1
-    return pack_sweep(ends, table, kept)
+    return kept_ends, kept_lmax
 
 
 @njit(cache=True, nogil=True, fastmath=True, boundscheck=False)

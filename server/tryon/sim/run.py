@@ -13,9 +13,10 @@ substeps converge much further than the same passes on one step). Each substep:
    later substeps push onto the planes, with friction on the predicted motion;
 3. the strain-limited springs (eq. 2-3), ``passes / substeps`` Gauss-Seidel passes, each followed by the
    contact planes (springs and contacts converge together);
-4. the top-down sweep for hanging cloth (``limit_stretch_downward``: a sagging free end follows the
-   point above it), the planes again, then Coulomb friction from the summed contact pushes (a band's
-   hoop tension on the hips is what holds a skirt up) and the floor.
+4. the top-down sweep for hanging cloth (``sweep_downward``: a sagging free end follows the point above
+   it; springs with both ends on the body are left to the contact passes), the planes again, then
+   Coulomb friction from the summed contact pushes (a band's hoop tension on the hips is what holds a
+   skirt up) and the floor.
 After the step a guard keeps every spring under ``TEAR_GUARD`` x its natural length (never active in a
 normal drape; it keeps a garment far too small for its body from being stretched without bound).
 

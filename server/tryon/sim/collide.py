@@ -633,6 +633,21 @@ def reuse_planes(x, x_prev, has_plane, plane_point, plane_normal, reuse, mu_stat
     return n
 
 
+@njit(cache=True, nogil=True)
+def points_to_test(x, x_checked, has_plane, reused, rest_move, active):
+    """Which points the step's collision tests, into ``active`` (k,) bool: those that moved more than
+    ``rest_move`` (m) since their last test (``x_checked`` (k, 3)) or have a contact plane, unless their
+    plane was reused (``reused`` (k,) bool, see ``reuse_planes``). Returns how many."""
+    n = 0
+    for i in range(x.shape[0]):
+        dx = x[i, 0] - x_checked[i, 0]
+        dy = x[i, 1] - x_checked[i, 1]
+        dz = x[i, 2] - x_checked[i, 2]
+        active[i] = (dx * dx + dy * dy + dz * dz > rest_move * rest_move or has_plane[i]) and not reused[i]
+        n += active[i]
+    return n
+
+
 def relevant_parts(maps, lo: np.ndarray, hi: np.ndarray, reach: float) -> np.ndarray:
     """Ids (q,) int64 of the parts whose OBB comes within ``reach`` (m) of the box [lo, hi] (3,) each:
     the parts a garment in that box can touch (a skirt never tests the head or the arms)."""

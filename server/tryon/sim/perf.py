@@ -47,8 +47,8 @@ class _Timer:
     """Wraps the kernels the loop calls (module globals of ``run``) and sums their wall time."""
 
     NAMES = ("verlet_step", "solve_listed", "sweep_downward", "project_listed", "apply_friction", "reuse_planes",
-             "contact_springs", "sweep_springs", "top_down_order", "cap_stretch", "kinetic_energy_per_kg",
-             "keep_above_floor")
+             "points_to_test", "contact_springs", "sweep_springs", "top_down_order", "pack_sweep", "cap_stretch",
+             "kinetic_energy_per_kg", "keep_above_floor")
 
     def __init__(self):
         self.totals = {}

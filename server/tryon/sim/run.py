@@ -13,9 +13,10 @@ substeps converge much further than the same passes on one step). Each substep:
    later substeps push onto the planes, with friction on the predicted motion;
 3. the strain-limited springs (eq. 2-3), ``passes / substeps`` Gauss-Seidel passes, each followed by the
    contact planes (springs and contacts converge together);
-4. the top-down sweep for hanging cloth (``limit_stretch_downward``: a sagging free end follows the
-   point above it), the planes again, then Coulomb friction from the summed contact pushes (a band's
-   hoop tension on the hips is what holds a skirt up) and the floor.
+4. the top-down sweep for hanging cloth (``sweep_downward``: a sagging free end follows the point above
+   it; springs with both ends on the body are left to the contact passes), the planes again, then
+   Coulomb friction from the summed contact pushes (a band's hoop tension on the hips is what holds a
+   skirt up) and the floor.
 After the step a guard keeps every spring under ``TEAR_GUARD`` x its natural length (never active in a
 normal drape; it keeps a garment far too small for its body from being stretched without bound).
 
@@ -67,10 +68,10 @@ from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
-from tryon.sim.collide import relevant_parts, reuse_planes
+from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
 from tryon.sim.constraints import (
-    apply_friction, cap_stretch, contact_springs, pack_springs, project_listed, solve_listed, spring_lengths,
-    sweep_downward, sweep_springs, top_down_order,
+    apply_friction, cap_stretch, contact_springs, pack_springs, pack_sweep, project_listed, solve_listed,
+    spring_lengths, sweep_downward, sweep_springs, top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, kinetic_energy_per_kg, verlet_step
 from tryon.sim.metrics import allowed_length, penetration_metrics, strain_metrics
@@ -273,9 +274,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                     # contacts still near where they touched keep their plane (no map query), points that
                     # have not moved since their last test and touch nothing are not tested at all
                     reuse_planes(x, x_prev, *planes, PLANE_REUSE, mu_s, mu_k, contact, reused)
-                    moved = np.einsum("ij,ij->i", x - x_checked, x - x_checked) > REST_MOVE * REST_MOVE
-                    np.logical_or(moved, has_plane, out=active)
-                    active &= ~reused
+                    points_to_test(x, x_checked, has_plane, reused, REST_MOVE, active)
                 collided = collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset,
                                             mu_s, mu_k, contact, near=NEAR, planes=planes)
                 x_checked[active] = x[active]
@@ -290,9 +289,9 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                 solve_listed(x, x_prev, w_eff, body_ends, body_table, CONTACT_PASSES, touching, planes[1],
                              planes[2], 0.0, 0.0, push)
             if step % ORDER_REFRESH == 1 and sub == 0:
-                order = top_down_order(x, springs)
+                ordered_ends, ordered_lmax = pack_sweep(ends, table, top_down_order(x, springs))
             if sub == 0 and not changing:
-                sweep_ends, sweep_lmax = sweep_springs(ends, table, order, has_plane)
+                sweep_ends, sweep_lmax = sweep_springs(ordered_ends, ordered_lmax, has_plane)
             if not changing and (sub == n_sub - 1 or FTL_EVERY_SUBSTEP):
                 # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its
                 # upward bias would make a tight garment climb off the body

@@ -1,0 +1,129 @@
+"""The loop's packed kernels: contact planes over a list of points, the step's spring subsets, the
+collision's choice of points to test. Each is checked against a plain numpy statement of what it does."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tryon.sim.collide import points_to_test
+from tryon.sim.constraints import (
+    apply_friction, contact_springs, pack_springs, pack_sweep, project_listed, project_planes, solve_constraints,
+    solve_listed, sweep_springs, top_down_order,
+)
+from tryon.sim.scenes import cloth_square
+
+LIMITS = np.array([0.10, 0.15, 0.30])
+COMPRESSION = np.array([1.0, 1.0, 0.1])
+
+
+def _contacts(n=200, seed=0):
+    """Points around the plane y = 0 (normal +y), half of them with a contact plane."""
+    rng = np.random.default_rng(seed)
+    x = rng.normal(scale=0.01, size=(n, 3))
+    x_prev = x + rng.normal(scale=0.002, size=(n, 3))
+    has_plane = rng.random(n) < 0.5
+    point = np.zeros((n, 3))
+    normal = np.zeros((n, 3))
+    normal[:, 1] = 1.0
+    return x, x_prev, has_plane, point, normal
+
+
+def test_projection_puts_listed_points_on_their_plane_without_bounce():
+    x, x_prev, has_plane, point, normal = _contacts()
+    listed = np.flatnonzero(has_plane)
+    below = has_plane & (x[:, 1] < 0)
+    x0, prev0 = x.copy(), x_prev.copy()
+    push = np.zeros(len(x))
+    project_listed(x, x_prev, listed, point, normal, 0.0, 0.0, push)
+    assert np.allclose(x[below, 1], 0.0, atol=1e-15)
+    assert np.allclose(x[below][:, [0, 2]], x0[below][:, [0, 2]])  # frictionless: along the normal only
+    assert np.allclose(push[below], -x0[below, 1])
+    assert np.array_equal(x[~below], x0[~below]) and np.all(push[~below] == 0)
+    # inelastic: no velocity along the normal is left to the pushed points
+    assert np.allclose(x_prev[below, 1], x[below, 1])
+    assert np.array_equal(x_prev[~below], prev0[~below])
+
+
+def test_projection_by_mask_and_by_list_agree():
+    x, x_prev, has_plane, point, normal = _contacts(seed=1)
+    a, a_prev = x.copy(), x_prev.copy()
+    project_planes(a, a_prev, has_plane, point, normal, 0.6, 0.4)
+    b, b_prev = x.copy(), x_prev.copy()
+    project_listed(b, b_prev, np.flatnonzero(has_plane), point, normal, 0.6, 0.4)
+    assert np.array_equal(a, b) and np.array_equal(a_prev, b_prev)
+
+
+def test_friction_sticks_under_the_static_limit_and_slides_over_it():
+    x = np.zeros((3, 3))
+    x_prev = np.zeros((3, 3))
+    x[:, 0] = 0.001  # 1 mm of tangential motion each
+    normal = np.tile([0.0, 1.0, 0.0], (3, 1))
+    push = np.array([0.002, 0.001, 0.0005])  # mu_s x push: 1.2 mm (sticks), 0.6 mm and 0.3 mm (slide)
+    listed = np.array([0, 1], dtype=np.int64)  # point 2 has no plane: untouched
+    apply_friction(x, x_prev, listed, normal, push, 0.6, 0.4)
+    assert x[0, 0] == 0.0
+    assert np.isclose(x[1, 0], 0.001 - 0.4 * 0.001)
+    assert x[2, 0] == 0.001
+    assert np.all(push[:2] == 0.0)
+
+
+def _cloth():
+    model = cloth_square(0.5, 9, 1.0)
+    rng = np.random.default_rng(3)
+    x = model.coarse_vertices + rng.normal(scale=0.01, size=(len(model.mass), 3))
+    springs = model.springs.astype(np.int64)
+    ends, table = pack_springs(springs, model.rest, model.kind.astype(np.int64), LIMITS, COMPRESSION)
+    on_body = rng.random(len(x)) < 0.6
+    return x, springs, ends, table, on_body
+
+
+def test_contact_springs_are_those_on_the_body_stretch_only():
+    x, springs, ends, table, on_body = _cloth()
+    assert ends.dtype == np.uint32
+    body_ends, body_table = contact_springs(ends, table, on_body)
+    both = on_body[springs[:, 0]] & on_body[springs[:, 1]]
+    assert both.sum() > 0 and (~both).sum() > 0
+    assert np.array_equal(body_ends, ends[both])
+    assert np.array_equal(body_table[:, 0], table[both, 0])  # stretch limits kept, in spring order
+    assert np.all(body_table[:, 1:] == 0.0)  # no compression target at all
+
+
+def test_sweep_springs_keep_the_top_down_order_of_those_off_the_body():
+    x, springs, ends, table, on_body = _cloth()
+    order = top_down_order(x, springs)
+    ordered_ends, ordered_lmax = pack_sweep(ends, table, order)
+    assert np.array_equal(ordered_ends, ends[order]) and np.array_equal(ordered_lmax, table[order, 0])
+    sweep_ends, sweep_lmax = sweep_springs(ordered_ends, ordered_lmax, on_body)
+    off = ~(on_body[springs[order, 0]] & on_body[springs[order, 1]])
+    assert np.array_equal(sweep_ends, ends[order[off]])
+    assert np.array_equal(sweep_lmax, table[order[off], 0])
+
+
+def test_solve_by_list_matches_solve_by_mask():
+    x, springs, ends, table, on_body = _cloth()
+    x_prev = x.copy()
+    w = np.ones(len(x))
+    point = np.zeros((len(x), 3))
+    point[:, 1] = x[:, 1].mean()
+    normal = np.tile([0.0, 1.0, 0.0], (len(x), 1))
+    a, a_prev, a_push = x.copy(), x_prev.copy(), np.zeros(len(x))
+    solve_constraints(a, a_prev, w, ends, table, 4, on_body, point, normal, 0.0, 0.0, a_push)
+    b, b_prev, b_push = x.copy(), x_prev.copy(), np.zeros(len(x))
+    solve_listed(b, b_prev, w, ends, table, 4, np.flatnonzero(on_body), point, normal, 0.0, 0.0, b_push)
+    assert np.array_equal(a, b) and np.array_equal(a_prev, b_prev) and np.array_equal(a_push, b_push)
+    assert np.all(b[on_body, 1] >= point[0, 1] - 1e-12)  # the planes hold after the passes
+
+
+def test_points_to_test_moved_or_touching_unless_reused():
+    rng = np.random.default_rng(4)
+    n = 500
+    x = rng.normal(size=(n, 3))
+    x_checked = x + rng.normal(scale=1e-4, size=(n, 3))
+    has_plane = rng.random(n) < 0.3
+    reused = has_plane & (rng.random(n) < 0.5)
+    active = np.zeros(n, dtype=bool)
+    count = points_to_test(x, x_checked, has_plane, reused, 1e-4, active)
+    moved = np.linalg.norm(x - x_checked, axis=1) > 1e-4
+    expected = (moved | has_plane) & ~reused
+    assert np.array_equal(active, expected) and count == expected.sum()
+    assert 0 < count < n

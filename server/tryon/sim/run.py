@@ -253,10 +253,11 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     collided = 0
     for step in range(1, settings.max_steps + 1):
         changing = step <= startup
+        turning = bool(arms.steps) and step <= arms.steps + 1
         if grow_steps and step <= grow_steps + 1:
             s = settings.grow_from + (1.0 - settings.grow_from) * min(1.0, step / grow_steps)
-            collider.set_scale(s)
-        if arms.steps and step <= arms.steps + 1:
+            collider.set_scale(s, refresh=not turning)  # the arms' turn recomputes the surface anyway
+        if turning:
             arms.apply(step)
         if pinned_until and step == pinned_until:
             inv_mass[:] = saved_inv_mass
@@ -323,7 +324,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
 
     # --- make sure the body is at full size and pose, then polish (constraints + collision)
     if collider.scale != 1.0:
-        collider.set_scale(1.0)
+        collider.set_scale(1.0, refresh=not arms.steps)
     if arms.steps:
         arms.apply(arms.steps)
     if pinned_until and step < pinned_until:

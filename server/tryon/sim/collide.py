@@ -144,9 +144,10 @@ def face_boxes(bv, faces, face_part, vertex_part, cyl_origin, cyl_axes, corners,
     two comparisons instead of a plane intersection and an inside-triangle test.
 
     Each vertex's (z, theta, squared radius) in the frame of its part ``vertex_part`` (n,) is computed
-    once into ``corners`` (n, 3) and shared by its ~6 faces (only a corner of a face of another part, on a
-    seam, is computed again): a third of the arctangents, so a third of the time (~1.3 -> ~0.4 ms on a
-    10,000-vertex body; the growth phase and the arm turns recompute the boxes every step).
+    once into ``corners`` (n, 3) and shared by its ~6 faces (a corner of a face of another part is
+    computed again in that part's frame; the built bodies' parts share no vertex): a sixth of the
+    arctangents, the same boxes, ~1.25 -> ~0.4 ms on a 10,172-vertex body (the growth phase and the arm
+    turns recompute the boxes every step).
     """
     for v in range(bv.shape[0]):
         lx, ly, lz = _to_local(bv[v, 0], bv[v, 1], bv[v, 2], cyl_origin, cyl_axes, vertex_part[v])

@@ -210,7 +210,7 @@ def test_face_boxes_skip_only_faces_the_ray_cannot_hit(table):
 def test_face_boxes_from_shared_corners_equal_boxes_from_every_corner():
     """face_boxes computes each vertex's cylinder coordinates once, in its own part's frame, and a face
     corner of another part again in the face's: the boxes equal those with every corner computed in its
-    face's frame (no vertex taken as its part's), on a grown body of 16 parts."""
+    face's frame (no vertex taken as its part's), on a grown body of 10 parts."""
     collider = BodyCollider(build_body(Measurements(height=170, chest=96, waist=82, hips=100), Pose()), 0.004)
     collider.set_scale(0.7)
     shared = collider.offset_boxes.copy()

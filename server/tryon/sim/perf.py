@@ -53,9 +53,8 @@ class _Timer:
     """Wraps the kernels the loop calls (module globals of ``run``) and sums their wall time."""
 
     # finish_step: the first substep's tail (sweep, planes, friction, floor) and the other substeps whole
-    NAMES = ("verlet_step", "solve_listed", "finish_step", "project_listed", "reuse_planes", "points_to_test",
-             "contact_springs", "sweep_springs", "top_down_order", "pack_sweep", "cap_stretch",
-             "kinetic_energy_per_kg")
+    NAMES = ("verlet_step", "solve_listed", "finish_step", "reuse_planes", "points_to_test", "contact_springs",
+             "sweep_springs", "top_down_order", "pack_sweep", "cap_stretch", "kinetic_energy_per_kg")
 
     def __init__(self, capture_step: int = 0):
         self.totals = {}

@@ -70,13 +70,13 @@ from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
 from tryon.sim.constraints import (
-    cap_stretch, contact_springs, pack_springs, pack_sweep, project_listed, solve_listed, spring_lengths,
-    sweep_springs, top_down_order,
+    cap_stretch, contact_springs, pack_springs, pack_sweep, solve_listed, spring_lengths, sweep_springs,
+    top_down_order,
 )
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.metrics import allowed_length, penetration_metrics, strain_metrics
 from tryon.sim.settings import SimSettings
-from tryon.sim.substeps import finish_step
+from tryon.sim.substeps import finish_relaxation_round, finish_step
 
 # m: a point that moved less than this since its last collision test (and was not in contact) is not
 # tested again: the body is static, so it is still outside the offset body, i.e. >= margin - 0.1 mm
@@ -336,17 +336,14 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     stretch_only = table.copy()
     stretch_only[:, 2] = 0.0  # only the over-long springs act: no compression pushes cloth off the body
     for polish_rounds in range(1, MAX_POLISH_ROUNDS + 1):
-        for sub in range(n_sub):
-            verlet_step(x, x_prev, inv_mass, h, 0.0, RELAX_DRAG, settings.max_speed)
-            if sub == 0:
-                active[:] = True
-                collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact,
-                                 near=NEAR, planes=planes)
-                touching = np.flatnonzero(has_plane)
-            solve_listed(x, x_prev, inv_mass, ends, stretch_only, per_sub, touching, planes[1], planes[2], 0.0, 0.0,
-                         push)
-            project_listed(x, x_prev, touching, planes[1], planes[2], 0.0, 0.0)
-            np.maximum(x[:, 1], floor_y, out=x[:, 1])  # a frictionless floor: a hem on it may still slide
+        # the first substep's prediction and collision here, the rest of the round in one kernel
+        verlet_step(x, x_prev, inv_mass, h, 0.0, RELAX_DRAG, settings.max_speed)
+        active[:] = True
+        collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact, near=NEAR,
+                         planes=planes)
+        touching = np.flatnonzero(has_plane)
+        finish_relaxation_round(x, x_prev, inv_mass, h, RELAX_DRAG, settings.max_speed, n_sub, per_sub, ends,
+                                stretch_only, touching, planes[1], planes[2], push, floor_y)
         cap_stretch(x, inv_mass, springs, rest, TEAR_GUARD, TEAR_PASSES)
         if polish_rounds >= MIN_POLISH_ROUNDS:
             # judged after the final collision the result gets (between two collision tests a point may

@@ -334,7 +334,10 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     polish_rounds = 0
     x_prev[:] = x
     stretch_only = table.copy()
-    stretch_only[:, 2] = 0.0  # only the over-long springs act: no compression pushes cloth off the body
+    # only the over-long springs act: no compression pushes cloth off the body (and with l0 = 0 too a
+    # compressed spring is not even visited for a zero correction: same result, the relaxation's passes
+    # skip the buckled cloth on the body)
+    stretch_only[:, 1:] = 0.0
     for polish_rounds in range(1, MAX_POLISH_ROUNDS + 1):
         # the first substep's prediction and collision here, the rest of the round in one kernel
         verlet_step(x, x_prev, inv_mass, h, 0.0, RELAX_DRAG, settings.max_speed)

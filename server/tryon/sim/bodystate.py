@@ -148,8 +148,11 @@ class BodyCollider:
         else:
             bv = self.vertices
             face_normals(bv, self.faces, self.plain_normals)
-            cell_max_radius(self.cyl_origin, self.cyl_axes, self.cyl_shape, self.cell_base, self.cell_start,
-                            self.cell_faces, self.faces, bv, self.plain_rmax)
+            if self.scale == 1.0 and self._pose_vertices is self.rest_vertices:
+                self.plain_rmax[:] = self.rest_rmax  # the body as built: its radii are known (5.5 ms a call)
+            else:
+                cell_max_radius(self.cyl_origin, self.cyl_axes, self.cyl_shape, self.cell_base, self.cell_start,
+                                self.cell_faces, self.faces, bv, self.plain_rmax)
             face_boxes(bv, self.faces, self.face_part, self.vertex_part, self.cyl_origin, self.cyl_axes, self.corners,
                        self.plain_boxes)
             fn, rmax, boxes = self.plain_normals, self.plain_rmax, self.plain_boxes

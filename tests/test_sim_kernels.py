@@ -8,7 +8,7 @@ import numpy as np
 
 from tryon.sim.collide import points_to_test
 from tryon.sim.constraints import (
-    apply_friction, contact_springs, pack_springs, pack_sweep, project_listed, project_planes, solve_constraints,
+    STEEP, apply_friction, contact_springs, pack_springs, pack_sweep, project_listed, project_planes, solve_constraints,
     solve_listed, sweep_downward, sweep_springs, top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, verlet_step
@@ -164,3 +164,16 @@ def test_finish_step_is_the_substeps_kernels_one_by_one():
         keep_above_floor(b, b_prev, floor_y)
     assert not np.array_equal(a, x)  # it moved
     assert np.array_equal(a, b) and np.array_equal(a_prev, b_prev) and np.array_equal(a_push, b_push)
+
+
+def test_top_down_order_is_a_stable_sort_of_the_steep_springs_by_upper_end():
+    x, springs, ends, table, on_body = _cloth()
+    x[::7, 1] = x[0, 1]  # some exact height ties: they keep spring order
+    a, b = x[springs[:, 0]], x[springs[:, 1]]
+    everything = np.argsort(-np.maximum(a[:, 1], b[:, 1]), kind="stable")
+    d = a - b
+    steep = np.abs(d[:, 1]) >= 0.5 * STEEP * np.linalg.norm(d, axis=1)
+    assert np.array_equal(top_down_order(x, springs, False), everything)
+    order = top_down_order(x, springs)
+    assert np.array_equal(order, everything[steep[everything]])
+    assert 0 < len(order) < len(springs)

@@ -92,3 +92,47 @@ def test_paper_push_and_pin_start_without_growth(catalogue, body):
     assert not m["grown"]
     assert m["penetrating_vertices"] == 0
     assert result.vertices[:, 1].max() > body.levels["chest"] + 0.15
+
+
+def test_a_loose_top_is_not_turned_by_its_ease(body):
+    """The local turn puts a fitted top's back on the body's back; a top uniformly larger than the body
+    (here the torso itself widened by 15 % about its axis at every height, so not tilted at all) hangs
+    its ease behind it and is not turned: the paper's construction alone turned it by the ease."""
+    from tryon.sim.align import back_ease, body_landmarks, local_alignment, torso_points
+
+    torso = torso_points(body)
+    lm = body_landmarks(body)
+    top = torso[torso[:, 1] > lm.waist_y - 0.1].copy()
+    centre = np.array([lm.center_x, 0.0, 0.5 * (top[:, 2].min() + top[:, 2].max())])
+    top[:, [0, 2]] = centre[[0, 2]] + 1.15 * (top[:, [0, 2]] - centre[[0, 2]])
+    assert back_ease(top, torso, lm, lm.chest_y) > 0.01
+    turned = local_alignment(top, torso, lm, True)
+    lowest = np.argmin(top[:, 1])
+    assert abs(turned[lowest, 2] - top[lowest, 2]) < 0.004  # < ~0.5 degree over its ~0.5 m
+
+
+def test_long_sleeve_larger_than_the_body_fits_with_sleeves_around_the_forearms(catalogue, body):
+    """The size L long-sleeve on the medium body: slack everywhere, so every spring within the target,
+    and each forearm inside its sleeve down to the cuff (before the ease-aware local turn the sleeves
+    started 5 cm in front of the forearms, which came out through their backs: 258 springs over)."""
+    model = _model(catalogue, "longsleeve-l.obj", "top")
+    result = drape(body, model, SimSettings())
+    m = result.metrics
+    assert m["rest_reached"] and m["penetrating_vertices"] == 0
+    assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, m["strain_by_kind"]
+    x = result.coarse
+    for side in ("l", "r"):
+        k = body.parts.index(f"forearm_{side}")
+        a, b = body.part_axes[k]
+        axis = (b - a) / np.linalg.norm(b - a)
+        cuff_t = ((x - a) @ axis)[_distance_to_segment(x, a, b) < 0.1].max()
+        # at 80 % of the way to the cuff, the sleeve's points near the forearm surround its axis
+        p0 = a + 0.8 * cuff_t * axis
+        ring = x[(np.abs((x - p0) @ axis) < 0.02) & (_distance_to_segment(x, a, b) < 0.1)]
+        assert len(ring) > 6
+        u = np.cross(axis, [0.0, 0.0, 1.0])
+        u /= np.linalg.norm(u)
+        w = np.cross(axis, u)
+        angles = np.sort(np.arctan2((ring - p0) @ w, (ring - p0) @ u))
+        largest_gap = max(np.diff(angles).max(), angles[0] + 2 * np.pi - angles[-1])
+        assert largest_gap < np.radians(90), np.degrees(largest_gap)

@@ -136,3 +136,28 @@ def test_long_sleeve_larger_than_the_body_fits_with_sleeves_around_the_forearms(
         angles = np.sort(np.arctan2((ring - p0) @ w, (ring - p0) @ u))
         largest_gap = max(np.diff(angles).max(), angles[0] + 2 * np.pi - angles[-1])
         assert largest_gap < np.radians(90), np.degrees(largest_gap)
+
+
+def test_trouser_legs_too_long_for_the_body_start_above_the_feet(catalogue):
+    """Trousers M on a 158 cm body reach 5 cm below its soles once their waistband is at its waist: the
+    legs are shortened from the crotch down so the hem starts above the feet, and no leg spring starts
+    across a foot (before: 136 did, and the drape ended with 22 springs over, caught on the right foot)."""
+    from tryon.sim.align import align_garment, foot_top
+    from tryon.sim.bodystate import BodyCollider
+
+    small = build_body(Measurements(height=158, chest=86, waist=72, hips=92), Pose())
+    model = _model(catalogue, "trousers-m.obj", "bottom")
+    feet = foot_top(small)
+    assert 0.03 < feet < 0.07
+    x = align_garment(small, model)
+    assert feet < x[:, 1].min() < feet + 0.02
+    assert abs(x[:, 1].max() - small.levels["waist"]) < 0.01  # the waistband stays at the waist
+    shins = np.array([small.parts.index("shin_l"), small.parts.index("shin_r")])
+    t = np.linspace(0.1, 0.9, 9)[None, :, None]
+    along = x[model.springs[:, 0]][:, None] * (1 - t) + x[model.springs[:, 1]][:, None] * t
+    depth = BodyCollider(small, 0.004).depth(np.ascontiguousarray(along.reshape(-1, 3)), shins, offset=False)
+    assert (depth < 0.001).all()
+    result = drape(small, model, SimSettings())
+    m = result.metrics
+    assert m["rest_reached"] and m["penetrating_vertices"] == 0
+    assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, m["strain_by_kind"]

@@ -161,3 +161,13 @@ def test_trouser_legs_too_long_for_the_body_start_above_the_feet(catalogue):
     m = result.metrics
     assert m["rest_reached"] and m["penetrating_vertices"] == 0
     assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, m["strain_by_kind"]
+
+
+def test_a_garment_too_small_for_the_body_says_where(catalogue):
+    """The T-shirt S (95 cm under the arms, 106 cm at its 10 % limit) on a 112 cm chest cannot meet the
+    strain target: the metrics name the chest as where it is too tight."""
+    large = build_body(Measurements(height=185, chest=112, waist=100, hips=112), Pose())
+    m = drape(large, _model(catalogue, "tshirt-s.obj", "top"), SimSettings()).metrics
+    tight = m["too_tight"]
+    assert next(iter(tight)) == "torso chest", tight
+    assert tight["torso chest"] > 0.5 * sum(k["over"] for k in m["strain_by_kind"].values())

@@ -9,6 +9,8 @@
    torso, b = the body point nearest to a, c = the garment's highest point near the centre line (the
    collar for a top, the waistband for a bottom); the garment turns about the X axis through c by the
    angle between (a - c) and (b - c), so its back follows the body's back. Limited to +-15 degrees.
+   For a top larger than the body, b is first moved back by the garment's ease (``back_ease``), so a
+   loose top is not tilted onto the body's back (its sleeves would swing off the arms).
 3. Sleeve directions: the angle between each sleeve and the vertical (in the body's frontal plane) is
    measured, so the simulation can pose the arms along the sleeves and bring them back (``ArmPlan``).
 """
@@ -37,6 +39,13 @@ GUESSED_UNITS_BOTTOM_EASE = 1.0
 BAND_BELOW_WAIST = 0.02
 # Largest local-alignment turn about X, radians: the construction is a correction, not a re-posing.
 MAX_LOCAL_TURN = np.radians(15.0)
+# m: half-height of the band around the rear-most point a in which a top's ease (its depth beyond the
+# body's) is measured for the local turn (see ``local_alignment``).
+EASE_BAND = 0.02
+# m: how far in front of the shin's axis the body's surface counts as the foot (the ankle's radius is
+# 3-4 cm, the foot reaches 11-17 cm forward below ~5 cm), and how far above the feet a trouser hem is put.
+FOOT_REACH = 0.06
+FOOT_CLEARANCE = 0.01
 # Smallest difference between sleeve and arm angles worth posing the arms for, radians.
 MIN_ARM_TURN = np.radians(6.0)
 # m: a bottom's crotch is put at least this far below the body's (a low-rise pair of trousers, whose top
@@ -161,19 +170,21 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
     guessed = bool(getattr(model.meta, "units_guessed", False))
     bottom = bottom_mask(x, model.coarse_faces, model.meta.category)
     legs = leg_axes(body)
+    feet = foot_top(body)
     for is_top, sel in ((True, ~bottom), (False, bottom)):
         if sel.any():
-            x[sel], _ = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs)
+            x[sel], _ = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs, feet)
     return x
 
 
 def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool, guessed: bool,
-                 scale: float | None, legs: dict[float, np.ndarray] | None = None
+                 scale: float | None, legs: dict[float, np.ndarray] | None = None, foot_y: float | None = None
                  ) -> tuple[np.ndarray, float | None]:
     """Global then local alignment of the points (k, 3) of one kind of piece (``top``: hung from the
     shoulders, else from the waist). ``scale``: the factor a guessed-units garment was already scaled by
     (None: decide it here from the girth); ``legs``: the body's leg axes (``leg_axes``), over which a
-    bottom's legs are put. Returns the aligned copy and the scale used (None if not guessed)."""
+    bottom's legs are put; ``foot_y``: the top of the body's feet (``foot_top``), above which a trouser
+    leg's hem is put. Returns the aligned copy and the scale used (None if not guessed)."""
     x = x.copy()
     level = lm.chest_y if top else lm.hips_y
 
@@ -220,6 +231,8 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
             x[:, 1] += lm.crotch_y - CROTCH_DROP - crotch
         if legs is not None:
             x = fit_legs(x, lm, legs)
+        if foot_y is not None:
+            x = clear_feet(x, lm.center_x, foot_y)
     return x, scale
 
 
@@ -290,8 +303,65 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray]) ->
     return x
 
 
+def back_ease(x: np.ndarray, torso: np.ndarray, lm: BodyLandmarks, y: float) -> float:
+    """How far (m, >= 0) the back of a garment (points (k, 3)) larger than the body hangs behind the body's
+    back at height ``y`` when it is centred on it: half its depth beyond the torso's there, in a band
+    ``EASE_BAND`` high near the centre line; 0 for a garment no deeper than the body."""
+    near = np.abs(x[:, 0] - lm.center_x) < 0.5 * lm.shoulder_half
+    g = x[near & (np.abs(x[:, 1] - y) < EASE_BAND), 2]
+    near_b = np.abs(torso[:, 0] - lm.center_x) < 0.5 * lm.shoulder_half
+    b = torso[near_b & (np.abs(torso[:, 1] - y) < EASE_BAND), 2]
+    if len(g) == 0 or len(b) == 0:
+        return 0.0
+    return max(0.0, 0.5 * ((g.max() - g.min()) - (b.max() - b.min())))
+
+
+def foot_top(body: Body) -> float | None:
+    """Height (m) of the top of the feet: the highest point of the shins' surface more than ``FOOT_REACH``
+    in front of their axis at its height, in their lower half (the instep); None if the body has no
+    shins."""
+    tops = []
+    for side in ("l", "r"):
+        k = _part(body, f"shin_{side}")
+        if k is None:
+            return None
+        v = body.vertices[np.unique(body.faces[body.face_part == k])]
+        (_, y0, z0), (_, y1, z1) = body.part_axes[k]  # knee to ankle
+        axis_z = z0 + (z1 - z0) * np.clip((v[:, 1] - y0) / (y1 - y0), 0.0, 1.0)
+        ahead = (v[:, 2] - axis_z > FOOT_REACH) & (v[:, 1] < 0.5 * (y0 + y1))  # not the knee cap
+        if ahead.any():
+            tops.append(float(v[ahead, 1].max()))
+    return max(tops) if tops else None
+
+
+def clear_feet(x: np.ndarray, cx: float, foot_y: float) -> np.ndarray:
+    """A bottom's points (k, 3) whose legs reach below ``foot_y`` + ``FOOT_CLEARANCE`` (trousers made for a
+    taller body, or whose hem lies on the floor) with the legs shortened from the crotch down, uniformly,
+    so that the hem starts just above the feet: a hem placed through the feet starts with each foot
+    through the leg's front (the springs across the instep, which growth cannot undo: no point is inside),
+    and the foot keeps the leg caught. The legs' springs, compressed, lengthen again in the first steps,
+    and the hem comes down around the foot. Nothing changes for a skirt or shorts."""
+    crotch = garment_crotch(x, cx)
+    target = foot_y + FOOT_CLEARANCE
+    hem = float(x[:, 1].min())
+    if crotch is None or hem >= target or crotch <= target:
+        return x
+    x = x.copy()
+    legs = x[:, 1] < crotch
+    x[legs, 1] = crotch - (crotch - x[legs, 1]) * (crotch - target) / (crotch - hem)
+    return x
+
+
 def local_alignment(x: np.ndarray, torso: np.ndarray, lm: BodyLandmarks, top: bool) -> np.ndarray:
-    """The paper's rotation about X (see module doc); returns the turned copy of ``x`` (k, 3)."""
+    """The paper's rotation about X (see module doc); returns the turned copy of ``x`` (k, 3).
+
+    For a top, the body point b is moved back by the garment's ease there (``back_ease``): the paper's
+    construction puts the garment's rear-most point on the body's back, which for a garment larger than
+    the body is a turn by its looseness, not by its tilt, and the turn about the collar swings the sleeves
+    off the arms (the catalogue's long-sleeve L on the medium body, which it was made for: 5.3 degrees
+    forward, its sleeves 5 cm in front of the forearms, which then came out through the sleeves' backs;
+    every real top turned forward by 5-13 degrees). Bottoms keep the paper's construction: their band
+    sits on the hips, and below it a flare or the crotch makes their depth no measure of their ease."""
     cx = lm.center_x
     near_centre = np.abs(x[:, 0] - cx) < 0.25 * lm.shoulder_half
     if near_centre.sum() < 3:
@@ -304,6 +374,8 @@ def local_alignment(x: np.ndarray, torso: np.ndarray, lm: BodyLandmarks, top: bo
         return x
     a = x[region][np.argmin(x[region, 2])]
     b = torso[np.argmin(np.linalg.norm(torso - a, axis=1))]
+    if top:
+        b = b - np.array([0.0, 0.0, back_ease(x, torso, lm, a[1])])
     u = (a - c)[1:]
     v = (b - c)[1:]
     if np.linalg.norm(u) < 1e-6 or np.linalg.norm(v) < 1e-6:

@@ -74,7 +74,7 @@ from tryon.sim.constraints import (
     spring_lengths, sweep_downward, sweep_springs, top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, kinetic_energy_per_kg, verlet_step
-from tryon.sim.metrics import allowed_length, penetration_metrics, strain_metrics
+from tryon.sim.metrics import allowed_length, penetration_metrics, strain_metrics, too_tight_places
 from tryon.sim.settings import SimSettings
 
 # m: a point that moved less than this since its last collision test (and was not in contact) is not
@@ -142,7 +142,7 @@ FrameCallback = Callable[[int, np.ndarray], bool]
 class TryOnResult:
     """vertices (n, 3) full mesh, m; strain (n,) per full vertex; coarse (k, 3) simulated positions;
     metrics dict (steps, sim_seconds, wall_seconds, rest_reached, penetrating_vertices,
-    max_penetration_mm, max_strain, strain_by_kind, ...)."""
+    max_penetration_mm, max_strain, strain_by_kind, too_tight (``metrics.too_tight_places``), ...)."""
 
     vertices: np.ndarray
     faces: np.ndarray
@@ -378,6 +378,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     # --- metrics
     depth = collider.depth(full, full_parts, offset=False)
     spring_strain_, per_vertex, by_kind = strain_metrics(x, model, limits, on_body=has_plane.copy())
+    too_tight = too_tight_places(x, model, limits, has_plane, body)
     wall = time.perf_counter() - t_start
     metrics = {
         "steps": int(step),
@@ -388,6 +389,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         **penetration_metrics(depth),
         "max_strain": float(spring_strain_.max()) if len(spring_strain_) else 0.0,
         "strain_by_kind": by_kind,
+        "too_tight": too_tight,
         "kinetic_energy_per_kg": float(energy),
         "grown": bool(grow_steps),
         "arm_turn_deg": [float(np.degrees(plan.left)), float(np.degrees(plan.right))],

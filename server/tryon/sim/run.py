@@ -41,8 +41,8 @@ After the loop, a relaxation: the same substeps with gravity and friction off an
 until every spring meets the strain target (or progress stalls, or ``MAX_POLISH_ROUNDS`` steps). At rest
 under gravity the Gauss-Seidel passes leave the springs that hold the garment up (a waistband on the hips,
 cloth over the shoulders) a few % over their limits, and a band that sagged too low cannot shorten without
-climbing back up the body, a coordinated motion that damped passes make only a little of per round (hundreds of rounds).
-Without gravity the over-long springs are the only force left (and only they act: stretch-only, so no
+climbing back up the body, a coordinated motion that damped passes make only a little of per round
+(hundreds of rounds). Without gravity the over-long springs are the only force left (and only they act: stretch-only, so no
 compression pushes cloth up off the body); with little drag the motion they start is kept (momentum: the
 heavy-ball acceleration of an iterative solver), so the band climbs to where it fits in 10-40 rounds.
 The garment moves only as far as its over-stretch asks: on the medium body a median 1-6 mm per point and

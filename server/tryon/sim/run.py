@@ -37,20 +37,19 @@ Points at rest cost almost nothing: a point that moved less than ``REST_MOVE`` s
 outside the (static) body, and is not in contact, cannot be inside it by more than that, so its
 collision test is skipped; a contact at rest only re-projects onto its plane.
 
-After the loop, a relaxation: the same substeps with gravity and friction off and light drag, from rest,
-until every spring meets the strain target (or progress stalls, or ``MAX_POLISH_ROUNDS`` steps). At rest
-under gravity the Gauss-Seidel passes leave the springs that hold the garment up (a waistband on the hips,
-cloth over the shoulders) a few % over their limits, and a band that sagged too low cannot shorten without
-climbing back up the body, a coordinated motion that damped passes make only a little of per round
-(hundreds of rounds). Without gravity the over-long springs are the only force left (and only they act: stretch-only, so no
+After the loop, a relaxation: the same substeps with gravity and friction off and light drag, from rest, until
+every spring meets the strain target (or progress stalls, or ``MAX_POLISH_ROUNDS`` steps). At rest under
+gravity the Gauss-Seidel passes leave the springs that hold the garment up (a waistband on the hips, cloth
+over the shoulders) a few % over their limits, and a band that sagged too low cannot shorten without climbing
+back up the body, a coordinated motion that damped passes make only a little of per round (hundreds of
+rounds). Without gravity the over-long springs are the only force left (and only they act: stretch-only, so no
 compression pushes cloth up off the body); with little drag the motion they start is kept (momentum: the
-heavy-ball acceleration of an iterative solver), so the band climbs to where it fits in 10-40 rounds.
-The garment moves only as far as its over-stretch asks: on the medium body a median 1-6 mm per point and
-up to 1-3 cm, but up to 7-10 cm where a long sleeve or a trouser hem was stretched along the limb and
-shortens up it (the long-sleeve L: median 3.7 cm, a garment the loop left far from its limits). Then the full mesh
-is rebuilt from the coarse one (``model.expand``) and its vertices are pushed out of the offset body too
-(again while any still moves: a point pushed out of one thigh into the other), so the displayed mesh does
-not penetrate either.
+heavy-ball acceleration of an iterative solver), so the band climbs to where it fits in 10-40 rounds. The
+garment moves only as far as its over-stretch asks: on the medium body a median 1-6 mm per point and up to 1-3
+cm, but up to 7-10 cm where a long sleeve or a trouser hem was stretched along the limb and shortens up it
+(the long-sleeve L: median 3.7 cm, a garment the loop left far from its limits). Then the full mesh is rebuilt
+from the coarse one (``model.expand``) and its vertices are pushed out of the offset body too (again while any
+still moves: a point pushed out of one thigh into the other), so the displayed mesh does not penetrate either.
 
 The floor (y = ``FLOOR_Y``) is put under the offset body's soles, so a trouser hem on the floor beside a
 foot is not caught between the floor and the sole's offset rim.

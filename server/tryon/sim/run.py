@@ -46,10 +46,10 @@ rounds). Without gravity the over-long springs are the only force left (and only
 compression pushes cloth up off the body); with little drag the motion they start is kept (momentum: the
 heavy-ball acceleration of an iterative solver), so the band climbs to where it fits in 10-40 rounds. The
 garment moves only as far as its over-stretch asks: on the medium body a median 1-6 mm per point and up to 1-3
-cm, but up to 7-10 cm where a long sleeve or a trouser hem was stretched along the limb and shortens up it
-(the long-sleeve L: median 3.7 cm, a garment the loop left far from its limits). Then the full mesh is rebuilt
-from the coarse one (``model.expand``) and its vertices are pushed out of the offset body too (again while any
-still moves: a point pushed out of one thigh into the other), so the displayed mesh does not penetrate either.
+cm, but up to 7-10 cm where a long sleeve or a trouser hem was stretched along the limb and shortens up it .
+Then the full mesh is rebuilt from the coarse one (``model.expand``) and its vertices are pushed out of the
+offset body too (again while any still moves: a point pushed out of one thigh into the other), so the
+displayed mesh does not penetrate either.
 
 The floor (y = ``FLOOR_Y``) is put under the offset body's soles, so a trouser hem on the floor beside a
 foot is not caught between the floor and the sole's offset rim.

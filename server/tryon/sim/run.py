@@ -65,7 +65,7 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
-from tryon.sim.align import ArmPlan, align_garment, plan_arms
+from tryon.sim.align import ArmPlan, align_garment, arm_joints, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
 from tryon.sim.constraints import (
@@ -156,27 +156,47 @@ class TryOnResult:
 
 
 class _ArmSchedule:
-    """Turns the arms from the sleeve pose back to rest over ``steps`` steps."""
+    """Turns the arms from the sleeve pose back to rest over ``steps`` steps: each upper arm about its
+    shoulder joint, each forearm with it and then about the (turned) elbow, every angle scaled by the
+    fraction of the pose left."""
 
     def __init__(self, body: Body, collider: BodyCollider, plan, settings: SimSettings):
         self.collider = collider
         self.parts = {}
-        for side, angle, axis in (("l", plan.left, plan.left_axis), ("r", plan.right, plan.right_axis)):
-            if angle == 0.0 or f"upper_arm_{side}" not in body.parts:
+        for side, angle, axis, bend, bend_axis in (
+                ("l", plan.left, plan.left_axis, plan.left_elbow, plan.left_elbow_axis),
+                ("r", plan.right, plan.right_axis, plan.right_elbow, plan.right_elbow_axis)):
+            if (angle == 0.0 and bend == 0.0) or f"upper_arm_{side}" not in body.parts:
                 continue
             k_up = body.parts.index(f"upper_arm_{side}")
-            ks = [k_up] + ([body.parts.index(f"forearm_{side}")] if f"forearm_{side}" in body.parts else [])
-            self.parts[side] = (body.part_axes[k_up, 0].copy(), angle, np.asarray(axis, dtype=np.float64), ks)
-        biggest = max((abs(a) for _, a, _, _ in self.parts.values()), default=0.0)
+            k_fore = body.parts.index(f"forearm_{side}") if f"forearm_{side}" in body.parts else None
+            joint = body.part_axes[k_up, 0].copy()
+            elbow = arm_joints(body, side)[1] if k_fore is not None else joint
+            self.parts[side] = (joint, angle, np.asarray(axis, dtype=np.float64), k_up, k_fore, elbow, bend,
+                                np.asarray(bend_axis, dtype=np.float64))
+        biggest = max((max(abs(a), abs(b)) for _, a, _, _, _, _, b, _ in self.parts.values()), default=0.0)
         self.steps = int(np.ceil(np.degrees(biggest) / ARM_DEG_PER_STEP)) if self.parts else 0
+
+    def turned_parts(self) -> list[int]:
+        """Body part indices the schedule moves."""
+        return [k for _, _, _, k_up, k_fore, _, _, _ in self.parts.values()
+                for k in (k_up, k_fore) if k is not None]
 
     def apply(self, step: int) -> None:
         fraction = 1.0 - min(1.0, step / self.steps) if self.steps else 0.0
         turns = {}
-        for pivot, angle, axis, ks in self.parts.values():
+        for joint, angle, axis, k_up, k_fore, elbow, bend, bend_axis in self.parts.values():
             rot = _rotation(axis, angle * fraction)
-            for k in ks:
-                turns[k] = (pivot, rot)
+            turns[k_up] = (joint, rot)
+            if k_fore is None:
+                continue
+            if bend == 0.0:
+                turns[k_fore] = (joint, rot)
+                continue
+            # forearm: v -> e' + R_e (R_s (v - j) + j - e'), e' the turned elbow, R_e about the turned axis
+            posed_elbow = joint + rot @ (elbow - joint)
+            rot_e = _rotation(rot @ bend_axis, bend * fraction)
+            turns[k_fore] = (joint, rot_e @ rot, (np.eye(3) - rot_e) @ (posed_elbow - joint))
         self.collider.pose_arms(turns)
 
 
@@ -207,7 +227,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     parts = relevant_parts(body.maps, lo, hi, PART_REACH)
     if arms.steps:
         arms.apply(0)
-        turned = [k for _, _, _, ks in arms.parts.values() for k in ks]  # the sleeves are around them
+        turned = arms.turned_parts()  # the sleeves are around them
         parts = np.union1d(parts, turned).astype(np.int64)
 
     # --- tangled start: grow the body, or (growth off) push out and pin for a few steps
@@ -403,6 +423,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         "kinetic_energy_per_kg": float(energy),
         "grown": bool(grow_steps),
         "arm_turn_deg": [float(np.degrees(plan.left)), float(np.degrees(plan.right))],
+        "elbow_turn_deg": [float(np.degrees(plan.left_elbow)), float(np.degrees(plan.right_elbow))],
         "parts_tested": [body.parts[k] for k in parts],
         "last_step_contacts": int(collided),
         "polish_rounds": int(polish_rounds),

@@ -357,6 +357,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     target = allowed_length(rest, limits[kind])
     polish_rounds = 0
     x_prev[:] = x
+    x_loop = x.copy()
     stretch_only = table.copy()
     stretch_only[:, 2] = 0.0  # only the over-long springs act: no compression pushes cloth off the body
     fewest_over, best_round = len(springs) + 1, 0
@@ -406,6 +407,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         all_active[:] = full_contact
 
     # --- metrics
+    relax_move = np.linalg.norm(x - x_loop, axis=1)  # m, per coarse point: how far the relaxation moved it
     depth = collider.depth(full, full_parts, offset=False)
     spring_strain_, per_vertex, by_kind = strain_metrics(x, model, limits, on_body=has_plane.copy())
     too_tight = too_tight_places(x, model, limits, has_plane, body)
@@ -427,5 +429,6 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         "parts_tested": [body.parts[k] for k in parts],
         "last_step_contacts": int(collided),
         "polish_rounds": int(polish_rounds),
+        "relax_move_mm": [float(1000 * np.median(relax_move)), float(1000 * relax_move.max())],
     }
     return TryOnResult(vertices=full, faces=model.faces, strain=per_vertex, coarse=x, metrics=metrics)

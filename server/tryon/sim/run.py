@@ -47,7 +47,10 @@ compression pushes cloth up off the body); with little drag the motion they star
 heavy-ball acceleration of an iterative solver), so the band climbs to where it fits in 10-40 rounds. The
 garment moves only as far as its over-stretch asks: on the medium body a median 1-6 mm per point and up to 1-3
 cm, but up to 7-10 cm where a long sleeve or a trouser hem was stretched along the limb and shortens up it .
-Then the full mesh is rebuilt from the coarse one (``model.expand``) and its vertices are pushed out of the
+A garment far too small for the body has no such place nearby, and the relaxation carries it off (a blouse
+up around the neck): when it moved the median point more than ``RELAX_MAX_MEDIAN_MOVE`` it is dropped, and
+the loop's result is kept with its springs over the target reported (metrics ``relaxed``,
+``relax_move_mm``). Then the full mesh is rebuilt from the coarse one (``model.expand``) and its vertices are pushed out of the
 offset body too (again while any still moves: a point pushed out of one thigh into the other), so the
 displayed mesh does not penetrate either.
 
@@ -104,6 +107,13 @@ POLISH_PROGRESS = 0.9
 # cloth pulled up off a table by the springs at its rim comes to a stop (0 and 10/s left bumps of 2 mm
 # and 1.7 cm on the table test at 0.05 s; 20/s: 0.2 mm).
 RELAX_DRAG = 20.0
+# m: the relaxation is kept only if it moved the median coarse point at most this far. A garment far too
+# small for its body has no nearby place where its springs meet the target, and without gravity the
+# relaxation carries all of it to wherever they come closest: a MakeHuman blouse on the medium body
+# ended up bunched around the neck (median move 29 cm), a 92 cm DiffCloth dress as a crumpled smock
+# (28 cm). The catalogue's 54 drapes move at most 8 cm (median point; the A-line skirt S on the large
+# body), most under 1 cm.
+RELAX_MAX_MEDIAN_MOVE = 0.10
 # Degrees per step the arms are turned back from the sleeve pose (slow enough that the arm surface
 # moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).
 ARM_DEG_PER_STEP = 1.0
@@ -389,6 +399,15 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     else:  # out of rounds: the last positions still get their final collision
         active[:] = True
         collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
+    relax_move = np.linalg.norm(x - x_loop, axis=1)  # m, per coarse point: how far the relaxation moved it
+    relaxed = float(np.median(relax_move)) <= RELAX_MAX_MEDIAN_MOVE
+    if not relaxed:
+        # the relaxation carried the whole garment away (see RELAX_MAX_MEDIAN_MOVE): keep where the loop
+        # left it, its springs over the target reported as they are
+        x[:] = x_loop
+        x_prev[:] = x_loop
+        active[:] = True
+        collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
 
     # --- full mesh: follow the coarse one, then push it out of the offset body too
     full = np.ascontiguousarray(model.expand(x))
@@ -407,7 +426,6 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         all_active[:] = full_contact
 
     # --- metrics
-    relax_move = np.linalg.norm(x - x_loop, axis=1)  # m, per coarse point: how far the relaxation moved it
     depth = collider.depth(full, full_parts, offset=False)
     spring_strain_, per_vertex, by_kind = strain_metrics(x, model, limits, on_body=has_plane.copy())
     too_tight = too_tight_places(x, model, limits, has_plane, body)
@@ -430,5 +448,6 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         "last_step_contacts": int(collided),
         "polish_rounds": int(polish_rounds),
         "relax_move_mm": [float(1000 * np.median(relax_move)), float(1000 * relax_move.max())],
+        "relaxed": bool(relaxed),
     }
     return TryOnResult(vertices=full, faces=model.faces, strain=per_vertex, coarse=x, metrics=metrics)

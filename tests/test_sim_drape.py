@@ -175,13 +175,14 @@ def test_a_garment_too_small_for_the_body_says_where(catalogue):
 
 def test_a_top_far_too_small_stays_on_the_shoulders(body):
     """A long-sleeve top at 0.6 of its girth: no place on the body lets its springs meet the target, and
-    a relaxation without gravity would carry it up over the neck (median point 29 cm; measured). The
+    a relaxation without gravity would carry it up over the neck (measured: 90 % of its points more than
+    29 cm). The
     drape keeps it where the loop left it, on the shoulders, and reports its springs over the target."""
     from tryon.garment.generate import garment_mesh
     from tryon.garment.ingest import CleanMesh
     from tryon.garment.prepare import prepare
     from tryon.sim.align import body_landmarks
-    from tryon.sim.run import RELAX_MAX_MEDIAN_MOVE
+    from tryon.sim.run import RELAX_MAX_MOVE
 
     g = garment_mesh("longsleeve", "S")
     v = np.array(g.vertices, dtype=np.float64)
@@ -192,7 +193,7 @@ def test_a_top_far_too_small_stays_on_the_shoulders(body):
                     source_name="small.obj")
     result = drape(body, model, SimSettings())
     m = result.metrics
-    assert not m["relaxed"] and m["relax_move_mm"][0] > 1000 * RELAX_MAX_MEDIAN_MOVE
+    assert not m["relaxed"] and m["relax_move_mm"][0] > 1000 * RELAX_MAX_MOVE
     assert m["penetrating_vertices"] == 0
     assert sum(k["over"] for k in m["strain_by_kind"].values()) > 1000  # honestly too small
     lm = body_landmarks(body)

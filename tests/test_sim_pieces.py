@@ -247,3 +247,36 @@ def test_bent_sleeves_drape_around_the_forearms(body, bent_top):
         gap = max(np.diff(angles).max(), angles[0] + 2 * np.pi - angles[-1])
         assert gap < np.radians(90), (side, np.degrees(gap))
         assert np.median(np.linalg.norm(radial, axis=1)) < 0.07
+
+
+@pytest.mark.slow
+def test_relaxation_kept_for_the_shirt_dropped_for_trousers_it_would_carry_away(body):
+    """An outfit whose trousers are far too small at the seat (0.6 of their girth): a relaxation without
+    gravity pulls them down the legs. That piece keeps the loop's drape, on the hips; the shirt, which
+    the relaxation barely moves, keeps the relaxed one."""
+    from tryon.sim import run
+
+    shirt, trousers = garment_mesh("tshirt", "M"), garment_mesh("trousers", "M")
+    sv, tv = np.array(shirt.vertices, dtype=np.float64), np.array(trousers.vertices, dtype=np.float64)
+    centre = tv.mean(axis=0)
+    tv[:, [0, 2]] = centre[[0, 2]] + 0.6 * (tv[:, [0, 2]] - centre[[0, 2]])
+    model = _prepared(np.vstack([sv, tv]), np.vstack([np.asarray(shirt.faces), np.asarray(trousers.faces) + len(sv)]),
+                      "dress")
+    result = drape(body, model, SimSettings())
+    m = result.metrics
+    assert not m["relaxed"] and m["relax_move_mm"][0] > 1000 * run.RELAX_MAX_MOVE
+    assert m["penetrating_vertices"] == 0
+    lm = body_landmarks(body)
+    legs = np.arange(len(result.vertices)) >= len(sv)
+    assert result.vertices[legs, 1].max() > lm.hips_y  # the trousers' top still above the hip line
+    # the same drape without the guard: the trousers' top slides below the hips
+    saved = run.RELAX_MAX_MOVE
+    try:
+        run.RELAX_MAX_MOVE = np.inf
+        loose = drape(body, model, SimSettings())
+    finally:
+        run.RELAX_MAX_MOVE = saved
+    assert loose.metrics["relaxed"]
+    assert loose.vertices[legs, 1].max() < result.vertices[legs, 1].max() - 0.1
+    shirt_part = ~legs
+    assert np.abs(loose.vertices[shirt_part] - result.vertices[shirt_part]).max() < 1e-9  # shirt: relaxed in both

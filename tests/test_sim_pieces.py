@@ -280,3 +280,32 @@ def test_relaxation_kept_for_the_shirt_dropped_for_trousers_it_would_carry_away(
     assert loose.vertices[legs, 1].max() < result.vertices[legs, 1].max() - 0.1
     shirt_part = ~legs
     assert np.abs(loose.vertices[shirt_part] - result.vertices[shirt_part]).max() < 1e-9  # shirt: relaxed in both
+
+
+def test_a_guessed_units_top_is_scaled_around_the_bodice_its_sleeves_moved_out_unscaled(body):
+    from tryon.sim.align import SLEEVE_BLEND, scale_girth_keep_sleeves
+
+    top = garment_mesh("longsleeve", "M")
+    model = _prepared(np.array(top.vertices, dtype=np.float64), np.asarray(top.faces), "top")
+    x = align_garment(body, model)
+    lm = body_landmarks(body)
+    anchor = np.array([lm.center_x, lm.shoulder_y, x[:, 2].mean()])
+    scale = 1.5
+    y = scale_girth_keep_sleeves(x, anchor, scale, lm.shoulder_half)
+    assert np.array_equal(y[:, 1], x[:, 1])  # heights kept
+    # the bodice (within the half-width that lands on the shoulder joints) is scaled in x and z
+    inner = np.abs(x[:, 0] - lm.center_x) < lm.shoulder_half / scale
+    assert np.allclose(y[inner][:, [0, 2]] - anchor[[0, 2]], scale * (x[inner][:, [0, 2]] - anchor[[0, 2]]))
+    # past the armhole each sleeve only moves out, by the bodice's growth at the shoulder: its cuff keeps
+    # its size and shape (a plain x-z scale made it 1.2-1.5 x longer and wider across)
+    far = np.abs(x[:, 0] - lm.center_x) > lm.shoulder_half / scale + SLEEVE_BLEND
+    shift = np.sign(x[far, 0] - lm.center_x) * lm.shoulder_half * (1.0 - 1.0 / scale)
+    assert np.allclose(y[far, 0] - x[far, 0], shift)
+    assert np.allclose(y[far, 2], x[far, 2])
+    cuffs = sorted(boundary_loops(model.coarse_faces, len(x)), key=lambda loop: -abs(x[loop, 0].mean()))[:2]
+    for loop in cuffs:
+        assert far[loop].all()
+    # no edge anywhere is stretched much more than the bodice's scale (the armhole blends in)
+    e = model.coarse_faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    ratio = np.linalg.norm(y[e[:, 0]] - y[e[:, 1]], axis=1) / np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
+    assert ratio.max() <= 1.05 * scale

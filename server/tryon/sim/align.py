@@ -4,7 +4,7 @@
    top's (or dress's) shoulder line sits on the body's shoulders, or a bottom's waistband at the body's
    waist level. A garment whose units were guessed at ingestion is also scaled so that its girth at the
    chest (hips for bottoms) is about 1.15 x the body's (a garment in the right units is never rescaled:
-   its size is the point of trying it on).
+   its size is the point of trying it on); a top's sleeves move out with its shoulders, unscaled.
 2. Local alignment (the paper's construction): a = the garment's rear-most point (smallest z) on the
    torso, b = the body point nearest to a, c = the garment's highest point near the centre line (the
    collar for a top, the waistband for a bottom); the garment turns about the X axis through c by the
@@ -42,6 +42,10 @@ GUESSED_UNITS_BOTTOM_EASE = 1.0
 # m: a bottom's waistband girth is measured in a band this far below the body's waist line, and as deep
 # (the top 4 cm of a bottom placed with its top at the waist).
 BAND_BELOW_WAIST = 0.02
+# m: beyond a guessed-units top's bodice its depth scale fades to none over this distance (the armhole;
+# see ``scale_girth_keep_sleeves``): over 5 cm an edge across it was stretched up to 1.7 x the scale
+# (3.1 x on the MakeHuman blouse at scale 1.8), over 15 cm 1.0-1.05 x.
+SLEEVE_BLEND = 0.15
 # Largest local-alignment turn about X, radians: the construction is a correction, not a re-posing.
 MAX_LOCAL_TURN = np.radians(15.0)
 # m: half-height of the band around the rear-most point a in which a top's ease (its depth beyond the
@@ -65,7 +69,7 @@ MIN_ELBOW_TURN = np.radians(10.0)
 UPPER_SLEEVE = (0.4, 0.9)
 # A sleeve has a forearm part when its far opening is at least this fraction of the forearm's length
 # beyond the elbow (a short sleeve ends above it).
-FOREARM_SLEEVE = 0.3
+FOREARM_SLEEVE = 0.2
 # Largest elbow turn, radians: the elbow's range of flexion (the body's own pose range); a "bend" beyond
 # it is a short sleeve whose opening lies before the elbow, not a bent long sleeve.
 MAX_ELBOW_TURN = np.radians(POSE_RANGES["elbow_bend"][1])
@@ -238,7 +242,9 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
                 ratio = gg / bg
                 if not 0.95 <= ratio <= 1.6:
                     scale = (GUESSED_UNITS_EASE if top else GUESSED_UNITS_BOTTOM_EASE) / ratio
-        if scale != 1.0:
+        if scale != 1.0 and top:
+            x = scale_girth_keep_sleeves(x, anchor, scale, lm.shoulder_half)
+        elif scale != 1.0:
             # around the body only (x, z): the guessed unit already gives a wearable length (ingestion
             # checks it), and a garment modelled on a slimmer or broader body differs in girth; scaling the
             # length too made a MakeHuman outfit's trousers 1.4-1.9 x too long on medium and large bodies
@@ -261,6 +267,25 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
         if foot_y is not None:
             x = clear_feet(x, lm.center_x, foot_y)
     return x, scale
+
+
+def scale_girth_keep_sleeves(x: np.ndarray, anchor: np.ndarray, scale: float, shoulder_half: float
+                             ) -> np.ndarray:
+    """A top's points (k, 3) scaled around the body by ``scale`` (x and z, about ``anchor`` (3,)) over
+    its bodice only: the bodice's half-width that lands on the body's shoulder joints (``shoulder_half``
+    / ``scale`` before scaling) is scaled, and what lies beyond it (the sleeves) moves out with the
+    shoulder, unscaled, its depth (z) scale fading from ``scale`` to 1 over ``SLEEVE_BLEND``. Scaling a
+    sleeve that hangs at 30-50 degrees in x and z only stretched it along its length and flattened its
+    section (a MakeHuman blouse at 1.8 on the large body: sleeves 1.8 x as wide as deep, well past the
+    wrists), which the arms then cut through."""
+    x = x.copy()
+    dx = x[:, 0] - anchor[0]
+    inner = shoulder_half / scale
+    beyond = np.maximum(np.abs(dx) - inner, 0.0)
+    x[:, 0] = anchor[0] + np.sign(dx) * (np.minimum(np.abs(dx), inner) * scale + beyond)
+    z_scale = scale + (1.0 - scale) * np.clip(beyond / SLEEVE_BLEND, 0.0, 1.0)
+    x[:, 2] = anchor[2] + (x[:, 2] - anchor[2]) * z_scale
+    return x
 
 
 def garment_crotch(x: np.ndarray, cx: float) -> float | None:

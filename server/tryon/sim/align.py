@@ -59,10 +59,10 @@ FOOT_CLEARANCE = 0.01
 MIN_ARM_TURN = np.radians(6.0)
 # Smallest bend of a long sleeve at the elbow worth turning the forearm for, radians; a smaller bend is
 # followed by the one shoulder turn along the whole sleeve. Measured on the small / medium / large bodies:
-# the MakeHuman blouse's sleeves 39-53 degrees, the MakeHuman men's shirt 26-31, the catalogue's long
-# sleeves 0-14 (their wide tops pull the upper part's centre off the arm's line). Turning the catalogue's
-# 10-14 degree sleeves too changed 7 of its 27 long-sleeve drapes, none for the worse (springs over the
-# target: medium L 258 -> 0, large M 1054 -> 428, large L 678 -> 0).
+# the MakeHuman blouse's sleeves 38-53 degrees, the MakeHuman men's shirt 26-31, the catalogue's long
+# sleeves 0-15 (their wide tops pull the upper part's centre off the arm's line). Turning the catalogue's
+# 10-15 degree sleeves too changed 5 of its 27 long-sleeve drapes, none for the worse (springs over the
+# target: large M 1063 -> 421, large L 672 -> 0; the others stay at 0).
 MIN_ELBOW_TURN = np.radians(10.0)
 # The upper part of a sleeve, whose centre line the upper arm is turned onto when the sleeve is bent: its
 # points between these fractions of the upper arm's length from the shoulder joint.

@@ -260,8 +260,8 @@ def test_relaxation_kept_for_the_shirt_dropped_for_trousers_it_would_carry_away(
     sv, tv = np.array(shirt.vertices, dtype=np.float64), np.array(trousers.vertices, dtype=np.float64)
     centre = tv.mean(axis=0)
     tv[:, [0, 2]] = centre[[0, 2]] + 0.6 * (tv[:, [0, 2]] - centre[[0, 2]])
-    model = _prepared(np.vstack([sv, tv]), np.vstack([np.asarray(shirt.faces), np.asarray(trousers.faces) + len(sv)]),
-                      "dress")
+    faces = np.vstack([np.asarray(shirt.faces), np.asarray(trousers.faces) + len(sv)])
+    model = _prepared(np.vstack([sv, tv]), faces, "dress")
     result = drape(body, model, SimSettings())
     m = result.metrics
     assert not m["relaxed"] and m["relax_move_mm"][0] > 1000 * run.RELAX_MAX_MOVE
@@ -285,27 +285,38 @@ def test_relaxation_kept_for_the_shirt_dropped_for_trousers_it_would_carry_away(
 def test_a_guessed_units_top_is_scaled_around_the_bodice_its_sleeves_moved_out_unscaled(body):
     from tryon.sim.align import SLEEVE_BLEND, scale_girth_keep_sleeves
 
-    top = garment_mesh("longsleeve", "M")
-    model = _prepared(np.array(top.vertices, dtype=np.float64), np.asarray(top.faces), "top")
-    x = align_garment(body, model)
     lm = body_landmarks(body)
-    anchor = np.array([lm.center_x, lm.shoulder_y, x[:, 2].mean()])
     scale = 1.5
-    y = scale_girth_keep_sleeves(x, anchor, scale, lm.shoulder_half)
-    assert np.array_equal(y[:, 1], x[:, 1])  # heights kept
-    # the bodice (within the half-width that lands on the shoulder joints) is scaled in x and z
-    inner = np.abs(x[:, 0] - lm.center_x) < lm.shoulder_half / scale
-    assert np.allclose(y[inner][:, [0, 2]] - anchor[[0, 2]], scale * (x[inner][:, [0, 2]] - anchor[[0, 2]]))
-    # past the armhole each sleeve only moves out, by the bodice's growth at the shoulder: its cuff keeps
-    # its size and shape (a plain x-z scale made it 1.2-1.5 x longer and wider across)
-    far = np.abs(x[:, 0] - lm.center_x) > lm.shoulder_half / scale + SLEEVE_BLEND
-    shift = np.sign(x[far, 0] - lm.center_x) * lm.shoulder_half * (1.0 - 1.0 / scale)
-    assert np.allclose(y[far, 0] - x[far, 0], shift)
-    assert np.allclose(y[far, 2], x[far, 2])
-    cuffs = sorted(boundary_loops(model.coarse_faces, len(x)), key=lambda loop: -abs(x[loop, 0].mean()))[:2]
-    for loop in cuffs:
-        assert far[loop].all()
-    # no edge anywhere is stretched much more than the bodice's scale (the armhole blends in)
-    e = model.coarse_faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    ratio = np.linalg.norm(y[e[:, 0]] - y[e[:, 1]], axis=1) / np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
-    assert ratio.max() <= 1.05 * scale
+    for kind in ("longsleeve", "tshirt"):
+        top = garment_mesh(kind, "M")
+        model = _prepared(np.array(top.vertices, dtype=np.float64), np.asarray(top.faces), "top")
+        x = align_garment(body, model)
+        anchor = np.array([lm.center_x, lm.shoulder_y, x[:, 2].mean()])
+        y = scale_girth_keep_sleeves(x, anchor, scale, lm)
+        plain = x.copy()
+        plain[:, [0, 2]] = anchor[[0, 2]] + scale * (x[:, [0, 2]] - anchor[[0, 2]])
+        assert np.array_equal(y[:, 1], x[:, 1])  # heights kept
+        # the bodice (within the half-width that lands on the shoulder joints) is scaled
+        dx = np.abs(x[:, 0] - lm.center_x)
+        inner = dx < lm.shoulder_half / scale
+        assert inner.sum() > 100 and np.allclose(y[inner], plain[inner])
+        # past the armhole each sleeve only moves out, by the bodice's growth at the shoulder: a long
+        # sleeve's cuff keeps its size and shape (a plain x-z scale made it up to 1.5 x longer and wider)
+        far = dx > lm.shoulder_half / scale + SLEEVE_BLEND
+        shift = np.sign(x[far, 0] - lm.center_x) * lm.shoulder_half * (1.0 - 1.0 / scale)
+        assert far.sum() > 30 and np.allclose(y[far, 0] - x[far, 0], shift) and np.allclose(y[far, 2], x[far, 2])
+        if kind == "longsleeve":
+            loops = boundary_loops(model.coarse_faces, len(x))
+            for loop in sorted(loops, key=lambda loop: -abs(x[loop, 0].mean()))[:2]:
+                assert far[loop].all()
+        # no edge anywhere is stretched much more than the bodice's scale (the armhole blends in)
+        e = model.coarse_faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+        ratio = np.linalg.norm(y[e[:, 0]] - y[e[:, 1]], axis=1) / np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
+        assert ratio.max() <= 1.05 * scale, (kind, ratio.max())
+    # a top without sleeves (the sleeveless dress, whose skirt is wider than its bodice) is scaled plainly
+    dress = garment_mesh("dress", "M")
+    model = _prepared(np.array(dress.vertices, dtype=np.float64), np.asarray(dress.faces), "dress")
+    x = align_garment(body, model)
+    anchor = np.array([lm.center_x, lm.shoulder_y, x[:, 2].mean()])
+    y = scale_girth_keep_sleeves(x, anchor, scale, lm)
+    assert np.allclose(y[:, [0, 2]], anchor[[0, 2]] + scale * (x[:, [0, 2]] - anchor[[0, 2]]))

@@ -267,8 +267,8 @@ def _refuse_sewing_pattern(vertices: np.ndarray, faces: np.ndarray, stitches: in
         sewing = (f"; its {stitches} 'stitch' lines are not read: flat patterns with stitch lines are not "
                   "supported" if stitches else "")
         raise GarmentError(
-            f"flat sewing pattern panels, not a sewn garment ({len(big)} flat pieces{sewing}): sew the panels "
-            "into a 3D garment in a cloth tool and export that"
+            f"flat sewing pattern panels, not a sewn garment ({len(big)} flat pieces{sewing}): sew the "
+            "panels into a 3D garment in a cloth tool and export that"
         )
 
 

@@ -72,8 +72,8 @@ def collapse_with_parents(faces: np.ndarray, n_vertices: int, B: float, vertices
     vnorm = _vertex_normals(pos, faces) if guard else pos
     fv, alive, parent = _collapse_kernel(
         faces, n_vertices, piece, piece_kept, piece_target, pos, vnorm, guard, vf_start, vf_list, fixed,
-        bnext, bprev, loop_id, loop_count, loop_min, math.cos(math.radians(MAX_TURN_DEG)), MIN_ORIGINAL_COS, MIN_QUALITY,
-        MIN_QUALITY_FALLBACK, SCRATCH_FACES,
+        bnext, bprev, loop_id, loop_count, loop_min, math.cos(math.radians(MAX_TURN_DEG)), MIN_ORIGINAL_COS,
+        MIN_QUALITY, MIN_QUALITY_FALLBACK, SCRATCH_FACES,
     )
     coarse_orig = fv[alive]
     kept = np.unique(coarse_orig).astype(np.int32)
@@ -228,8 +228,8 @@ def _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, gu
 
 @njit(cache=True, nogil=True)  # nogil: an upload prepared in a worker thread does not stall the server
 def _collapse_kernel(faces, n, piece, piece_kept, piece_target, pos, vnorm, guard, vf_start, vf_list, fixed,
-                     bnext, bprev, loop_id, loop_count, loop_min, cos_turn, cos_original, min_quality, min_quality_fallback,
-                     scratch):
+                     bnext, bprev, loop_id, loop_count, loop_min, cos_turn, cos_original, min_quality,
+                     min_quality_fallback, scratch):
     """Sequential collapse (each collapse depends on the previous ones: no parallelism) until every piece
     p has ``piece_kept[p] <= piece_target[p]`` (``piece_kept`` is updated in place)."""
     nf = faces.shape[0]

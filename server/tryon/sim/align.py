@@ -55,6 +55,11 @@ EASE_BAND = 0.02
 # 3-4 cm, the foot reaches 11-17 cm forward below ~5 cm), and how far above the feet a trouser hem is put.
 FOOT_REACH = 0.06
 FOOT_CLEARANCE = 0.01
+# A sleeve's points lie beyond this many shoulder-joint half-widths from the centre (past the bodice of a
+# fitted top or dress), above the chest-to-waist mid level; a side with fewer than MIN_SLEEVE_POINTS such
+# points has no sleeve.
+SLEEVE_REACH = 1.4
+MIN_SLEEVE_POINTS = 8
 # Smallest difference between sleeve and arm angles worth posing the arms for, radians.
 MIN_ARM_TURN = np.radians(6.0)
 # Smallest bend of a long sleeve at the elbow worth turning the forearm for, radians; a smaller bend is
@@ -243,7 +248,7 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
                 if not 0.95 <= ratio <= 1.6:
                     scale = (GUESSED_UNITS_EASE if top else GUESSED_UNITS_BOTTOM_EASE) / ratio
         if scale != 1.0 and top:
-            x = scale_girth_keep_sleeves(x, anchor, scale, lm.shoulder_half)
+            x = scale_girth_keep_sleeves(x, anchor, scale, lm)
         elif scale != 1.0:
             # around the body only (x, z): the guessed unit already gives a wearable length (ingestion
             # checks it), and a garment modelled on a slimmer or broader body differs in girth; scaling the
@@ -269,23 +274,42 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
     return x, scale
 
 
-def scale_girth_keep_sleeves(x: np.ndarray, anchor: np.ndarray, scale: float, shoulder_half: float
+def scale_girth_keep_sleeves(x: np.ndarray, anchor: np.ndarray, scale: float, lm: BodyLandmarks
                              ) -> np.ndarray:
-    """A top's points (k, 3) scaled around the body by ``scale`` (x and z, about ``anchor`` (3,)) over
-    its bodice only: the bodice's half-width that lands on the body's shoulder joints (``shoulder_half``
-    / ``scale`` before scaling) is scaled, and what lies beyond it (the sleeves) moves out with the
-    shoulder, unscaled, its depth (z) scale fading from ``scale`` to 1 over ``SLEEVE_BLEND``. Scaling a
-    sleeve that hangs at 30-50 degrees in x and z only stretched it along its length and flattened its
-    section (a MakeHuman blouse at 1.8 on the large body: sleeves 1.8 x as wide as deep, well past the
-    wrists), which the arms then cut through."""
-    x = x.copy()
+    """A guessed-units top's points (k, 3) scaled around the body by ``scale`` (x and z about ``anchor``
+    (3,)), its sleeves excepted: only the bodice's half-width that lands on the body's shoulder joints
+    (``shoulder_half / scale`` before scaling) is scaled, and what lies beyond it (the sleeves) moves out
+    with the shoulder, unscaled, its depth (z) scale fading from ``scale`` to 1 over ``SLEEVE_BLEND``.
+    Scaling a sleeve that hangs at 30-50 degrees in x and z only stretched it along its length and
+    flattened its section (a MakeHuman blouse at 1.8 on the large body: sleeves 1.8 x as wide as deep,
+    well past the wrists), which the arms then cut through. A top without sleeves (``has_sleeves``) is
+    scaled plainly: beyond its bodice there is only a flared skirt (the DiffAvatar
+    strap dress, kept at its bodice's size, flew off the large body in front)."""
+    plain = x.copy()
+    plain[:, [0, 2]] = anchor[[0, 2]] + (x[:, [0, 2]] - anchor[[0, 2]]) * scale
+    if not has_sleeves(x if scale > 1.0 else plain, lm):  # judged at the smaller size: a bodice scaled up
+        return plain  # reaches past SLEEVE_REACH like a sleeve
+    out = x.copy()
     dx = x[:, 0] - anchor[0]
-    inner = shoulder_half / scale
+    inner = lm.shoulder_half / scale
     beyond = np.maximum(np.abs(dx) - inner, 0.0)
-    x[:, 0] = anchor[0] + np.sign(dx) * (np.minimum(np.abs(dx), inner) * scale + beyond)
+    out[:, 0] = anchor[0] + np.sign(dx) * (np.minimum(np.abs(dx), inner) * scale + beyond)
     z_scale = scale + (1.0 - scale) * np.clip(beyond / SLEEVE_BLEND, 0.0, 1.0)
-    x[:, 2] = anchor[2] + (x[:, 2] - anchor[2]) * z_scale
-    return x
+    out[:, 2] = anchor[2] + (x[:, 2] - anchor[2]) * z_scale
+    return out
+
+
+def sleeve_mask(x: np.ndarray, lm: BodyLandmarks, sign: float) -> np.ndarray:
+    """(k,) bool: the points (k, 3) of the sleeve on one side (``sign`` +1: the body's left, towards +x):
+    beyond ``SLEEVE_REACH`` x the shoulder-joint half-width from the centre (past the bodice of a fitted
+    top or dress), above the chest-to-waist mid level."""
+    beyond = (x[:, 0] - lm.center_x) * sign > SLEEVE_REACH * lm.shoulder_half
+    return beyond & (x[:, 1] > 0.5 * (lm.chest_y + lm.waist_y))
+
+
+def has_sleeves(x: np.ndarray, lm: BodyLandmarks) -> bool:
+    """Whether the top's points (k, 3) have a sleeve (``MIN_SLEEVE_POINTS`` or more) on each side."""
+    return all(sleeve_mask(x, lm, sign).sum() >= MIN_SLEEVE_POINTS for sign in (1.0, -1.0))
 
 
 def garment_crotch(x: np.ndarray, cx: float) -> float | None:
@@ -472,13 +496,14 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
     out = {}
     for side, sign, joint in (("l", 1.0, lm.shoulder_l), ("r", -1.0, lm.shoulder_r)):
         rel = (x[:, 0] - lm.center_x) * sign
-        sel = upper & (rel > 1.4 * lm.shoulder_half) & (x[:, 1] > 0.5 * (lm.chest_y + lm.waist_y))
+        sel = upper & sleeve_mask(x, lm, sign)
         default_axis = (0.0, 0.0, sign)
         out[side] = (0.0, default_axis, 0.0, default_axis)
-        if sel.sum() < 8:
+        if sel.sum() < MIN_SLEEVE_POINTS:
             continue
         # the openings on this side (a cuff may hang below the level the sleeve points are taken above)
-        ends = [loop for loop in loops if (upper[loop] & (rel[loop] > 1.4 * lm.shoulder_half)).mean() > 0.8]
+        far = upper & (rel > SLEEVE_REACH * lm.shoulder_half)
+        ends = [loop for loop in loops if far[loop].mean() > 0.8]
         bent = bent_sleeve_turns(body, side, x, sel, ends)
         if bent is not None:
             out[side] = bent
@@ -532,7 +557,7 @@ def bent_sleeve_turns(body: Body, side: str, x: np.ndarray, sleeve: np.ndarray, 
     cuff = max(centres, key=lambda c: float(np.linalg.norm(c - joint)))
     r = np.linalg.norm(x - joint, axis=1)
     ring = sleeve & (r > UPPER_SLEEVE[0] * upper_len) & (r < UPPER_SLEEVE[1] * upper_len)
-    if ring.sum() < 8:
+    if ring.sum() < MIN_SLEEVE_POINTS:
         return None
     turn, axis = _turn_between(elbow - joint, x[ring].mean(axis=0) - joint)
     rot = _rotation(np.asarray(axis), turn)

@@ -171,3 +171,31 @@ def test_a_garment_too_small_for_the_body_says_where(catalogue):
     tight = m["too_tight"]
     assert next(iter(tight)) == "torso chest", tight
     assert tight["torso chest"] > 0.5 * sum(k["over"] for k in m["strain_by_kind"].values())
+
+
+def test_a_top_far_too_small_stays_on_the_shoulders(body):
+    """A long-sleeve top at 0.6 of its girth: no place on the body lets its springs meet the target, and
+    a relaxation without gravity would carry it up over the neck (measured: 90 % of its points more than
+    29 cm). The
+    drape keeps it where the loop left it, on the shoulders, and reports its springs over the target."""
+    from tryon.garment.generate import garment_mesh
+    from tryon.garment.ingest import CleanMesh
+    from tryon.garment.prepare import prepare
+    from tryon.sim.align import body_landmarks
+    from tryon.sim.run import RELAX_MAX_MOVE
+
+    g = garment_mesh("longsleeve", "S")
+    v = np.array(g.vertices, dtype=np.float64)
+    centre = v.mean(axis=0)
+    v[:, [0, 2]] = centre[[0, 2]] + 0.6 * (v[:, [0, 2]] - centre[[0, 2]])
+    mesh = CleanMesh(vertices=v, faces=np.asarray(g.faces, dtype=np.int32), units="m", units_guessed=False)
+    model = prepare(mesh, id="small", name="small", category="top", size="S", source_sha256="0",
+                    source_name="small.obj")
+    result = drape(body, model, SimSettings())
+    m = result.metrics
+    assert not m["relaxed"] and m["relax_move_mm"][0] > 1000 * RELAX_MAX_MOVE
+    assert m["penetrating_vertices"] == 0
+    assert sum(k["over"] for k in m["strain_by_kind"].values()) > 1000  # honestly too small
+    lm = body_landmarks(body)
+    assert abs(result.vertices[:, 1].max() - lm.shoulder_y) < 0.05  # not over the head
+    assert result.vertices[:, 1].min() < lm.chest_y  # its hem still below the chest

@@ -96,9 +96,11 @@ class BodyCollider:
         self.scale = float(scale)
         self.update()
 
-    def pose_arms(self, turns: dict[int, tuple[np.ndarray, np.ndarray]]) -> None:
-        """Turn body parts rigidly: ``turns[k] = (pivot (3,), R (3, 3))`` moves part k's vertices to
-        pivot + R (v - pivot), with its OBB and cylinder frame. Parts not named go back to rest."""
+    def pose_arms(self, turns: dict[int, tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, np.ndarray]]
+                  ) -> None:
+        """Move body parts rigidly: ``turns[k] = (pivot (3,), R (3, 3))`` or ``(pivot, R, shift (3,))``
+        moves part k's vertices to pivot + R (v - pivot) + shift, with its OBB and cylinder frame. Parts not
+        named go back to rest."""
         v = self.rest_vertices.copy()
         n = self.rest_normals.copy()
         rf = self.rest_frames
@@ -106,14 +108,16 @@ class BodyCollider:
         self.obb_offsets[:] = rf["obb_offsets"]
         self.cyl_origin[:] = rf["cyl_origin"]
         self.cyl_axes[:] = rf["cyl_axes"]
-        for k, (pivot, rot) in turns.items():
+        for k, turn in turns.items():
+            pivot, rot = turn[0], turn[1]
+            shift = turn[2] if len(turn) > 2 else np.zeros(3)
             sel = self.vertex_part == k
-            v[sel] = pivot + (v[sel] - pivot) @ rot.T
+            v[sel] = pivot + (v[sel] - pivot) @ rot.T + shift
             n[sel] = n[sel] @ rot.T
-            self.cyl_origin[k] = pivot + rot @ (rf["cyl_origin"][k] - pivot)
+            self.cyl_origin[k] = pivot + rot @ (rf["cyl_origin"][k] - pivot) + shift
             self.cyl_axes[k] = rf["cyl_axes"][k] @ rot.T
             self.obb_normals[k] = rf["obb_normals"][k] @ rot.T
-            center = pivot + rot @ (rf["obb_center"][k] - pivot)
+            center = pivot + rot @ (rf["obb_center"][k] - pivot) + shift
             # each plane keeps its distance (half extent) to the turned centre: n' . c' + (offset - n . c)
             self.obb_offsets[k] = rf["obb_offsets"][k] - rf["obb_normals"][k] @ rf["obb_center"][k] \
                 + self.obb_normals[k] @ center

@@ -46,10 +46,14 @@ rounds). Without gravity the over-long springs are the only force left (and only
 compression pushes cloth up off the body); with little drag the motion they start is kept (momentum: the
 heavy-ball acceleration of an iterative solver), so the band climbs to where it fits in 10-40 rounds. The
 garment moves only as far as its over-stretch asks: on the medium body a median 1-6 mm per point and up to 1-3
-cm, but up to 7-10 cm where a long sleeve or a trouser hem was stretched along the limb and shortens up it .
-Then the full mesh is rebuilt from the coarse one (``model.expand``) and its vertices are pushed out of the
-offset body too (again while any still moves: a point pushed out of one thigh into the other), so the
-displayed mesh does not penetrate either.
+cm, but up to 7-10 cm where a long sleeve or a trouser hem was stretched along the limb and shortens up it.
+A garment far too small for the body has no such place nearby, and the relaxation carries it off (a blouse up
+around the neck, trousers down to the knees): for each piece of the file of which it moved a tenth of the
+points more than ``RELAX_MAX_MOVE`` it is dropped, and the loop's result for that piece is kept with its
+springs over the target reported (metrics ``relaxed``, ``relax_move_mm``: the largest piece's 90th
+percentile move, the largest move). Then the full mesh is rebuilt from the coarse one (``model.expand``) and
+its vertices are pushed out of the offset body too (again while any still moves: a point pushed out of one
+thigh into the other), so the displayed mesh does not penetrate either.
 
 The floor (y = ``FLOOR_Y``) is put under the offset body's soles, so a trouser hem on the floor beside a
 foot is not caught between the floor and the sole's offset rim.
@@ -65,9 +69,10 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
-from tryon.sim.align import ArmPlan, align_garment, plan_arms
+from tryon.sim.align import ArmPlan, align_garment, arm_joints, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
+from tryon.sim.pieces import piece_labels
 from tryon.sim.constraints import (
     apply_friction, cap_stretch, contact_springs, pack_springs, pack_sweep, project_listed, solve_listed,
     spring_lengths, sweep_downward, sweep_springs, top_down_order,
@@ -104,6 +109,15 @@ POLISH_PROGRESS = 0.9
 # cloth pulled up off a table by the springs at its rim comes to a stop (0 and 10/s left bumps of 2 mm
 # and 1.7 cm on the table test at 0.05 s; 20/s: 0.2 mm).
 RELAX_DRAG = 20.0
+# The relaxation is kept for each piece of the file that it moved less than RELAX_MAX_MOVE (m) at the
+# RELAX_MOVE_QUANTILE of the piece's coarse points. A garment far too small for its body has no nearby place
+# where its springs meet the target, and without gravity the relaxation carries it to wherever they come
+# closest: a MakeHuman blouse on the medium body ended up bunched around the neck (90 % of its points
+# moved up to 55 cm), a 92 cm DiffCloth dress as a crumpled smock (49 cm), MakeHuman trousers down to the
+# knees (26 cm: their legs stayed, so the median point moved only 5 cm). The catalogue's 54 drapes move
+# 90 % of their points at most 12 cm (the large body in S shorts and long sleeves), most under 2 cm.
+RELAX_MOVE_QUANTILE = 0.9
+RELAX_MAX_MOVE = 0.15
 # Degrees per step the arms are turned back from the sleeve pose (slow enough that the arm surface
 # moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).
 ARM_DEG_PER_STEP = 1.0
@@ -156,27 +170,47 @@ class TryOnResult:
 
 
 class _ArmSchedule:
-    """Turns the arms from the sleeve pose back to rest over ``steps`` steps."""
+    """Turns the arms from the sleeve pose back to rest over ``steps`` steps: each upper arm about its
+    shoulder joint, each forearm with it and then about the (turned) elbow, every angle scaled by the
+    fraction of the pose left."""
 
     def __init__(self, body: Body, collider: BodyCollider, plan, settings: SimSettings):
         self.collider = collider
         self.parts = {}
-        for side, angle, axis in (("l", plan.left, plan.left_axis), ("r", plan.right, plan.right_axis)):
-            if angle == 0.0 or f"upper_arm_{side}" not in body.parts:
+        for side, angle, axis, bend, bend_axis in (
+                ("l", plan.left, plan.left_axis, plan.left_elbow, plan.left_elbow_axis),
+                ("r", plan.right, plan.right_axis, plan.right_elbow, plan.right_elbow_axis)):
+            if (angle == 0.0 and bend == 0.0) or f"upper_arm_{side}" not in body.parts:
                 continue
             k_up = body.parts.index(f"upper_arm_{side}")
-            ks = [k_up] + ([body.parts.index(f"forearm_{side}")] if f"forearm_{side}" in body.parts else [])
-            self.parts[side] = (body.part_axes[k_up, 0].copy(), angle, np.asarray(axis, dtype=np.float64), ks)
-        biggest = max((abs(a) for _, a, _, _ in self.parts.values()), default=0.0)
+            k_fore = body.parts.index(f"forearm_{side}") if f"forearm_{side}" in body.parts else None
+            joint = body.part_axes[k_up, 0].copy()
+            elbow = arm_joints(body, side)[1] if k_fore is not None else joint
+            self.parts[side] = (joint, angle, np.asarray(axis, dtype=np.float64), k_up, k_fore, elbow, bend,
+                                np.asarray(bend_axis, dtype=np.float64))
+        biggest = max((max(abs(a), abs(b)) for _, a, _, _, _, _, b, _ in self.parts.values()), default=0.0)
         self.steps = int(np.ceil(np.degrees(biggest) / ARM_DEG_PER_STEP)) if self.parts else 0
+
+    def turned_parts(self) -> list[int]:
+        """Body part indices the schedule moves."""
+        return [k for _, _, _, k_up, k_fore, _, _, _ in self.parts.values()
+                for k in (k_up, k_fore) if k is not None]
 
     def apply(self, step: int) -> None:
         fraction = 1.0 - min(1.0, step / self.steps) if self.steps else 0.0
         turns = {}
-        for pivot, angle, axis, ks in self.parts.values():
+        for joint, angle, axis, k_up, k_fore, elbow, bend, bend_axis in self.parts.values():
             rot = _rotation(axis, angle * fraction)
-            for k in ks:
-                turns[k] = (pivot, rot)
+            turns[k_up] = (joint, rot)
+            if k_fore is None:
+                continue
+            if bend == 0.0:
+                turns[k_fore] = (joint, rot)
+                continue
+            # forearm: v -> e' + R_e (R_s (v - j) + j - e'), e' the turned elbow, R_e about the turned axis
+            posed_elbow = joint + rot @ (elbow - joint)
+            rot_e = _rotation(rot @ bend_axis, bend * fraction)
+            turns[k_fore] = (joint, rot_e @ rot, (np.eye(3) - rot_e) @ (posed_elbow - joint))
         self.collider.pose_arms(turns)
 
 
@@ -207,7 +241,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     parts = relevant_parts(body.maps, lo, hi, PART_REACH)
     if arms.steps:
         arms.apply(0)
-        turned = [k for _, _, _, ks in arms.parts.values() for k in ks]  # the sleeves are around them
+        turned = arms.turned_parts()  # the sleeves are around them
         parts = np.union1d(parts, turned).astype(np.int64)
 
     # --- tangled start: grow the body, or (growth off) push out and pin for a few steps
@@ -337,6 +371,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     target = allowed_length(rest, limits[kind])
     polish_rounds = 0
     x_prev[:] = x
+    x_loop = x.copy()
     stretch_only = table.copy()
     stretch_only[:, 2] = 0.0  # only the over-long springs act: no compression pushes cloth off the body
     fewest_over, best_round = len(springs) + 1, 0
@@ -366,6 +401,22 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
             elif polish_rounds - best_round >= POLISH_STALL_ROUNDS:
                 break  # no progress: a garment too small for the body there (its springs stay over)
     else:  # out of rounds: the last positions still get their final collision
+        active[:] = True
+        collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
+    relax_move = np.linalg.norm(x - x_loop, axis=1)  # m, per coarse point: how far the relaxation moved it
+    # each piece of the file on its own (pieces meet only the body, never each other): an outfit's
+    # trousers may be carried down the legs while its shirt barely moves
+    piece = piece_labels(model.coarse_faces, len(x))
+    piece_move = np.array([np.quantile(relax_move[piece == p], RELAX_MOVE_QUANTILE)
+                           for p in range(int(piece.max()) + 1)])
+    carried = piece_move > RELAX_MAX_MOVE
+    relaxed = not carried.any()
+    if not relaxed:
+        # the relaxation carried a piece away (see RELAX_MAX_MOVE): that piece stays where the loop
+        # left it, its springs over the target reported as they are
+        back = carried[piece]
+        x[back] = x_loop[back]
+        x_prev[:] = x
         active[:] = True
         collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
 
@@ -403,8 +454,11 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         "kinetic_energy_per_kg": float(energy),
         "grown": bool(grow_steps),
         "arm_turn_deg": [float(np.degrees(plan.left)), float(np.degrees(plan.right))],
+        "elbow_turn_deg": [float(np.degrees(plan.left_elbow)), float(np.degrees(plan.right_elbow))],
         "parts_tested": [body.parts[k] for k in parts],
         "last_step_contacts": int(collided),
         "polish_rounds": int(polish_rounds),
+        "relax_move_mm": [float(1000 * piece_move.max()), float(1000 * relax_move.max())],
+        "relaxed": bool(relaxed),
     }
     return TryOnResult(vertices=full, faces=model.faces, strain=per_vertex, coarse=x, metrics=metrics)

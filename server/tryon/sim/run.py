@@ -10,7 +10,9 @@ substeps converge much further than the same passes on one step). Each substep:
 2. first substep only: collision against the offset body (paper 3.3-3.4, ``collide.py``), which pushes
    points out (eq. 4) and leaves a contact plane for each point pushed or within ``NEAR`` of the body;
    contacts still within ``PLANE_REUSE`` of where they touched only reuse their plane (no map query);
-   later substeps push onto the planes, with friction on the predicted motion;
+   later substeps push onto the planes, with friction on the predicted motion; a point pinched between two
+   parts (pushed out of each into the other: cloth between touching thighs) is held where the step began
+   (``hold_pinched``, once the body no longer grows or turns);
 3. the strain-limited springs (eq. 2-3), ``passes / substeps`` Gauss-Seidel passes, each followed by the
    contact planes (springs and contacts converge together);
 4. the top-down sweep for hanging cloth (``sweep_downward``: a sagging free end follows the point above
@@ -314,7 +316,8 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                     reuse_planes(x, x_prev, *planes, PLANE_REUSE, mu_s, mu_k, contact, reused)
                     points_to_test(x, x_checked, has_plane, reused, REST_MOVE, active)
                 collided = collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset,
-                                            mu_s, mu_k, contact, near=NEAR, planes=planes)
+                                            mu_s, mu_k, contact, near=NEAR, planes=planes,
+                                            hold_pinched=not changing)
                 x_checked[active] = x[active]
                 touching = np.flatnonzero(has_plane)  # the points with a contact plane this step
                 # points on the body count as heavier in the springs, so hanging cloth hangs from them

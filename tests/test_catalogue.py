@@ -80,6 +80,31 @@ def test_reload_reads_back_without_preparing(tmp_path, skirt_obj, shorts_obj, mo
     assert calls == []
 
 
+def test_a_model_of_another_preparation_version_is_prepared_again(tmp_path, skirt_obj, monkeypatch):
+    """A model saved by an older preparation (another PREPARATION_VERSION, or none: before versions) is
+    made again from the kept source on first use, once; the entry, its name and its listing stay."""
+    first = Catalogue(tmp_path)
+    meta = first.ingest(skirt_obj, "Skirt", "bottom", "m", size="S", filename="skirt.obj")
+    model = first.model(meta.id)
+    directory = tmp_path / "models" / meta.id
+    for stale in ('{"version": 1}', None):
+        if stale is None:
+            (directory / "prepared.json").unlink()
+        else:
+            (directory / "prepared.json").write_text(stale)
+        assert not GarmentModel.is_current(directory)
+        calls = count_prepares(monkeypatch)
+        again = Catalogue(tmp_path).model(meta.id)
+        assert calls == [meta.simplification]
+        assert GarmentModel.is_current(directory)
+        assert np.array_equal(again.springs, model.springs) and again.meta.name == "Skirt" and again.meta.size == "S"
+        assert Catalogue(tmp_path).list() == [meta]
+        monkeypatch.undo()
+    calls = count_prepares(monkeypatch)
+    Catalogue(tmp_path).model(meta.id)
+    assert calls == []
+
+
 def test_other_simplification_is_prepared_once_from_the_kept_source(tmp_path, skirt_obj, monkeypatch):
     cat = Catalogue(tmp_path)
     meta = cat.ingest(skirt_obj, "Skirt", "bottom", "m", filename="skirt.obj")

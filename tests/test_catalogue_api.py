@@ -200,3 +200,12 @@ def test_preparing_an_upload_does_not_stall_the_server(live_server):
     print(f"upload {result['seconds']:.2f} s, {len(latencies)} health checks, slowest {max(latencies) * 1000:.0f} ms")
     # a blocked event loop would hold a health check for about the whole upload
     assert max(latencies) < 0.5 * result["seconds"], f"health took up to {max(latencies):.2f} s during the upload"
+
+
+def test_flat_pattern_with_stitch_lines_is_a_422_saying_so(client):
+    from test_garment_ingest import flat_pattern_obj
+
+    r = upload(client, flat_pattern_obj(stitches=12), filename="pattern.obj", category="dress")
+    assert r.status_code == 422
+    assert "flat patterns with stitch lines are not supported" in r.json()["detail"]
+    assert client.get("/api/garments").json() == {"garments": []}

@@ -115,7 +115,8 @@ def test_specks_dropped_and_two_big_pieces_kept(tshirt):
     assert any("small loose pieces" in n for n in m.notes)
 
 
-def test_flat_sewing_pattern_is_refused():
+def flat_pattern_obj(stitches: int = 0) -> bytes:
+    """Two flat, unsewn panels (front and back), with ``stitches`` Codim-IPC ``stitch a b c r`` lines."""
     panels = []
     for k, z in enumerate((0.3, -0.3)):  # two flat panels, front and back, not sewn
         xs, ys = np.meshgrid(np.linspace(-0.25, 0.25, 11), np.linspace(0.8, 1.4, 13))
@@ -128,8 +129,22 @@ def test_flat_sewing_pattern_is_refused():
             for i in range(10):
                 a = base + j * 11 + i
                 f += [[a, a + 1, a + 12], [a, a + 12, a + 11]]
-    with pytest.raises(GarmentError, match="flat sewing pattern"):
-        load_garment(obj_bytes(v, np.array(f)), "pattern.obj", "m")
+    # each stitch sews a front side vertex to a point between two back side vertices (0-based ids)
+    lines = "".join(f"stitch {j * 11} {143 + j * 11} {143 + (j + 1) * 11} 0.5\n" for j in range(stitches))
+    return obj_bytes(v, np.array(f)) + lines.encode()
+
+
+def test_flat_sewing_pattern_is_refused():
+    with pytest.raises(GarmentError, match="flat sewing pattern") as err:
+        load_garment(flat_pattern_obj(), "pattern.obj", "m")
+    assert "stitch" not in str(err.value)
+
+
+def test_flat_pattern_with_stitch_lines_is_refused_naming_them():
+    with pytest.raises(GarmentError, match="its 12 'stitch' lines are not read: flat patterns with stitch "
+                                           "lines are not supported") as err:
+        load_garment(flat_pattern_obj(stitches=12), "pattern.obj", "m")
+    assert err.value.status == 422
 
 
 @pytest.mark.parametrize("fmt", ["ply", "stl", "off", "glb"])

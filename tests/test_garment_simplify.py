@@ -170,3 +170,37 @@ def test_parents_point_to_kept_vertices(tshirt):
     kept, _, root = collapse_with_parents(f, len(v), 0.3, v)
     assert np.isin(root, kept).all()
     assert np.array_equal(root[kept], kept)
+
+
+def two_piece_outfit():
+    """A generated skirt (first in face order, as in a MakeHuman outfit) and a long-sleeve top above it,
+    as one mesh of two separate pieces; returns vertices, faces and each vertex's piece (0 skirt, 1 top)."""
+    skirt, top = garment_mesh("skirt", "M"), garment_mesh("longsleeve", "M")
+    vs, vt = np.asarray(skirt.vertices, float), np.asarray(top.vertices, float)
+    vs = vs + [0.0, vt[:, 1].min() - 0.05 - vs[:, 1].max(), 0.0]  # the skirt's waist 5 cm under the top's hem
+    v = np.vstack([vs, vt])
+    f = np.vstack([np.asarray(skirt.faces, np.int64), np.asarray(top.faces, np.int64) + len(vs)])
+    piece = np.repeat([0, 1], [len(vs), len(vt)])
+    return v, f, piece
+
+
+@pytest.mark.parametrize("B", [0.2, 0.3])
+def test_each_piece_keeps_its_share(B):
+    v, f, piece = two_piece_outfit()
+    kept, coarse = collapse_faces(f, len(v), B, v)
+    for p in (0, 1):
+        n = int((piece == p).sum())
+        k = int((piece[kept] == p).sum())
+        assert math.floor(B * n) - 1 <= k <= math.floor(B * n), (p, n, k)  # one collapse removes two
+    # the pieces stay apart and every opening stays open (skirt: waist, hem; top: neck, hem, two cuffs)
+    assert (piece[kept][coarse] == piece[kept][coarse][:, :1]).all()
+    assert len(boundary_loops(coarse, len(kept))) == len(boundary_loops(f, len(v))) == 6
+
+
+def test_one_piece_result_does_not_depend_on_another_piece_beside_it():
+    """A piece is simplified exactly as it would be alone."""
+    v, f, piece = two_piece_outfit()
+    alone_v, alone_f = v[piece == 1], f[piece[f[:, 0]] == 1] - int((piece == 0).sum())
+    kept_alone, coarse_alone = collapse_faces(alone_f, len(alone_v), 0.3, alone_v)
+    kept, _ = collapse_faces(f, len(v), 0.3, v)
+    assert np.array_equal(kept[piece[kept] == 1] - int((piece == 0).sum()), kept_alone)

@@ -105,9 +105,16 @@ def test_try_on_in_the_browser(page):
     assert state["f"] >= 2  # live frames, then the final one
     assert state["m"]["steps"] > 0
     metrics = page.locator("#metrics").inner_text()
-    for words in ("Time", "Steps", "Penetration", "Max strain", "Rest reached"):
+    for words in ("Time", "Steps", "Penetration", "Max strain", "Too tight at", "Rest reached"):
         assert words in metrics
     assert str(state["m"]["steps"]) in metrics
+    tight = list(state["m"]["too_tight"])  # where the garment is too small, largest count first
+    if tight:
+        first = tight[0].removeprefix("torso ")
+        side = {"_l": "left ", "_r": "right "}.get(first[-2:], "")
+        assert side + first.removesuffix("_l").removesuffix("_r").replace("_", " ") in metrics
+    else:
+        assert "nowhere" in metrics
 
     page.wait_for_timeout(300)
     dressed = canvas_pixels(page)

@@ -219,3 +219,30 @@ def test_face_boxes_from_shared_corners_equal_boxes_from_every_corner():
                collider.cyl_origin, collider.cyl_axes, collider.corners, every_corner)
     assert np.isfinite(shared[:, :2]).all()
     assert np.array_equal(shared, every_corner)
+
+
+def test_a_point_pinched_between_touching_parts_is_held_where_it_came_from():
+    """Two 'thighs' (radius 8 cm, axes 15 cm apart) whose offset surfaces overlap by 1.8 cm: a point that
+    moves from in front of the gap into the overlap has no way out nearby. Pushed out of one part it lands
+    in the other, every round; with ``hold_pinched`` it stays at its start-of-step position (outside both),
+    while a point inside one part only is still pushed out radially."""
+    thighs = body_from_parts(np.array([[[0.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [[0.15, 0.0, 0.0], [0.15, 1.0, 0.0]]]),
+                             np.array([0.08, 0.08]), n_around=48)
+    collider = BodyCollider(thighs, 0.004)
+    parts = np.array([0, 1])
+    start = np.array([[0.075, 0.5, 0.10], [-0.12, 0.5, 0.0]])  # in front of the gap; beside the left thigh
+    moved_to = np.array([[0.075, 0.5, 0.0], [-0.07, 0.5, 0.0]])  # into the overlap; 1 cm into the left one
+    results = {}
+    for hold in (False, True):
+        x, x_prev = moved_to.copy(), start.copy()
+        contact = np.zeros(2, dtype=np.bool_)
+        collider.collide(x, x_prev, np.ones(2), np.ones(2, dtype=np.bool_), parts, 0.0005, 0.0, 0.0, contact,
+                         hold_pinched=hold)
+        results[hold] = x
+        assert contact.all()
+    held, pushed = results[True], results[False]
+    assert np.allclose(held[0], start[0])  # held where it came from, outside both
+    assert np.all(collider.depth(held, parts, offset=True) == 0.0)
+    assert not np.allclose(pushed[0], start[0])  # without holding: pushed from one thigh into the other
+    for x in (held, pushed):  # the point beside one thigh only: out along the radius either way
+        assert np.hypot(x[1, 0], x[1, 2]) == pytest.approx(0.0845, abs=0.001) and abs(x[1, 2]) < 0.001

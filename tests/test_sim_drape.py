@@ -92,3 +92,110 @@ def test_paper_push_and_pin_start_without_growth(catalogue, body):
     assert not m["grown"]
     assert m["penetrating_vertices"] == 0
     assert result.vertices[:, 1].max() > body.levels["chest"] + 0.15
+
+
+def test_a_loose_top_is_not_turned_by_its_ease(body):
+    """The local turn puts a fitted top's back on the body's back; a top uniformly larger than the body
+    (here the torso itself widened by 15 % about its axis at every height, so not tilted at all) hangs
+    its ease behind it and is not turned: the paper's construction alone turned it by the ease."""
+    from tryon.sim.align import back_ease, body_landmarks, local_alignment, torso_points
+
+    torso = torso_points(body)
+    lm = body_landmarks(body)
+    top = torso[torso[:, 1] > lm.waist_y - 0.1].copy()
+    centre = np.array([lm.center_x, 0.0, 0.5 * (top[:, 2].min() + top[:, 2].max())])
+    top[:, [0, 2]] = centre[[0, 2]] + 1.15 * (top[:, [0, 2]] - centre[[0, 2]])
+    assert back_ease(top, torso, lm, lm.chest_y) > 0.01
+    turned = local_alignment(top, torso, lm, True)
+    lowest = np.argmin(top[:, 1])
+    assert abs(turned[lowest, 2] - top[lowest, 2]) < 0.004  # < ~0.5 degree over its ~0.5 m
+
+
+def test_long_sleeve_larger_than_the_body_fits_with_sleeves_around_the_forearms(catalogue, body):
+    """The size L long-sleeve on the medium body: slack everywhere, so every spring within the target,
+    and each forearm inside its sleeve down to the cuff (before the ease-aware local turn the sleeves
+    started 5 cm in front of the forearms, which came out through their backs: 258 springs over)."""
+    model = _model(catalogue, "longsleeve-l.obj", "top")
+    result = drape(body, model, SimSettings())
+    m = result.metrics
+    assert m["rest_reached"] and m["penetrating_vertices"] == 0
+    assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, m["strain_by_kind"]
+    x = result.coarse
+    for side in ("l", "r"):
+        k = body.parts.index(f"forearm_{side}")
+        a, b = body.part_axes[k]
+        axis = (b - a) / np.linalg.norm(b - a)
+        cuff_t = ((x - a) @ axis)[_distance_to_segment(x, a, b) < 0.1].max()
+        # at 80 % of the way to the cuff, the sleeve's points near the forearm surround its axis
+        p0 = a + 0.8 * cuff_t * axis
+        ring = x[(np.abs((x - p0) @ axis) < 0.02) & (_distance_to_segment(x, a, b) < 0.1)]
+        assert len(ring) > 6
+        u = np.cross(axis, [0.0, 0.0, 1.0])
+        u /= np.linalg.norm(u)
+        w = np.cross(axis, u)
+        angles = np.sort(np.arctan2((ring - p0) @ w, (ring - p0) @ u))
+        largest_gap = max(np.diff(angles).max(), angles[0] + 2 * np.pi - angles[-1])
+        assert largest_gap < np.radians(90), np.degrees(largest_gap)
+
+
+def test_trouser_legs_too_long_for_the_body_start_above_the_feet(catalogue):
+    """Trousers M on a 158 cm body reach 5 cm below its soles once their waistband is at its waist: the
+    legs are shortened from the crotch down so the hem starts above the feet, and no leg spring starts
+    across a foot (before: 136 did, and the drape ended with 22 springs over, caught on the right foot)."""
+    from tryon.sim.align import align_garment, foot_top
+    from tryon.sim.bodystate import BodyCollider
+
+    small = build_body(Measurements(height=158, chest=86, waist=72, hips=92), Pose())
+    model = _model(catalogue, "trousers-m.obj", "bottom")
+    feet = foot_top(small)
+    assert 0.03 < feet < 0.07
+    x = align_garment(small, model)
+    assert feet < x[:, 1].min() < feet + 0.02
+    assert abs(x[:, 1].max() - small.levels["waist"]) < 0.01  # the waistband stays at the waist
+    shins = np.array([small.parts.index("shin_l"), small.parts.index("shin_r")])
+    t = np.linspace(0.1, 0.9, 9)[None, :, None]
+    along = x[model.springs[:, 0]][:, None] * (1 - t) + x[model.springs[:, 1]][:, None] * t
+    depth = BodyCollider(small, 0.004).depth(np.ascontiguousarray(along.reshape(-1, 3)), shins, offset=False)
+    assert (depth < 0.001).all()
+    result = drape(small, model, SimSettings())
+    m = result.metrics
+    assert m["rest_reached"] and m["penetrating_vertices"] == 0
+    assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, m["strain_by_kind"]
+
+
+def test_a_garment_too_small_for_the_body_says_where(catalogue):
+    """The T-shirt S (95 cm under the arms, 106 cm at its 10 % limit) on a 112 cm chest cannot meet the
+    strain target: the metrics name the chest as where it is too tight."""
+    large = build_body(Measurements(height=185, chest=112, waist=100, hips=112), Pose())
+    m = drape(large, _model(catalogue, "tshirt-s.obj", "top"), SimSettings()).metrics
+    tight = m["too_tight"]
+    assert next(iter(tight)) == "torso chest", tight
+    assert tight["torso chest"] > 0.5 * sum(k["over"] for k in m["strain_by_kind"].values())
+
+
+def test_a_top_far_too_small_stays_on_the_shoulders(body):
+    """A long-sleeve top at 0.6 of its girth: no place on the body lets its springs meet the target, and
+    a relaxation without gravity would carry it up over the neck (measured: 90 % of its points more than
+    29 cm). The
+    drape keeps it where the loop left it, on the shoulders, and reports its springs over the target."""
+    from tryon.garment.generate import garment_mesh
+    from tryon.garment.ingest import CleanMesh
+    from tryon.garment.prepare import prepare
+    from tryon.sim.align import body_landmarks
+    from tryon.sim.run import RELAX_MAX_MOVE
+
+    g = garment_mesh("longsleeve", "S")
+    v = np.array(g.vertices, dtype=np.float64)
+    centre = v.mean(axis=0)
+    v[:, [0, 2]] = centre[[0, 2]] + 0.6 * (v[:, [0, 2]] - centre[[0, 2]])
+    mesh = CleanMesh(vertices=v, faces=np.asarray(g.faces, dtype=np.int32), units="m", units_guessed=False)
+    model = prepare(mesh, id="small", name="small", category="top", size="S", source_sha256="0",
+                    source_name="small.obj")
+    result = drape(body, model, SimSettings())
+    m = result.metrics
+    assert not m["relaxed"] and m["relax_move_mm"][0] > 1000 * RELAX_MAX_MOVE
+    assert m["penetrating_vertices"] == 0
+    assert sum(k["over"] for k in m["strain_by_kind"].values()) > 1000  # honestly too small
+    lm = body_landmarks(body)
+    assert abs(result.vertices[:, 1].max() - lm.shoulder_y) < 0.05  # not over the head
+    assert result.vertices[:, 1].min() < lm.chest_y  # its hem still below the chest

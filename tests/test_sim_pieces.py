@@ -11,7 +11,9 @@ from tryon.body.params import Measurements, Pose
 from tryon.garment.generate import garment_mesh
 from tryon.garment.ingest import CleanMesh
 from tryon.garment.prepare import prepare
-from tryon.sim.align import align_garment, arm_direction, body_landmarks, garment_crotch, leg_axes, plan_arms
+from tryon.sim.align import (
+    align_garment, arm_direction, arm_joints, body_landmarks, boundary_loops, garment_crotch, leg_axes, plan_arms,
+)
 from tryon.sim.bodystate import _rotation
 from tryon.sim.pieces import bottom_mask, piece_labels
 from tryon.sim.run import drape
@@ -113,7 +115,9 @@ def test_arms_turn_in_3d_onto_sleeves_in_front_of_them(body):
     # move the sleeves 8 cm forward (a garment made on a body whose arms hang further forward)
     sleeves = np.abs(x[:, 0] - lm.center_x) > 1.4 * lm.shoulder_half
     x[sleeves, 2] += 0.08
-    plan = plan_arms(body, x, "top", model.coarse_faces)
+    # without faces no sleeve opening is known: one turn at the shoulder along the whole sleeve (the two
+    # turns of a bent sleeve are tested below)
+    plan = plan_arms(body, x, "top", None)
     for side, sign, angle, axis, joint in (("l", 1.0, plan.left, plan.left_axis, lm.shoulder_l),
                                            ("r", -1.0, plan.right, plan.right_axis, lm.shoulder_r)):
         assert angle > np.radians(6.0)
@@ -144,3 +148,175 @@ def test_outfit_drapes_with_legs_around_legs(outfit, body):
         gap = max(np.diff(angles).max(), angles[0] + 2 * np.pi - angles[-1])
         assert gap < np.radians(90), np.degrees(gap)
         assert np.median(np.hypot(rel[:, 0], rel[:, 2])) < 0.12
+
+
+# How far the synthetic bent sleeve's forearm part is turned forward about the elbow, degrees (the
+# MakeHuman blouse's sleeves measure 40-53 on the three test bodies).
+SLEEVE_BEND = 45.0
+
+
+def _bent_sleeve_top(body):
+    """A generated long-sleeve top whose sleeves are bent forward by SLEEVE_BEND at the body's elbows
+    below the upper arm (a garment modelled on bent arms), as a prepared model."""
+    top = garment_mesh("longsleeve", "M")
+    v = np.array(top.vertices, dtype=np.float64)
+    lm = body_landmarks(body)
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        joint, elbow, _ = arm_joints(body, side)
+        along = (elbow - joint) / np.linalg.norm(elbow - joint)
+        beyond = (sign * (v[:, 0] - lm.center_x) > 1.4 * lm.shoulder_half) & ((v - elbow) @ along > 0)
+        axis = np.cross(along, [0.0, 0.0, 1.0])  # forward flexion: the forearm swings towards +z
+        rot = _rotation(axis / np.linalg.norm(axis), np.radians(SLEEVE_BEND))
+        v[beyond] = elbow + (v[beyond] - elbow) @ rot.T
+    return _prepared(v, np.asarray(top.faces), "top")
+
+
+@pytest.fixture(scope="module")
+def bent_top(body):
+    return _bent_sleeve_top(body)
+
+
+def _cuff_centres(model, x):
+    """Centre (3,) of each sleeve's opening, keyed by side (+1 left, -1 right)."""
+    loops = boundary_loops(model.coarse_faces, len(x))
+    ends = sorted(loops, key=lambda loop: -abs(x[loop, 0].mean()))[:2]
+    return {float(np.sign(x[loop, 0].mean())): x[loop].mean(axis=0) for loop in ends}
+
+
+def test_a_sleeve_bent_at_the_elbow_turns_the_forearm_onto_it(body, bent_top):
+    x = align_garment(body, bent_top)
+    plan = plan_arms(body, x, "top", bent_top.coarse_faces)
+    cuffs = _cuff_centres(bent_top, x)
+    for side, sign, turn, axis, bend, bend_axis in (
+            ("l", 1.0, plan.left, plan.left_axis, plan.left_elbow, plan.left_elbow_axis),
+            ("r", -1.0, plan.right, plan.right_axis, plan.right_elbow, plan.right_elbow_axis)):
+        assert abs(np.degrees(bend) - SLEEVE_BEND) < 10.0, np.degrees(bend)
+        joint, elbow, wrist = arm_joints(body, side)
+        rot = _rotation(np.asarray(axis), turn)
+        posed_elbow = joint + rot @ (elbow - joint)
+        fore = _rotation(rot @ np.asarray(bend_axis), bend) @ rot @ (wrist - elbow)
+        fore /= np.linalg.norm(fore)
+        # the turned forearm's axis passes through the cuff's centre (within 1 cm)
+        to_cuff = cuffs[sign] - posed_elbow
+        assert np.linalg.norm(to_cuff - (to_cuff @ fore) * fore) < 0.01
+        # a straight arm turned at the shoulder only (no faces: no opening known) misses it by more than
+        # a forearm's radius
+        shoulder_only = plan_arms(body, x, "top", None)
+        straight, straight_axis = ((shoulder_only.left, shoulder_only.left_axis) if sign > 0
+                                   else (shoulder_only.right, shoulder_only.right_axis))
+        arm = _rotation(np.asarray(straight_axis), straight) @ (wrist - joint)
+        arm /= np.linalg.norm(arm)
+        to_cuff = cuffs[sign] - joint
+        assert np.linalg.norm(to_cuff - (to_cuff @ arm) * arm) > 0.05
+
+
+def test_a_straight_or_short_sleeve_gets_no_elbow_turn(body):
+    for kind in ("longsleeve", "tshirt"):
+        top = garment_mesh(kind, "M")
+        model = _prepared(np.array(top.vertices, dtype=np.float64), np.asarray(top.faces), "top")
+        plan = plan_arms(body, align_garment(body, model), "top", model.coarse_faces)
+        assert plan.left_elbow < np.radians(20.0) and plan.right_elbow < np.radians(20.0), kind
+    top = garment_mesh("tshirt", "M")
+    model = _prepared(np.array(top.vertices, dtype=np.float64), np.asarray(top.faces), "top")
+    plan = plan_arms(body, align_garment(body, model), "top", model.coarse_faces)
+    assert plan.left_elbow == 0.0 and plan.right_elbow == 0.0  # its opening lies above the elbow
+
+
+@pytest.mark.slow
+def test_bent_sleeves_drape_around_the_forearms(body, bent_top):
+    result = drape(body, bent_top, SimSettings())
+    m = result.metrics
+    assert m["penetrating_vertices"] == 0
+    assert min(m["elbow_turn_deg"]) > 30.0
+    v = result.vertices
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        _, elbow, wrist = arm_joints(body, side)
+        mid = 0.5 * (elbow + wrist)
+        along = (wrist - elbow) / np.linalg.norm(wrist - elbow)
+        rel = v - mid
+        radial = rel - np.outer(rel @ along, along)
+        # a slice across the forearm, within 15 cm of its axis (the slab's far end cuts the torso)
+        band = (np.abs(rel @ along) < 0.03) & (np.linalg.norm(radial, axis=1) < 0.15)
+        radial = radial[band]
+        assert band.sum() > 10
+        # the sleeve surrounds the forearm at mid length: no gap over 90 degrees around its axis
+        e1 = np.cross(along, [0.0, 0.0, 1.0])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(along, e1)
+        angles = np.sort(np.arctan2(radial @ e2, radial @ e1))
+        gap = max(np.diff(angles).max(), angles[0] + 2 * np.pi - angles[-1])
+        assert gap < np.radians(90), (side, np.degrees(gap))
+        assert np.median(np.linalg.norm(radial, axis=1)) < 0.07
+
+
+@pytest.mark.slow
+def test_relaxation_kept_for_the_shirt_dropped_for_trousers_it_would_carry_away(body):
+    """An outfit whose trousers are far too small at the seat (0.6 of their girth): a relaxation without
+    gravity pulls them down the legs. That piece keeps the loop's drape, on the hips; the shirt, which
+    the relaxation barely moves, keeps the relaxed one."""
+    from tryon.sim import run
+
+    shirt, trousers = garment_mesh("tshirt", "M"), garment_mesh("trousers", "M")
+    sv, tv = np.array(shirt.vertices, dtype=np.float64), np.array(trousers.vertices, dtype=np.float64)
+    centre = tv.mean(axis=0)
+    tv[:, [0, 2]] = centre[[0, 2]] + 0.6 * (tv[:, [0, 2]] - centre[[0, 2]])
+    faces = np.vstack([np.asarray(shirt.faces), np.asarray(trousers.faces) + len(sv)])
+    model = _prepared(np.vstack([sv, tv]), faces, "dress")
+    result = drape(body, model, SimSettings())
+    m = result.metrics
+    assert not m["relaxed"] and m["relax_move_mm"][0] > 1000 * run.RELAX_MAX_MOVE
+    assert m["penetrating_vertices"] == 0
+    lm = body_landmarks(body)
+    legs = np.arange(len(result.vertices)) >= len(sv)
+    assert result.vertices[legs, 1].max() > lm.hips_y  # the trousers' top still above the hip line
+    # the same drape without the guard: the trousers' top slides below the hips
+    saved = run.RELAX_MAX_MOVE
+    try:
+        run.RELAX_MAX_MOVE = np.inf
+        loose = drape(body, model, SimSettings())
+    finally:
+        run.RELAX_MAX_MOVE = saved
+    assert loose.metrics["relaxed"]
+    assert loose.vertices[legs, 1].max() < result.vertices[legs, 1].max() - 0.1
+    shirt_part = ~legs
+    assert np.abs(loose.vertices[shirt_part] - result.vertices[shirt_part]).max() < 1e-9  # shirt: relaxed in both
+
+
+def test_a_guessed_units_top_is_scaled_around_the_bodice_its_sleeves_moved_out_unscaled(body):
+    from tryon.sim.align import SLEEVE_BLEND, scale_girth_keep_sleeves
+
+    lm = body_landmarks(body)
+    scale = 1.5
+    for kind in ("longsleeve", "tshirt"):
+        top = garment_mesh(kind, "M")
+        model = _prepared(np.array(top.vertices, dtype=np.float64), np.asarray(top.faces), "top")
+        x = align_garment(body, model)
+        anchor = np.array([lm.center_x, lm.shoulder_y, x[:, 2].mean()])
+        y = scale_girth_keep_sleeves(x, anchor, scale, lm)
+        plain = x.copy()
+        plain[:, [0, 2]] = anchor[[0, 2]] + scale * (x[:, [0, 2]] - anchor[[0, 2]])
+        assert np.array_equal(y[:, 1], x[:, 1])  # heights kept
+        # the bodice (within the half-width that lands on the shoulder joints) is scaled
+        dx = np.abs(x[:, 0] - lm.center_x)
+        inner = dx < lm.shoulder_half / scale
+        assert inner.sum() > 100 and np.allclose(y[inner], plain[inner])
+        # past the armhole each sleeve only moves out, by the bodice's growth at the shoulder: a long
+        # sleeve's cuff keeps its size and shape (a plain x-z scale made it up to 1.5 x longer and wider)
+        far = dx > lm.shoulder_half / scale + SLEEVE_BLEND
+        shift = np.sign(x[far, 0] - lm.center_x) * lm.shoulder_half * (1.0 - 1.0 / scale)
+        assert far.sum() > 30 and np.allclose(y[far, 0] - x[far, 0], shift) and np.allclose(y[far, 2], x[far, 2])
+        if kind == "longsleeve":
+            loops = boundary_loops(model.coarse_faces, len(x))
+            for loop in sorted(loops, key=lambda loop: -abs(x[loop, 0].mean()))[:2]:
+                assert far[loop].all()
+        # no edge anywhere is stretched much more than the bodice's scale (the armhole blends in)
+        e = model.coarse_faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+        ratio = np.linalg.norm(y[e[:, 0]] - y[e[:, 1]], axis=1) / np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
+        assert ratio.max() <= 1.05 * scale, (kind, ratio.max())
+    # a top without sleeves (the sleeveless dress, whose skirt is wider than its bodice) is scaled plainly
+    dress = garment_mesh("dress", "M")
+    model = _prepared(np.array(dress.vertices, dtype=np.float64), np.asarray(dress.faces), "dress")
+    x = align_garment(body, model)
+    anchor = np.array([lm.center_x, lm.shoulder_y, x[:, 2].mean()])
+    y = scale_girth_keep_sleeves(x, anchor, scale, lm)
+    assert np.allclose(y[:, [0, 2]], anchor[[0, 2]] + scale * (x[:, [0, 2]] - anchor[[0, 2]]))

@@ -251,8 +251,15 @@ async function tryOn() {
   }
 }
 
+// 'upper_arm_l' -> 'left upper arm', 'torso chest' -> 'chest' (the places of metrics.too_tight)
+function placeName(place) {
+  const side = place.endsWith('_l') ? 'left ' : (place.endsWith('_r') ? 'right ' : '');
+  return side + place.replace(/^torso /, '').replace(/_[lr]$/, '').replace(/_/g, ' ');
+}
+
 function showMetrics(done) {
   const m = done.metrics || {};
+  const tight = m.too_tight ? Object.keys(m.too_tight) : null;  // largest count first
   const rows = [
     ['Time', Number.isFinite(m.wall_seconds) ? `${m.wall_seconds.toFixed(2)} s` : '—'],
     ['Steps', Number.isFinite(m.steps) ? `${m.steps}` : '—'],
@@ -260,6 +267,8 @@ function showMetrics(done) {
       : `${m.penetrating_vertices} pts, ${Number(m.max_penetration_mm ?? 0).toFixed(1)} mm`),
       m.penetrating_vertices === 0 ? 'good' : 'warn'],
     ['Max strain', Number.isFinite(m.max_strain) ? `${(m.max_strain * 100).toFixed(1)} %` : '—'],
+    ['Too tight at', tight === null ? '—' : (tight.length ? tight.slice(0, 3).map(placeName).join(', ') : 'nowhere'),
+      tight && tight.length ? 'warn' : 'good'],
     ['Rest reached', m.rest_reached === undefined ? '—' : (m.rest_reached ? 'yes' : 'no'), m.rest_reached ? 'good' : 'warn'],
     ['Simulated', Number.isFinite(m.sim_seconds) ? `${m.sim_seconds.toFixed(2)} s` : '—'],
   ];

@@ -4,8 +4,9 @@ Layout under ``data_dir``::
 
     catalogue.sqlite            index: one row per catalogue entry (GarmentMeta + preparation params)
     sources/<sha256>.<ext>      the uploaded file, kept so that other simplification degrees can be made
-    models/<key>/               model.npz + meta.json (GarmentModel.save); key = id for the entry itself,
-                                id-B<b> for a variant with another simplification degree
+    models/<key>/               model.npz + meta.json + prepared.json (GarmentModel.save); key = id for the
+                                entry itself, id-B<b> for a variant with another simplification degree;
+                                a model of another PREPARATION_VERSION is prepared again from its source
     tmp/                        work directories; anything here is a leftover of a crash
 
 An entry's id is a short hash of the file's sha256 and the preprocessing parameters (units,
@@ -116,12 +117,20 @@ class Catalogue:
                 self._cache.move_to_end(key)
                 return self._cache[key]
         directory = self.models / key
-        if not (directory / "meta.json").exists():
+        reprepared = False
+        if not GarmentModel.is_current(directory):
+            reprepared = directory.exists()
+            if reprepared:  # prepared by another PREPARATION_VERSION: made again from the kept source
+                self._discard(directory)
             meta = GarmentMeta(**json.loads(row["meta"]))
             source = self.sources / f"{row['source_sha256']}.{row['source_ext']}"
             self._prepare_into(directory, source.read_bytes(), meta.source_name, row["requested_units"],
                                replace(meta, simplification=b), row["density"])
         model = GarmentModel.load(directory)
+        if reprepared and key == garment_id:  # the listing's counts follow the model
+            meta = asdict(replace(model.meta, name=row["name"], category=row["category"], size=row["size"]))
+            with self._connect() as db:
+                db.execute("UPDATE garments SET meta = ? WHERE id = ?", (json.dumps(meta), garment_id))
         # name, category and size are the entry's (the uploader's words), not the prepared model's
         model = replace(model, meta=replace(model.meta, id=garment_id, name=row["name"],
                                             category=row["category"], size=row["size"]))
@@ -172,7 +181,9 @@ class Catalogue:
         if existing is not None:
             return existing, False
         directory = self.models / gid
-        if not (directory / "meta.json").exists():
+        if not GarmentModel.is_current(directory):
+            if directory.exists():  # a leftover of another preparation version: not adopted
+                self._discard(directory)
             meta = GarmentMeta(
                 id=gid, name=name, category=category, size=size, units=units, units_guessed=False,
                 simplification=float(simplify), source_sha256=sha, source_name=filename, vertices=0,

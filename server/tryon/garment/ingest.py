@@ -112,10 +112,11 @@ def load_garment(data: bytes, filename: str, units: str = "auto", max_faces: int
         raise GarmentError(
             f"{unused:.0%} of the vertices belong to no face: the file looks truncated (faces missing)"
         )
-    if ext == "obj" and (b"\nstitch " in data or b"\nseam " in data):
+    stitches = _count_lines(data, b"stitch") if ext == "obj" else 0
+    if ext == "obj" and (stitches or b"\nseam " in data):
         notes.append("ignored non-standard OBJ 'stitch'/'seam' lines")
     vertices, faces = _clean(vertices, faces, notes)
-    _refuse_sewing_pattern(vertices, faces)
+    _refuse_sewing_pattern(vertices, faces, stitches)
     vertices, faces = _largest_components(vertices, faces, notes)
     vertices = _orient_y_up(vertices, faces, notes)
     vertices, units, guessed = _to_metres(vertices, units, notes)
@@ -240,8 +241,15 @@ def _face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
 
 
-def _refuse_sewing_pattern(vertices: np.ndarray, faces: np.ndarray) -> None:
-    """Refuse a file of flat, unsewn pattern panels: it is not a garment that can be worn yet."""
+def _count_lines(data: bytes, keyword: bytes) -> int:
+    """How many lines of an OBJ file start with ``keyword`` followed by a space."""
+    return data.count(b"\n" + keyword + b" ") + int(data.startswith(keyword + b" "))
+
+
+def _refuse_sewing_pattern(vertices: np.ndarray, faces: np.ndarray, stitches: int = 0) -> None:
+    """Refuse a file of flat, unsewn pattern panels: it is not a garment that can be worn yet. ``stitches``:
+    the file's non-standard ``stitch`` lines (Codim-IPC's sewing instructions), named in the refusal: the
+    service does not sew panels (a sewn drape would pull each stitch's ends together around the body)."""
     count, label = _components(len(vertices), faces)
     if count < 2:
         return
@@ -256,9 +264,11 @@ def _refuse_sewing_pattern(vertices: np.ndarray, faces: np.ndarray) -> None:
         if spread[2] <= FLAT_PANEL_RATIO * spread[0]:
             flat_area += area[c]
     if flat_area >= 0.9 * area[big].sum():
+        sewing = (f"; its {stitches} 'stitch' lines are not read: flat patterns with stitch lines are not "
+                  "supported" if stitches else "")
         raise GarmentError(
-            f"flat sewing pattern panels, not a sewn garment ({len(big)} flat pieces): sew the panels "
-            "into a 3D garment in a cloth tool and export that"
+            f"flat sewing pattern panels, not a sewn garment ({len(big)} flat pieces{sewing}): sew the "
+            "panels into a 3D garment in a cloth tool and export that"
         )
 
 

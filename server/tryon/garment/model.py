@@ -15,6 +15,10 @@ import numpy as np
 
 STRUCTURAL, SHEAR, BENDING = 0, 1, 2
 SPRING_KINDS = ("structural", "shear", "bending")
+# Version of what preparation makes of a source file; a model saved by another version is prepared again
+# from its kept source (``is_current``). Raise it whenever ingest, simplification or springs change their
+# output. 2: a file's connected pieces are simplified each by its own share.
+PREPARATION_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -85,9 +89,20 @@ class GarmentModel:
         return p + nrm * self.attach_offset[:, None]
 
     def save(self, directory: Path) -> None:
-        """Write ``model.npz`` and ``meta.json`` into ``directory`` (which must exist)."""
+        """Write ``model.npz``, ``meta.json`` and ``prepared.json`` (the preparation version) into
+        ``directory`` (which must exist)."""
         np.savez(directory / "model.npz", **{k: getattr(self, k) for k in self.ARRAYS})
+        (directory / "prepared.json").write_text(json.dumps({"version": PREPARATION_VERSION}))
         (directory / "meta.json").write_text(json.dumps(asdict(self.meta), indent=1))
+
+    @staticmethod
+    def is_current(directory: Path) -> bool:
+        """Whether ``directory`` holds a complete model saved by this ``PREPARATION_VERSION``."""
+        try:
+            version = json.loads((directory / "prepared.json").read_text())["version"]
+        except (OSError, ValueError, KeyError, TypeError):
+            return False
+        return version == PREPARATION_VERSION and (directory / "meta.json").exists()
 
     @classmethod
     def load(cls, directory: Path) -> "GarmentModel":

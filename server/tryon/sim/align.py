@@ -4,13 +4,16 @@
    top's (or dress's) shoulder line sits on the body's shoulders, or a bottom's waistband at the body's
    waist level. A garment whose units were guessed at ingestion is also scaled so that its girth at the
    chest (hips for bottoms) is about 1.15 x the body's (a garment in the right units is never rescaled:
-   its size is the point of trying it on).
+   its size is the point of trying it on); a top's sleeves move out with its shoulders, unscaled.
 2. Local alignment (the paper's construction): a = the garment's rear-most point (smallest z) on the
    torso, b = the body point nearest to a, c = the garment's highest point near the centre line (the
    collar for a top, the waistband for a bottom); the garment turns about the X axis through c by the
    angle between (a - c) and (b - c), so its back follows the body's back. Limited to +-15 degrees.
-3. Sleeve directions: the angle between each sleeve and the vertical (in the body's frontal plane) is
-   measured, so the simulation can pose the arms along the sleeves and bring them back (``ArmPlan``).
+   For a top larger than the body, b is first moved back by the garment's ease (``back_ease``), so a
+   loose top is not tilted onto the body's back (its sleeves would swing off the arms).
+3. Sleeve directions: the turn that puts each arm along its sleeve is measured, so the simulation can
+   pose the arms along the sleeves and bring them back (``ArmPlan``); a long sleeve bent at the elbow
+   (modelled on an arm that was bent) gets a second turn of the forearm about the elbow.
 """
 
 from __future__ import annotations
@@ -18,10 +21,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse
+import scipy.sparse.csgraph
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
+from tryon.body.params import POSE_RANGES
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
+from tryon.sim.bodystate import _rotation
 from tryon.sim.pieces import bottom_mask
 
 # m: the garment's shoulder line is placed this far above the body's (a few mm of air, so the first
@@ -35,10 +42,42 @@ GUESSED_UNITS_BOTTOM_EASE = 1.0
 # m: a bottom's waistband girth is measured in a band this far below the body's waist line, and as deep
 # (the top 4 cm of a bottom placed with its top at the waist).
 BAND_BELOW_WAIST = 0.02
+# m: beyond a guessed-units top's bodice its depth scale fades to none over this distance (the armhole;
+# see ``scale_girth_keep_sleeves``): over 5 cm an edge across it was stretched up to 1.7 x the scale
+# (3.1 x on the MakeHuman blouse at scale 1.8), over 15 cm 1.0-1.05 x.
+SLEEVE_BLEND = 0.15
 # Largest local-alignment turn about X, radians: the construction is a correction, not a re-posing.
 MAX_LOCAL_TURN = np.radians(15.0)
+# m: half-height of the band around the rear-most point a in which a top's ease (its depth beyond the
+# body's) is measured for the local turn (see ``local_alignment``).
+EASE_BAND = 0.02
+# m: how far in front of the shin's axis the body's surface counts as the foot (the ankle's radius is
+# 3-4 cm, the foot reaches 11-17 cm forward below ~5 cm), and how far above the feet a trouser hem is put.
+FOOT_REACH = 0.06
+FOOT_CLEARANCE = 0.01
+# A sleeve's points lie beyond this many shoulder-joint half-widths from the centre (past the bodice of a
+# fitted top or dress), above the chest-to-waist mid level; a side with fewer than MIN_SLEEVE_POINTS such
+# points has no sleeve.
+SLEEVE_REACH = 1.4
+MIN_SLEEVE_POINTS = 8
 # Smallest difference between sleeve and arm angles worth posing the arms for, radians.
 MIN_ARM_TURN = np.radians(6.0)
+# Smallest bend of a long sleeve at the elbow worth turning the forearm for, radians; a smaller bend is
+# followed by the one shoulder turn along the whole sleeve. Measured on the small / medium / large bodies:
+# the MakeHuman blouse's sleeves 38-53 degrees, the MakeHuman men's shirt 26-31, the catalogue's long
+# sleeves 0-15 (their wide tops pull the upper part's centre off the arm's line). Turning the catalogue's
+# 10-15 degree sleeves too changed 5 of its 27 long-sleeve drapes, none for the worse (springs over the
+# target: large M 1063 -> 421, large L 672 -> 0; the others stay at 0).
+MIN_ELBOW_TURN = np.radians(10.0)
+# The upper part of a sleeve, whose centre line the upper arm is turned onto when the sleeve is bent: its
+# points between these fractions of the upper arm's length from the shoulder joint.
+UPPER_SLEEVE = (0.4, 0.9)
+# A sleeve has a forearm part when its far opening is at least this fraction of the forearm's length
+# beyond the elbow (a short sleeve ends above it).
+FOREARM_SLEEVE = 0.2
+# Largest elbow turn, radians: the elbow's range of flexion (the body's own pose range); a "bend" beyond
+# it is a short sleeve whose opening lies before the elbow, not a bent long sleeve.
+MAX_ELBOW_TURN = np.radians(POSE_RANGES["elbow_bend"][1])
 # m: a bottom's crotch is put at least this far below the body's (a low-rise pair of trousers, whose top
 # sits at the hips, is lowered from the waist until it is); the crotch seam then hangs clear of the body.
 CROTCH_DROP = 0.02
@@ -85,6 +124,12 @@ class ArmPlan:
     right: float
     left_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     right_axis: tuple[float, float, float] = (0.0, 0.0, -1.0)
+    # Forearm turns (radians) about each elbow, after the shoulder turn, for a sleeve bent at the elbow;
+    # each axis is given in the arm's rest pose (the shoulder turn carries it along with the upper arm).
+    left_elbow: float = 0.0
+    right_elbow: float = 0.0
+    left_elbow_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    right_elbow_axis: tuple[float, float, float] = (0.0, 0.0, -1.0)
 
 
 def _part(body: Body, name: str) -> int | None:
@@ -161,19 +206,21 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
     guessed = bool(getattr(model.meta, "units_guessed", False))
     bottom = bottom_mask(x, model.coarse_faces, model.meta.category)
     legs = leg_axes(body)
+    feet = foot_top(body)
     for is_top, sel in ((True, ~bottom), (False, bottom)):
         if sel.any():
-            x[sel], _ = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs)
+            x[sel], _ = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs, feet)
     return x
 
 
 def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool, guessed: bool,
-                 scale: float | None, legs: dict[float, np.ndarray] | None = None
+                 scale: float | None, legs: dict[float, np.ndarray] | None = None, foot_y: float | None = None
                  ) -> tuple[np.ndarray, float | None]:
     """Global then local alignment of the points (k, 3) of one kind of piece (``top``: hung from the
     shoulders, else from the waist). ``scale``: the factor a guessed-units garment was already scaled by
     (None: decide it here from the girth); ``legs``: the body's leg axes (``leg_axes``), over which a
-    bottom's legs are put. Returns the aligned copy and the scale used (None if not guessed)."""
+    bottom's legs are put; ``foot_y``: the top of the body's feet (``foot_top``), above which a trouser
+    leg's hem is put. Returns the aligned copy and the scale used (None if not guessed)."""
     x = x.copy()
     level = lm.chest_y if top else lm.hips_y
 
@@ -200,7 +247,9 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
                 ratio = gg / bg
                 if not 0.95 <= ratio <= 1.6:
                     scale = (GUESSED_UNITS_EASE if top else GUESSED_UNITS_BOTTOM_EASE) / ratio
-        if scale != 1.0:
+        if scale != 1.0 and top:
+            x = scale_girth_keep_sleeves(x, anchor, scale, lm)
+        elif scale != 1.0:
             # around the body only (x, z): the guessed unit already gives a wearable length (ingestion
             # checks it), and a garment modelled on a slimmer or broader body differs in girth; scaling the
             # length too made a MakeHuman outfit's trousers 1.4-1.9 x too long on medium and large bodies
@@ -220,7 +269,47 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
             x[:, 1] += lm.crotch_y - CROTCH_DROP - crotch
         if legs is not None:
             x = fit_legs(x, lm, legs)
+        if foot_y is not None:
+            x = clear_feet(x, lm.center_x, foot_y)
     return x, scale
+
+
+def scale_girth_keep_sleeves(x: np.ndarray, anchor: np.ndarray, scale: float, lm: BodyLandmarks
+                             ) -> np.ndarray:
+    """A guessed-units top's points (k, 3) scaled around the body by ``scale`` (x and z about ``anchor``
+    (3,)), its sleeves excepted: only the bodice's half-width that lands on the body's shoulder joints
+    (``shoulder_half / scale`` before scaling) is scaled, and what lies beyond it (the sleeves) moves out
+    with the shoulder, unscaled, its depth (z) scale fading from ``scale`` to 1 over ``SLEEVE_BLEND``.
+    Scaling a sleeve that hangs at 30-50 degrees in x and z only stretched it along its length and
+    flattened its section (a MakeHuman blouse at 1.8 on the large body: sleeves 1.8 x as wide as deep,
+    well past the wrists), which the arms then cut through. A top without sleeves (``has_sleeves``) is
+    scaled plainly: beyond its bodice there is only a flared skirt (the DiffAvatar
+    strap dress, kept at its bodice's size, flew off the large body in front)."""
+    plain = x.copy()
+    plain[:, [0, 2]] = anchor[[0, 2]] + (x[:, [0, 2]] - anchor[[0, 2]]) * scale
+    if not has_sleeves(x if scale > 1.0 else plain, lm):  # judged at the smaller size: a bodice scaled up
+        return plain  # reaches past SLEEVE_REACH like a sleeve
+    out = x.copy()
+    dx = x[:, 0] - anchor[0]
+    inner = lm.shoulder_half / scale
+    beyond = np.maximum(np.abs(dx) - inner, 0.0)
+    out[:, 0] = anchor[0] + np.sign(dx) * (np.minimum(np.abs(dx), inner) * scale + beyond)
+    z_scale = scale + (1.0 - scale) * np.clip(beyond / SLEEVE_BLEND, 0.0, 1.0)
+    out[:, 2] = anchor[2] + (x[:, 2] - anchor[2]) * z_scale
+    return out
+
+
+def sleeve_mask(x: np.ndarray, lm: BodyLandmarks, sign: float) -> np.ndarray:
+    """(k,) bool: the points (k, 3) of the sleeve on one side (``sign`` +1: the body's left, towards +x):
+    beyond ``SLEEVE_REACH`` x the shoulder-joint half-width from the centre (past the bodice of a fitted
+    top or dress), above the chest-to-waist mid level."""
+    beyond = (x[:, 0] - lm.center_x) * sign > SLEEVE_REACH * lm.shoulder_half
+    return beyond & (x[:, 1] > 0.5 * (lm.chest_y + lm.waist_y))
+
+
+def has_sleeves(x: np.ndarray, lm: BodyLandmarks) -> bool:
+    """Whether the top's points (k, 3) have a sleeve (``MIN_SLEEVE_POINTS`` or more) on each side."""
+    return all(sleeve_mask(x, lm, sign).sum() >= MIN_SLEEVE_POINTS for sign in (1.0, -1.0))
 
 
 def garment_crotch(x: np.ndarray, cx: float) -> float | None:
@@ -290,8 +379,65 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray]) ->
     return x
 
 
+def back_ease(x: np.ndarray, torso: np.ndarray, lm: BodyLandmarks, y: float) -> float:
+    """How far (m, >= 0) the back of a garment (points (k, 3)) larger than the body hangs behind the body's
+    back at height ``y`` when it is centred on it: half its depth beyond the torso's there, in a band
+    ``EASE_BAND`` high near the centre line; 0 for a garment no deeper than the body."""
+    near = np.abs(x[:, 0] - lm.center_x) < 0.5 * lm.shoulder_half
+    g = x[near & (np.abs(x[:, 1] - y) < EASE_BAND), 2]
+    near_b = np.abs(torso[:, 0] - lm.center_x) < 0.5 * lm.shoulder_half
+    b = torso[near_b & (np.abs(torso[:, 1] - y) < EASE_BAND), 2]
+    if len(g) == 0 or len(b) == 0:
+        return 0.0
+    return max(0.0, 0.5 * ((g.max() - g.min()) - (b.max() - b.min())))
+
+
+def foot_top(body: Body) -> float | None:
+    """Height (m) of the top of the feet: the highest point of the shins' surface more than ``FOOT_REACH``
+    in front of their axis at its height, in their lower half (the instep); None if the body has no
+    shins."""
+    tops = []
+    for side in ("l", "r"):
+        k = _part(body, f"shin_{side}")
+        if k is None:
+            return None
+        v = body.vertices[np.unique(body.faces[body.face_part == k])]
+        (_, y0, z0), (_, y1, z1) = body.part_axes[k]  # knee to ankle
+        axis_z = z0 + (z1 - z0) * np.clip((v[:, 1] - y0) / (y1 - y0), 0.0, 1.0)
+        ahead = (v[:, 2] - axis_z > FOOT_REACH) & (v[:, 1] < 0.5 * (y0 + y1))  # not the knee cap
+        if ahead.any():
+            tops.append(float(v[ahead, 1].max()))
+    return max(tops) if tops else None
+
+
+def clear_feet(x: np.ndarray, cx: float, foot_y: float) -> np.ndarray:
+    """A bottom's points (k, 3) whose legs reach below ``foot_y`` + ``FOOT_CLEARANCE`` (trousers made for a
+    taller body, or whose hem lies on the floor) with the legs shortened from the crotch down, uniformly,
+    so that the hem starts just above the feet: a hem placed through the feet starts with each foot
+    through the leg's front (the springs across the instep, which growth cannot undo: no point is inside),
+    and the foot keeps the leg caught. The legs' springs, compressed, lengthen again in the first steps,
+    and the hem comes down around the foot. Nothing changes for a skirt or shorts."""
+    crotch = garment_crotch(x, cx)
+    target = foot_y + FOOT_CLEARANCE
+    hem = float(x[:, 1].min())
+    if crotch is None or hem >= target or crotch <= target:
+        return x
+    x = x.copy()
+    legs = x[:, 1] < crotch
+    x[legs, 1] = crotch - (crotch - x[legs, 1]) * (crotch - target) / (crotch - hem)
+    return x
+
+
 def local_alignment(x: np.ndarray, torso: np.ndarray, lm: BodyLandmarks, top: bool) -> np.ndarray:
-    """The paper's rotation about X (see module doc); returns the turned copy of ``x`` (k, 3)."""
+    """The paper's rotation about X (see module doc); returns the turned copy of ``x`` (k, 3).
+
+    For a top, the body point b is moved back by the garment's ease there (``back_ease``): the paper's
+    construction puts the garment's rear-most point on the body's back, which for a garment larger than
+    the body is a turn by its looseness, not by its tilt, and the turn about the collar swings the sleeves
+    off the arms (the catalogue's long-sleeve L on the medium body, which it was made for: 5.3 degrees
+    forward, its sleeves 5 cm in front of the forearms, which then came out through the sleeves' backs;
+    every real top turned forward by 5-13 degrees). Bottoms keep the paper's construction: their band
+    sits on the hips, and below it a flare or the crotch makes their depth no measure of their ease."""
     cx = lm.center_x
     near_centre = np.abs(x[:, 0] - cx) < 0.25 * lm.shoulder_half
     if near_centre.sum() < 3:
@@ -304,6 +450,8 @@ def local_alignment(x: np.ndarray, torso: np.ndarray, lm: BodyLandmarks, top: bo
         return x
     a = x[region][np.argmin(x[region, 2])]
     b = torso[np.argmin(np.linalg.norm(torso - a, axis=1))]
+    if top:
+        b = b - np.array([0.0, 0.0, back_ease(x, torso, lm, a[1])])
     u = (a - c)[1:]
     v = (b - c)[1:]
     if np.linalg.norm(u) < 1e-6 or np.linalg.norm(v) < 1e-6:
@@ -334,33 +482,108 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
     radius) is missed by an arm turned only in the frontal plane, which then cuts through the sleeve's
     back and bunches it on the upper arm. The turn is about the axis normal to both the arm (shoulder to
     wrist) and the sleeve direction.
+
+    A long sleeve bent at the elbow (``bent_sleeve_turns``) is followed in two turns instead: the upper
+    arm onto the sleeve's upper part, then the forearm about the elbow onto the sleeve's far opening; a
+    straight arm turned at the shoulder only cuts through such a sleeve below the elbow.
     No sleeve (bottoms, sleeveless dresses, too few points): no turn.
     """
     if category == "bottom":
         return ArmPlan(0.0, 0.0)
     lm = body_landmarks(body)
     upper = np.ones(len(x), dtype=np.bool_) if faces is None else ~bottom_mask(x, faces, category)
-    turns, axes = [], []
+    loops = boundary_loops(faces, len(x)) if faces is not None else []
+    out = {}
     for side, sign, joint in (("l", 1.0, lm.shoulder_l), ("r", -1.0, lm.shoulder_r)):
         rel = (x[:, 0] - lm.center_x) * sign
-        sel = upper & (rel > 1.4 * lm.shoulder_half) & (x[:, 1] > 0.5 * (lm.chest_y + lm.waist_y))
+        sel = upper & sleeve_mask(x, lm, sign)
         default_axis = (0.0, 0.0, sign)
-        if sel.sum() < 8:
-            turns.append(0.0)
-            axes.append(default_axis)
+        out[side] = (0.0, default_axis, 0.0, default_axis)
+        if sel.sum() < MIN_SLEEVE_POINTS:
+            continue
+        # the openings on this side (a cuff may hang below the level the sleeve points are taken above)
+        far = upper & (rel > SLEEVE_REACH * lm.shoulder_half)
+        ends = [loop for loop in loops if far[loop].mean() > 0.8]
+        bent = bent_sleeve_turns(body, side, x, sel, ends)
+        if bent is not None:
+            out[side] = bent
             continue
         sleeve = x[sel].mean(axis=0) - joint
-        arm = arm_direction(body, side)
-        sleeve /= np.linalg.norm(sleeve)
-        normal = np.cross(arm, sleeve)
-        turn = float(np.arctan2(np.linalg.norm(normal), arm @ sleeve))
-        if turn < MIN_ARM_TURN or np.linalg.norm(normal) < 1e-9:
-            turns.append(0.0)
-            axes.append(default_axis)
-            continue
-        turns.append(turn)
-        axes.append(tuple(float(c) for c in normal / np.linalg.norm(normal)))
-    return ArmPlan(left=turns[0], right=turns[1], left_axis=axes[0], right_axis=axes[1])
+        turn, axis = _turn_between(arm_direction(body, side), sleeve)
+        if turn >= MIN_ARM_TURN:
+            out[side] = (turn, axis, 0.0, default_axis)
+    (lt, la, le, lea), (rt, ra, re, rea) = out["l"], out["r"]
+    return ArmPlan(left=lt, right=rt, left_axis=la, right_axis=ra, left_elbow=le, right_elbow=re,
+                   left_elbow_axis=lea, right_elbow_axis=rea)
+
+
+def _turn_between(a: np.ndarray, b: np.ndarray) -> tuple[float, tuple[float, float, float]]:
+    """Angle (radians) and unit axis of the shortest turn taking direction ``a`` (3,) to ``b`` (3,)."""
+    a = a / np.linalg.norm(a)
+    b = b / np.linalg.norm(b)
+    normal = np.cross(a, b)
+    length = float(np.linalg.norm(normal))
+    if length < 1e-9:
+        return 0.0, (0.0, 0.0, 1.0)
+    return float(np.arctan2(length, a @ b)), tuple(float(c) for c in normal / length)
+
+
+def arm_joints(body: Body, side: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The arm's shoulder joint, elbow and wrist end (3,) each: the elbow halfway between the upper arm
+    axis's end and the forearm axis's start (each runs past the joint into its rounded cap by the same
+    length), the wrist end the forearm axis's end."""
+    up = body.part_axes[_part(body, f"upper_arm_{side}")]
+    fore = body.part_axes[_part(body, f"forearm_{side}")]
+    return up[0].copy(), 0.5 * (up[1] + fore[0]), fore[1].copy()
+
+
+def bent_sleeve_turns(body: Body, side: str, x: np.ndarray, sleeve: np.ndarray, ends: list[np.ndarray]
+                      ) -> tuple[float, tuple, float, tuple] | None:
+    """(shoulder turn, its axis, elbow turn, its axis in the arm's rest pose) that put the upper arm along
+    the sleeve's upper part (the centroid of its points ``UPPER_SLEEVE`` of the upper arm's length from
+    the shoulder joint) and then the forearm, turned about the elbow, through the centre of the sleeve's
+    far opening (of the boundary loops ``ends`` on this side, the one farthest from the joint); ``sleeve``
+    (k,) bool marks the sleeve's points. None when the sleeve is not a long sleeve bent by
+    ``MIN_ELBOW_TURN`` to ``MAX_ELBOW_TURN`` (then one shoulder turn along the whole sleeve is enough), or
+    the body has no forearm."""
+    if _part(body, f"forearm_{side}") is None:
+        return None
+    joint, elbow, wrist = arm_joints(body, side)
+    upper_len = float(np.linalg.norm(elbow - joint))
+    fore_len = float(np.linalg.norm(wrist - elbow))
+    if not ends:
+        return None
+    centres = [x[loop].mean(axis=0) for loop in ends]
+    cuff = max(centres, key=lambda c: float(np.linalg.norm(c - joint)))
+    r = np.linalg.norm(x - joint, axis=1)
+    ring = sleeve & (r > UPPER_SLEEVE[0] * upper_len) & (r < UPPER_SLEEVE[1] * upper_len)
+    if ring.sum() < MIN_SLEEVE_POINTS:
+        return None
+    turn, axis = _turn_between(elbow - joint, x[ring].mean(axis=0) - joint)
+    rot = _rotation(np.asarray(axis), turn)
+    posed_elbow = joint + rot @ (elbow - joint)
+    if np.linalg.norm(cuff - posed_elbow) < FOREARM_SLEEVE * fore_len:
+        return None
+    bend, bend_axis = _turn_between(rot @ (wrist - elbow), cuff - posed_elbow)
+    if not MIN_ELBOW_TURN <= bend <= MAX_ELBOW_TURN:
+        return None
+    rest_axis = tuple(float(c) for c in rot.T @ np.asarray(bend_axis))
+    return turn, axis, bend, rest_axis
+
+
+def boundary_loops(faces: np.ndarray, n_vertices: int) -> list[np.ndarray]:
+    """The openings of the mesh ``faces`` (f, 3): one int64 array of vertex ids per boundary loop."""
+    f = np.asarray(faces, dtype=np.int64)
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    key, count = np.unique(edges[:, 0] * n_vertices + edges[:, 1], return_counts=True)
+    b = key[count == 1]
+    if len(b) == 0:
+        return []
+    a, c = b // n_vertices, b % n_vertices
+    graph = scipy.sparse.coo_matrix((np.ones(len(b)), (a, c)), shape=(n_vertices, n_vertices))
+    label = scipy.sparse.csgraph.connected_components(graph, directed=False)[1]
+    on = np.unique(np.concatenate([a, c]))
+    return [on[label[on] == k] for k in np.unique(label[on])]
 
 
 def arm_direction(body: Body, side: str) -> np.ndarray:

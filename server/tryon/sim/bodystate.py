@@ -100,9 +100,11 @@ class BodyCollider:
         if refresh:
             self.update()
 
-    def pose_arms(self, turns: dict[int, tuple[np.ndarray, np.ndarray]]) -> None:
-        """Turn body parts rigidly: ``turns[k] = (pivot (3,), R (3, 3))`` moves part k's vertices to
-        pivot + R (v - pivot), with its OBB and cylinder frame. Parts not named go back to rest."""
+    def pose_arms(self, turns: dict[int, tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, np.ndarray]]
+                  ) -> None:
+        """Move body parts rigidly: ``turns[k] = (pivot (3,), R (3, 3))`` or ``(pivot, R, shift (3,))``
+        moves part k's vertices to pivot + R (v - pivot) + shift, with its OBB and cylinder frame. Parts not
+        named go back to rest."""
         v = self.rest_vertices.copy()
         n = self.rest_normals.copy()
         rf = self.rest_frames
@@ -110,14 +112,16 @@ class BodyCollider:
         self.obb_offsets[:] = rf["obb_offsets"]
         self.cyl_origin[:] = rf["cyl_origin"]
         self.cyl_axes[:] = rf["cyl_axes"]
-        for k, (pivot, rot) in turns.items():
+        for k, turn in turns.items():
+            pivot, rot = turn[0], turn[1]
+            shift = turn[2] if len(turn) > 2 else np.zeros(3)
             sel = self.vertex_part == k
-            v[sel] = pivot + (v[sel] - pivot) @ rot.T
+            v[sel] = pivot + (v[sel] - pivot) @ rot.T + shift
             n[sel] = n[sel] @ rot.T
-            self.cyl_origin[k] = pivot + rot @ (rf["cyl_origin"][k] - pivot)
+            self.cyl_origin[k] = pivot + rot @ (rf["cyl_origin"][k] - pivot) + shift
             self.cyl_axes[k] = rf["cyl_axes"][k] @ rot.T
             self.obb_normals[k] = rf["obb_normals"][k] @ rot.T
-            center = pivot + rot @ (rf["obb_center"][k] - pivot)
+            center = pivot + rot @ (rf["obb_center"][k] - pivot) + shift
             # each plane keeps its distance (half extent) to the turned centre: n' . c' + (offset - n . c)
             self.obb_offsets[k] = rf["obb_offsets"][k] - rf["obb_normals"][k] @ rf["obb_center"][k] \
                 + self.obb_normals[k] @ center
@@ -128,16 +132,17 @@ class BodyCollider:
     # ------------------------------------------------------------------ queries
 
     def collide(self, x, x_prev, inv_mass, active, parts, lam, mu_static, mu_kinetic, contact, x_pred=None,
-                near=0.0, planes=None) -> int:
+                near=0.0, planes=None, hold_pinched=False) -> int:
         """Push points ``x`` out of the offset body in place; returns how many moved (see collide_points).
-        planes: optional (has_plane (k,), plane_point (k, 3), plane_normal (k, 3)) filled with contact planes."""
+        planes: optional (has_plane (k,), plane_point (k, 3), plane_normal (k, 3)) filled with contact planes;
+        hold_pinched: see collide_points (only for a body that does not move)."""
         if planes is None:
             planes = (np.zeros(len(x), dtype=np.bool_), np.empty((len(x), 3)), np.empty((len(x), 3)))
         return collide_points(
             x, x_prev, x if x_pred is None else x_pred, inv_mass, active, parts, self.obb_normals, self.obb_offsets, self.cyl_origin,
             self.cyl_axes, self.cyl_zrange, self.cyl_shape, self.cell_base, self.cell_start, self.cell_faces,
             self.cell_rmax, self.offset, self.faces, self.offset_normals, lam, mu_static, mu_kinetic, contact,
-            self.cover, near, planes[0], planes[1], planes[2], self.offset_boxes,
+            self.cover, near, planes[0], planes[1], planes[2], self.offset_boxes, hold_pinched,
         )
 
     def depth(self, points: np.ndarray, parts: np.ndarray, offset: bool = False) -> np.ndarray:

@@ -476,7 +476,8 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
 @njit(cache=True, nogil=True)
 def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_offsets, cyl_origin, cyl_axes,
                    cyl_zrange, cyl_shape, cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, lam,
-                   mu_static, mu_kinetic, contact, cover, near, has_plane, plane_point, plane_normal, fbox):
+                   mu_static, mu_kinetic, contact, cover, near, has_plane, plane_point, plane_normal, fbox,
+                   hold_pinched=False):
     """Push garment points out of the offset body, in place (paper 3.4, eq. 4 plus the fallbacks above).
 
     x, x_prev (k, 3) m (x_prev: positions at the start of the step; both updated in place); x_pred (k, 3)
@@ -490,6 +491,8 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
     tested point that was pushed or lies within ``near`` of the surface (its last surface point plus
     lambda, and normal), for ``constraints.solve_constraints``; untested points keep theirs (and their
     contact flag).
+    hold_pinched: a point pushed out of one part into another in every round (``ROUNDS``) stays where it
+    was at the start of the step (only while the body does not move: a growing body would grow into it).
     One point at a time, each writing only its own row: safe to split the loop across threads.
     """
     target = np.empty(3)
@@ -540,6 +543,17 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
                         plane_normal[i, ax] = normal[ax]
             if not any_inside:
                 break
+        if any_inside and hold_pinched:
+            # pinched: pushed out of one part into another in every round (cloth between touching
+            # thighs, in the crotch), no way out nearby. Pushed on, it flips between the parts every step
+            # (2-3 cm on a heavy-thighed body) and never comes to rest. It keeps its place at the start
+            # of the step instead, at rest (cloth squeezed between two parts is held there): outside the
+            # body if it was about to enter the pinch, where it was if it started in it.
+            for ax in range(3):
+                p[ax] = x_prev[i, ax]
+            has_plane[i] = False
+            moved += 1
+            continue
         if contact[i]:
             moved += 1
             # Response of the motion (the push itself must not become velocity: pushing along a ray that

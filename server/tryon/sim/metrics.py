@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from scipy.spatial import cKDTree
+
 from tryon.garment.model import SPRING_KINDS
 from tryon.sim.constraints import spring_strain
 
@@ -83,3 +85,30 @@ def penetration_metrics(depth: np.ndarray) -> dict:
         "penetrating_vertices": int((depth > PENETRATION_TOLERANCE).sum()),
         "max_penetration_mm": float(depth.max() * 1000.0) if len(depth) else 0.0,
     }
+
+
+def too_tight_places(coarse: np.ndarray, model, limits: np.ndarray, on_body: np.ndarray, body) -> dict[str, int]:
+    """Where the garment is too small for the body: the springs over the target (as ``strain_metrics``
+    counts them) with both ends on the body (``on_body`` (k,) bool), counted by the body place nearest
+    to their middle: a limb part's name (``upper_arm_l``, ``thigh_r``...), or for the torso its band
+    (``torso chest``, ``torso waist``, ``torso hips``: the nearest of the body's girth levels). Empty
+    when the garment meets the target on the body; largest count first."""
+    length = np.linalg.norm(coarse[model.springs[:, 0]] - coarse[model.springs[:, 1]], axis=1)
+    over = length > allowed_length(model.rest, limits[model.kind])
+    over &= on_body[model.springs[:, 0]] & on_body[model.springs[:, 1]]
+    if not over.any():
+        return {}
+    middle = 0.5 * (coarse[model.springs[over, 0]] + coarse[model.springs[over, 1]])
+    vertex_part = np.zeros(len(body.vertices), dtype=np.int64)
+    vertex_part[body.faces.ravel()] = np.repeat(body.face_part, 3)
+    part = vertex_part[cKDTree(body.vertices).query(middle)[1]]
+    names = np.array(body.parts, dtype=object)[part]
+    levels = {k: v for k, v in (body.levels or {}).items() if k in ("chest", "waist", "hips")}
+    if levels:
+        level_names = list(levels)
+        band = np.argmin(np.abs(middle[:, 1, None] - np.array([levels[k] for k in level_names])[None]), axis=1)
+        torso = names == "torso"
+        names[torso] = [f"torso {level_names[b]}" for b in band[torso]]
+    places, counts = np.unique(names.astype(str), return_counts=True)
+    order = np.argsort(-counts, kind="stable")
+    return {str(places[i]): int(counts[i]) for i in order}

@@ -10,7 +10,9 @@ substeps converge much further than the same passes on one step). Each substep:
 2. first substep only: collision against the offset body (paper 3.3-3.4, ``collide.py``), which pushes
    points out (eq. 4) and leaves a contact plane for each point pushed or within ``NEAR`` of the body;
    contacts still within ``PLANE_REUSE`` of where they touched only reuse their plane (no map query);
-   later substeps push onto the planes, with friction on the predicted motion;
+   later substeps push onto the planes, with friction on the predicted motion; a point pinched between two
+   parts (pushed out of each into the other: cloth between touching thighs) is held where the step began
+   (``hold_pinched``, once the body no longer grows or turns);
 3. the strain-limited springs (eq. 2-3), ``passes / substeps`` Gauss-Seidel passes, each followed by the
    contact planes (springs and contacts converge together);
 4. the top-down sweep for hanging cloth (``sweep_downward``: a sagging free end follows the point above
@@ -37,20 +39,23 @@ Points at rest cost almost nothing: a point that moved less than ``REST_MOVE`` s
 outside the (static) body, and is not in contact, cannot be inside it by more than that, so its
 collision test is skipped; a contact at rest only re-projects onto its plane.
 
-After the loop, a relaxation: the same substeps with gravity and friction off and light drag, from rest,
-until every spring meets the strain target (or ``MAX_POLISH_ROUNDS`` steps). At rest under gravity the
-Gauss-Seidel passes leave the springs that hold the garment up (a waistband on the hips, cloth over the
-shoulders) a few % over their limits, and a band that sagged too low cannot shorten without climbing back
-up the body, a coordinated motion that damped passes make only a little of per round (hundreds of rounds).
-Without gravity the over-long springs are the only force left (and only they act: stretch-only, so no
+After the loop, a relaxation: the same substeps with gravity and friction off and light drag, from rest, until
+every spring meets the strain target (or progress stalls, or ``MAX_POLISH_ROUNDS`` steps). At rest under
+gravity the Gauss-Seidel passes leave the springs that hold the garment up (a waistband on the hips, cloth
+over the shoulders) a few % over their limits, and a band that sagged too low cannot shorten without climbing
+back up the body, a coordinated motion that damped passes make only a little of per round (hundreds of
+rounds). Without gravity the over-long springs are the only force left (and only they act: stretch-only, so no
 compression pushes cloth up off the body); with little drag the motion they start is kept (momentum: the
-heavy-ball acceleration of an iterative solver), so the band climbs to where it fits in 10-40 rounds.
-The garment moves only as far as its over-stretch asks: on the medium body a median 1-6 mm per point and
-up to 1-3 cm, but up to 7-10 cm where a long sleeve or a trouser hem was stretched along the limb and
-shortens up it (the long-sleeve L: median 3.7 cm, a garment the loop left far from its limits). Then the full mesh
-is rebuilt from the coarse one (``model.expand``) and its vertices are pushed out of the offset body too
-(again while any still moves: a point pushed out of one thigh into the other), so the displayed mesh does
-not penetrate either.
+heavy-ball acceleration of an iterative solver), so the band climbs to where it fits in 10-40 rounds. The
+garment moves only as far as its over-stretch asks: on the medium body a median 1-6 mm per point and up to 1-3
+cm, but up to 7-10 cm where a long sleeve or a trouser hem was stretched along the limb and shortens up it.
+A garment far too small for the body has no such place nearby, and the relaxation carries it off (a blouse up
+around the neck, trousers down to the knees): for each piece of the file of which it moved a tenth of the
+points more than ``RELAX_MAX_MOVE`` it is dropped, and the loop's result for that piece is kept with its
+springs over the target reported (metrics ``relaxed``, ``relax_move_mm``: the largest piece's 90th
+percentile move, the largest move). Then the full mesh is rebuilt from the coarse one (``model.expand``) and
+its vertices are pushed out of the offset body too (again while any still moves: a point pushed out of one
+thigh into the other), so the displayed mesh does not penetrate either.
 
 The floor (y = ``FLOOR_Y``) is put under the offset body's soles, so a trouser hem on the floor beside a
 foot is not caught between the floor and the sole's offset rim.
@@ -66,15 +71,16 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
-from tryon.sim.align import ArmPlan, align_garment, plan_arms
+from tryon.sim.align import ArmPlan, align_garment, arm_joints, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
+from tryon.sim.pieces import piece_labels
 from tryon.sim.constraints import (
     cap_stretch, contact_springs, pack_springs, pack_sweep, solve_listed, spring_lengths, sweep_springs,
     top_down_order,
 )
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
-from tryon.sim.metrics import allowed_length, penetration_metrics, strain_metrics
+from tryon.sim.metrics import allowed_length, penetration_metrics, strain_metrics, too_tight_places
 from tryon.sim.settings import SimSettings
 from tryon.sim.substeps import finish_relaxation_round, finish_step
 
@@ -88,19 +94,33 @@ PART_REACH = 0.15
 # Steps for which points pushed out at alignment stay pinned when growth is off (see module doc).
 PIN_STEPS = 5
 # The relaxation after the loop (see the module doc): at least MIN rounds (one step's substeps each), then
-# until every spring meets the strain target (``metrics.allowed_length``), at most MAX. Over the 54
-# catalogue drapes (18 garments x small / medium / large bodies) the springs over the target fell from
-# 623 / 792 / 6439 with the earlier polish (60 rounds of collision + passes + a top-down lift, no momentum)
-# to 33 / 258 / 6258 with this (at most 60 rounds; 36 of the 54 drapes meet the target, against 2;
-# ``tryon bench --only fit``).
-# The large body is bigger than the size chart's L: most of its excess is S and M garments too small for it.
+# until every spring meets the strain target (``metrics.allowed_length``), at most MAX, and given up when
+# the count of springs over the target has not fallen to PROGRESS x its lowest in STALL rounds (a garment
+# too small for the body there: its springs stay over whatever the rounds). Over the 54 catalogue drapes
+# (18 garments x small / medium / large bodies) the springs over the target fell from 623 / 792 / 6439
+# with the earlier polish (60 rounds of collision + passes + a top-down lift, no momentum) to 33 / 258 /
+# 6258 with this at most 60 rounds. A band that must stretch a little to sit on a large body climbs
+# slowly: the L skirt and shorts on the large body need 81 and 193 rounds; with at most 300 and the stall
+# rule they meet the target, and the drapes that cannot (S / M garments on the large body) stop after
+# 33-67 rounds (``tryon bench --only fit``).
 MIN_POLISH_ROUNDS = 3
-MAX_POLISH_ROUNDS = 60
+MAX_POLISH_ROUNDS = 300
+POLISH_STALL_ROUNDS = 30
+POLISH_PROGRESS = 0.9
 # 1/s, air drag in the relaxation: light, so the motion the constraints start keeps going (a waistband
 # climbs back up to where it fits in 10-40 rounds instead of hundreds of passes without momentum), yet a
 # cloth pulled up off a table by the springs at its rim comes to a stop (0 and 10/s left bumps of 2 mm
 # and 1.7 cm on the table test at 0.05 s; 20/s: 0.2 mm).
 RELAX_DRAG = 20.0
+# The relaxation is kept for each piece of the file that it moved less than RELAX_MAX_MOVE (m) at the
+# RELAX_MOVE_QUANTILE of the piece's coarse points. A garment far too small for its body has no nearby place
+# where its springs meet the target, and without gravity the relaxation carries it to wherever they come
+# closest: a MakeHuman blouse on the medium body ended up bunched around the neck (90 % of its points
+# moved up to 55 cm), a 92 cm DiffCloth dress as a crumpled smock (49 cm), MakeHuman trousers down to the
+# knees (26 cm: their legs stayed, so the median point moved only 5 cm). The catalogue's 54 drapes move
+# 90 % of their points at most 12 cm (the large body in S shorts and long sleeves), most under 2 cm.
+RELAX_MOVE_QUANTILE = 0.9
+RELAX_MAX_MOVE = 0.15
 # Degrees per step the arms are turned back from the sleeve pose (slow enough that the arm surface
 # moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).
 ARM_DEG_PER_STEP = 1.0
@@ -143,7 +163,7 @@ FrameCallback = Callable[[int, np.ndarray], bool]
 class TryOnResult:
     """vertices (n, 3) full mesh, m; strain (n,) per full vertex; coarse (k, 3) simulated positions;
     metrics dict (steps, sim_seconds, wall_seconds, rest_reached, penetrating_vertices,
-    max_penetration_mm, max_strain, strain_by_kind, ...)."""
+    max_penetration_mm, max_strain, strain_by_kind, too_tight (``metrics.too_tight_places``), ...)."""
 
     vertices: np.ndarray
     faces: np.ndarray
@@ -153,27 +173,47 @@ class TryOnResult:
 
 
 class _ArmSchedule:
-    """Turns the arms from the sleeve pose back to rest over ``steps`` steps."""
+    """Turns the arms from the sleeve pose back to rest over ``steps`` steps: each upper arm about its
+    shoulder joint, each forearm with it and then about the (turned) elbow, every angle scaled by the
+    fraction of the pose left."""
 
     def __init__(self, body: Body, collider: BodyCollider, plan, settings: SimSettings):
         self.collider = collider
         self.parts = {}
-        for side, angle, axis in (("l", plan.left, plan.left_axis), ("r", plan.right, plan.right_axis)):
-            if angle == 0.0 or f"upper_arm_{side}" not in body.parts:
+        for side, angle, axis, bend, bend_axis in (
+                ("l", plan.left, plan.left_axis, plan.left_elbow, plan.left_elbow_axis),
+                ("r", plan.right, plan.right_axis, plan.right_elbow, plan.right_elbow_axis)):
+            if (angle == 0.0 and bend == 0.0) or f"upper_arm_{side}" not in body.parts:
                 continue
             k_up = body.parts.index(f"upper_arm_{side}")
-            ks = [k_up] + ([body.parts.index(f"forearm_{side}")] if f"forearm_{side}" in body.parts else [])
-            self.parts[side] = (body.part_axes[k_up, 0].copy(), angle, np.asarray(axis, dtype=np.float64), ks)
-        biggest = max((abs(a) for _, a, _, _ in self.parts.values()), default=0.0)
+            k_fore = body.parts.index(f"forearm_{side}") if f"forearm_{side}" in body.parts else None
+            joint = body.part_axes[k_up, 0].copy()
+            elbow = arm_joints(body, side)[1] if k_fore is not None else joint
+            self.parts[side] = (joint, angle, np.asarray(axis, dtype=np.float64), k_up, k_fore, elbow, bend,
+                                np.asarray(bend_axis, dtype=np.float64))
+        biggest = max((max(abs(a), abs(b)) for _, a, _, _, _, _, b, _ in self.parts.values()), default=0.0)
         self.steps = int(np.ceil(np.degrees(biggest) / ARM_DEG_PER_STEP)) if self.parts else 0
+
+    def turned_parts(self) -> list[int]:
+        """Body part indices the schedule moves."""
+        return [k for _, _, _, k_up, k_fore, _, _, _ in self.parts.values()
+                for k in (k_up, k_fore) if k is not None]
 
     def apply(self, step: int) -> None:
         fraction = 1.0 - min(1.0, step / self.steps) if self.steps else 0.0
         turns = {}
-        for pivot, angle, axis, ks in self.parts.values():
+        for joint, angle, axis, k_up, k_fore, elbow, bend, bend_axis in self.parts.values():
             rot = _rotation(axis, angle * fraction)
-            for k in ks:
-                turns[k] = (pivot, rot)
+            turns[k_up] = (joint, rot)
+            if k_fore is None:
+                continue
+            if bend == 0.0:
+                turns[k_fore] = (joint, rot)
+                continue
+            # forearm: v -> e' + R_e (R_s (v - j) + j - e'), e' the turned elbow, R_e about the turned axis
+            posed_elbow = joint + rot @ (elbow - joint)
+            rot_e = _rotation(rot @ bend_axis, bend * fraction)
+            turns[k_fore] = (joint, rot_e @ rot, (np.eye(3) - rot_e) @ (posed_elbow - joint))
         self.collider.pose_arms(turns)
 
 
@@ -204,7 +244,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     parts = relevant_parts(body.maps, lo, hi, PART_REACH)
     if arms.steps:
         arms.apply(0)
-        turned = [k for _, _, _, ks in arms.parts.values() for k in ks]  # the sleeves are around them
+        turned = arms.turned_parts()  # the sleeves are around them
         parts = np.union1d(parts, turned).astype(np.int64)
 
     # --- tangled start: grow the body, or (growth off) push out and pin for a few steps
@@ -277,7 +317,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
             reuse_planes(x, x_prev, *planes, PLANE_REUSE, mu_s, mu_k, contact, reused)
             points_to_test(x, x_checked, has_plane, reused, REST_MOVE, active)
         collided = collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, mu_s, mu_k,
-                                    contact, near=NEAR, planes=planes)
+                                    contact, near=NEAR, planes=planes, hold_pinched=not changing)
         x_checked[active] = x[active]
         touching = np.flatnonzero(has_plane)  # the points with a contact plane this step
         # points on the body count as heavier in the springs, so hanging cloth hangs from them instead of
@@ -333,11 +373,13 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     target = allowed_length(rest, limits[kind])
     polish_rounds = 0
     x_prev[:] = x
+    x_loop = x.copy()
     stretch_only = table.copy()
     # only the over-long springs act: no compression pushes cloth off the body (and with l0 = 0 too a
     # compressed spring is not even visited for a zero correction: same result, the relaxation's passes
     # skip the buckled cloth on the body)
     stretch_only[:, 1:] = 0.0
+    fewest_over, best_round = len(springs) + 1, 0
     for polish_rounds in range(1, MAX_POLISH_ROUNDS + 1):
         # the first substep's prediction and collision here, the rest of the round in one kernel
         verlet_step(x, x_prev, inv_mass, h, 0.0, RELAX_DRAG, settings.max_speed)
@@ -353,9 +395,30 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
             # slide past its contact plane, over a sharp edge, and be pushed back out, stretching springs)
             active[:] = True
             collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
-            if not np.any(spring_lengths(x, springs) > target):
+            n_over = int(np.count_nonzero(spring_lengths(x, springs) > target))
+            if n_over == 0:
                 break
+            if n_over <= POLISH_PROGRESS * fewest_over:
+                fewest_over, best_round = n_over, polish_rounds
+            elif polish_rounds - best_round >= POLISH_STALL_ROUNDS:
+                break  # no progress: a garment too small for the body there (its springs stay over)
     else:  # out of rounds: the last positions still get their final collision
+        active[:] = True
+        collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
+    relax_move = np.linalg.norm(x - x_loop, axis=1)  # m, per coarse point: how far the relaxation moved it
+    # each piece of the file on its own (pieces meet only the body, never each other): an outfit's
+    # trousers may be carried down the legs while its shirt barely moves
+    piece = piece_labels(model.coarse_faces, len(x))
+    piece_move = np.array([np.quantile(relax_move[piece == p], RELAX_MOVE_QUANTILE)
+                           for p in range(int(piece.max()) + 1)])
+    carried = piece_move > RELAX_MAX_MOVE
+    relaxed = not carried.any()
+    if not relaxed:
+        # the relaxation carried a piece away (see RELAX_MAX_MOVE): that piece stays where the loop
+        # left it, its springs over the target reported as they are
+        back = carried[piece]
+        x[back] = x_loop[back]
+        x_prev[:] = x
         active[:] = True
         collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
 
@@ -378,6 +441,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     # --- metrics
     depth = collider.depth(full, full_parts, offset=False)
     spring_strain_, per_vertex, by_kind = strain_metrics(x, model, limits, on_body=has_plane.copy())
+    too_tight = too_tight_places(x, model, limits, has_plane, body)
     wall = time.perf_counter() - t_start
     metrics = {
         "steps": int(step),
@@ -388,11 +452,15 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         **penetration_metrics(depth),
         "max_strain": float(spring_strain_.max()) if len(spring_strain_) else 0.0,
         "strain_by_kind": by_kind,
+        "too_tight": too_tight,
         "kinetic_energy_per_kg": float(energy),
         "grown": bool(grow_steps),
         "arm_turn_deg": [float(np.degrees(plan.left)), float(np.degrees(plan.right))],
+        "elbow_turn_deg": [float(np.degrees(plan.left_elbow)), float(np.degrees(plan.right_elbow))],
         "parts_tested": [body.parts[k] for k in parts],
         "last_step_contacts": int(collided),
         "polish_rounds": int(polish_rounds),
+        "relax_move_mm": [float(1000 * piece_move.max()), float(1000 * relax_move.max())],
+        "relaxed": bool(relaxed),
     }
     return TryOnResult(vertices=full, faces=model.faces, strain=per_vertex, coarse=x, metrics=metrics)

@@ -59,6 +59,7 @@ def result_json(result: TryOnResult) -> dict:
         "max_strain": round(float(m["max_strain"]), 5),
         "strain": np.round(result.strain, 4).tolist(),
         "strain_by_kind": m.get("strain_by_kind", {}),
+        "too_tight": m.get("too_tight", {}),
     }
     return {"garment": mesh_json(result.vertices, result.faces), "metrics": metrics}
 

@@ -67,6 +67,10 @@ class TryOnMetricsOut(BaseModel):
     strain: list[float] = Field(description="per garment vertex: largest strain of its springs")
     strain_by_kind: dict[str, dict] = Field(default_factory=dict,
                                             description="per spring type: max strain, its limit, springs over")
+    too_tight: dict[str, int] = Field(default_factory=dict,
+                                      description="where the garment is too small for the body: springs over "
+                                                  "their limit with both ends on the body, per body place "
+                                                  "(a limb part, or 'torso chest' / 'torso waist' / 'torso hips')")
 
 
 class TryOnOut(BaseModel):

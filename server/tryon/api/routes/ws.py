@@ -325,8 +325,10 @@ async def _sender(ws: WebSocket, session: LiveSession) -> None:
                 await ws.send_text(session.init)
                 init_sent = True
             if init_sent and session.latest is not None:
-                wait = last_sent + session.interval_s - time.monotonic()
-                if wait > 0:
+                due = last_sent + session.interval_s
+                # a loop, not one sleep: uvloop's timers count from the loop's cached time, which may be a
+                # millisecond or more behind the clock under load, so a sleep can end that much early
+                while (wait := due - time.monotonic()) > 0:
                     await asyncio.sleep(wait)  # a newer frame may replace this one meanwhile
                     if session.cancelled.is_set():
                         return

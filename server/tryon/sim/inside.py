@@ -100,26 +100,7 @@ def inside_area(p, a, b, c):
 @njit(cache=True, nogil=True)
 def inside_barycentric(p, a, b, c):
     """Barycentric test (Moeller-Trumbore's u, v): u, v >= 0 and u + v <= 1 within EPS."""
-    e1x = b[0] - a[0]
-    e1y = b[1] - a[1]
-    e1z = b[2] - a[2]
-    e2x = c[0] - a[0]
-    e2y = c[1] - a[1]
-    e2z = c[2] - a[2]
-    qx = p[0] - a[0]
-    qy = p[1] - a[1]
-    qz = p[2] - a[2]
-    d11 = e1x * e1x + e1y * e1y + e1z * e1z
-    d12 = e1x * e2x + e1y * e2y + e1z * e2z
-    d22 = e2x * e2x + e2y * e2y + e2z * e2z
-    dq1 = qx * e1x + qy * e1y + qz * e1z
-    dq2 = qx * e2x + qy * e2y + qz * e2z
-    den = d11 * d22 - d12 * d12
-    if den <= 0.0:
-        return False
-    u = (d22 * dq1 - d12 * dq2) / den
-    v = (d11 * dq2 - d12 * dq1) / den
-    return u >= -EPS and v >= -EPS and u + v <= 1.0 + EPS
+    return inside_barycentric_xyz(p[0], p[1], p[2], a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2])
 
 
 # The default test used by the collision response (fastest correct one, see the module docstring).
@@ -128,7 +109,7 @@ inside_triangle = inside_barycentric
 
 @njit(cache=True, nogil=True)
 def inside_barycentric_xyz(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
-    """``inside_barycentric`` for a point and triangle given as coordinates: the same arithmetic, and no
+    """The barycentric test (``inside_barycentric``) for a point and triangle given as coordinates, no
     array arguments (a call passing arrays into a function that branches and returns early pays two
     atomic reference-count updates per array; in the collision's ray casts they took a third of the
     time)."""

@@ -18,6 +18,8 @@ import scipy.sparse
 import scipy.sparse.csgraph
 import trimesh
 
+from tryon.garment.topology import vertex_pieces
+
 # Scale from a file unit to metres.
 UNIT_SCALE = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 UNITS = (*UNIT_SCALE, "auto")
@@ -229,10 +231,7 @@ def _clean(vertices: np.ndarray, faces: np.ndarray, notes: list[str]) -> tuple[n
 
 def _components(n_vertices: int, faces: np.ndarray) -> tuple[int, np.ndarray]:
     """Connected components over shared vertices: (count, label per face)."""
-    rows = np.concatenate([faces[:, 0], faces[:, 1]])
-    cols = np.concatenate([faces[:, 1], faces[:, 2]])
-    graph = scipy.sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_vertices, n_vertices))
-    count, vertex_label = scipy.sparse.csgraph.connected_components(graph, directed=False)
+    count, vertex_label = vertex_pieces(faces, n_vertices)
     return count, vertex_label[faces[:, 0]]
 
 

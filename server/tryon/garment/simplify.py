@@ -34,6 +34,8 @@ import scipy.sparse
 import scipy.sparse.csgraph
 from numba import njit
 
+from tryon.garment.topology import vertex_pieces
+
 # A collapse may turn a changed face's normal by at most this much (degrees): beyond it the coarse
 # surface folds (90 degrees would be a flip); 60 degrees keeps the sleeves and hem round.
 MAX_TURN_DEG = 60.0
@@ -86,10 +88,7 @@ def collapse_with_parents(faces: np.ndarray, n_vertices: int, B: float, vertices
 def _pieces(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Connected piece of each vertex ``(n,) int64`` (-1 for a vertex in no face) and the number of
     vertices of each piece ``(p,) int64``."""
-    rows = np.concatenate([faces[:, 0], faces[:, 1]])
-    cols = np.concatenate([faces[:, 1], faces[:, 2]])
-    graph = scipy.sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
-    _, label = scipy.sparse.csgraph.connected_components(graph, directed=False)
+    _, label = vertex_pieces(faces, n)
     used = np.zeros(n, dtype=np.bool_)
     used[faces.reshape(-1)] = True
     piece = np.full(n, -1, dtype=np.int64)

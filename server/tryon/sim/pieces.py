@@ -18,8 +18,8 @@ microseconds on a 700-vertex coarse mesh, cheaper than a new cached model format
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.csgraph
+
+from tryon.garment.topology import vertex_pieces
 
 # A piece is a bottom when its highest point is below this fraction of the highest piece's height (from
 # the highest piece's lowest point). 0.5: a waistband hangs at most at the middle of a shirt; the
@@ -31,11 +31,7 @@ BOTTOM_TOP_FRACTION = 0.5
 def piece_labels(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     """(n_vertices,) int64 connected-component label of each vertex over the triangles ``faces`` (f, 3);
     a vertex in no face is a piece of its own."""
-    f = np.asarray(faces, dtype=np.int64)
-    rows = np.concatenate([f[:, 0], f[:, 1]])
-    cols = np.concatenate([f[:, 1], f[:, 2]])
-    graph = scipy.sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_vertices, n_vertices))
-    return scipy.sparse.csgraph.connected_components(graph, directed=False)[1].astype(np.int64)
+    return vertex_pieces(faces, n_vertices)[1]
 
 
 def bottom_mask(points: np.ndarray, faces: np.ndarray, category: str) -> np.ndarray:

@@ -1,7 +1,8 @@
 """Issue 7: the try-on page in headless Chromium (Playwright) against a real ``tryon serve`` process.
 
 Load the page, pick a garment, change a measurement, try on, wait for the final metrics, check that frames
-arrived and that the canvas shows the garment, toggle the fit map, download the garment, show a server
+arrived and that the canvas shows the garment, toggle the fit map, download the garment, a garment too
+small for the body names where, show a server
 error in words, and no console errors. The final state is kept as ``test-artifacts/tryon-final.png``.
 """
 
@@ -138,6 +139,27 @@ def test_try_on_in_the_browser(page):
         page.click("#download-body")
     assert Path(download.value.path()).read_bytes()[:4] == b"glTF"
 
+    assert page.problems == []
+
+
+def test_a_garment_too_small_says_where(page):
+    """The T-shirt S on a 130 cm chest: the fit summary names the chest as too tight, as a warning."""
+    page.problems.clear()
+    bodies = page.evaluate("window.tryon.bodyRequests")
+    page.fill("#field-chest", "130")
+    page.fill("#field-waist", "112")
+    page.fill("#field-hips", "118")
+    page.wait_for_function(f"window.tryon.bodyRequests > {bodies}", timeout=30_000)
+    page.wait_for_function("!document.querySelector('#tryon-button').disabled", timeout=30_000)
+    page.click("#tryon-button")
+    page.wait_for_function("window.tryon.state === 'done' || window.tryon.state === 'error'", timeout=120_000)
+    state = page.evaluate("({s: window.tryon.state, e: window.tryon.lastError,"
+                          " m: window.tryon.done && window.tryon.done.metrics})")
+    assert state["s"] == "done", state["e"]
+    assert next(iter(state["m"]["too_tight"])) == "torso chest", state["m"]["too_tight"]
+    row = page.locator("#metrics div", has_text="Too tight at")
+    assert row.locator("dd").inner_text().startswith("chest")
+    assert row.locator("dd").get_attribute("class") == "warn"
     assert page.problems == []
 
 

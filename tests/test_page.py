@@ -1,9 +1,9 @@
 """Issue 7: the try-on page in headless Chromium (Playwright) against a real ``tryon serve`` process.
 
 Load the page, pick a garment, change a measurement, try on, wait for the final metrics, check that frames
-arrived and that the canvas shows the garment, toggle the fit map, download the garment, a garment too
-small for the body names where, show a server
-error in words, and no console errors. The final state is kept as ``test-artifacts/tryon-final.png``.
+arrived and that the canvas shows the garment, toggle the fit map, download the garment, a garment too small
+for the body names where, show a server error in words, and no console errors. The final state is kept as
+``test-artifacts/tryon-final.png``.
 """
 
 from __future__ import annotations

@@ -25,6 +25,17 @@ def allowed_length(rest: np.ndarray, limit) -> np.ndarray:
     return np.maximum(lmax * (1.0 + STRAIN_TOLERANCE), lmax + LENGTH_TOLERANCE)
 
 
+def springs_over(strain: np.ndarray, model, limits: np.ndarray,
+                 on_body: np.ndarray | None = None) -> np.ndarray:
+    """(s,) bool: the springs whose strain (s,) misses the target (longer than ``allowed_length`` for
+    their kind's limit in ``limits`` (3,)); with ``on_body`` (k,) bool, only those with both ends on the
+    body."""
+    over = (1.0 + strain) * model.rest > allowed_length(model.rest, limits[model.kind])
+    if on_body is not None:
+        over &= on_body[model.springs[:, 0]] & on_body[model.springs[:, 1]]
+    return over
+
+
 @njit(cache=True, nogil=True)
 def vertex_max_strain(n_vertices, springs, strain):
     """Largest strain of each coarse vertex's springs, (k,) float64 (0 for a vertex without springs)."""
@@ -60,22 +71,20 @@ def strain_metrics(coarse: np.ndarray, model, limits: np.ndarray,
     corner_strain = per_coarse[corners]
     per_full = np.clip(np.einsum("nj,nj->n", model.attach_bary, corner_strain), corner_strain.min(axis=1),
                        corner_strain.max(axis=1))
+    over = springs_over(strain, model, limits)
+    over_on_body = springs_over(strain, model, limits, on_body) if on_body is not None else None
     by_kind = {}
     for k, name in enumerate(SPRING_KINDS):
         sel = model.kind == k
         if not sel.any():
             continue
-        length = (1.0 + strain[sel]) * model.rest[sel]
-        over = length > allowed_length(model.rest[sel], limits[k])
         by_kind[name] = {
             "max": float(strain[sel].max()),
             "limit": float(limits[k]),
-            "over": int(over.sum()),
+            "over": int(over[sel].sum()),
         }
-        if on_body is not None:
-            ends = model.springs[sel]
-            both = on_body[ends[:, 0]] & on_body[ends[:, 1]]
-            by_kind[name]["over_on_body"] = int((over & both).sum())
+        if over_on_body is not None:
+            by_kind[name]["over_on_body"] = int(over_on_body[sel].sum())
     return strain, per_full, by_kind
 
 
@@ -87,15 +96,15 @@ def penetration_metrics(depth: np.ndarray) -> dict:
     }
 
 
-def too_tight_places(coarse: np.ndarray, model, limits: np.ndarray, on_body: np.ndarray, body) -> dict[str, int]:
-    """Where the garment is too small for the body: the springs over the target (as ``strain_metrics``
-    counts them) with both ends on the body (``on_body`` (k,) bool), counted by the body place nearest
-    to their middle: a limb part's name (``upper_arm_l``, ``thigh_r``...), or for the torso its band
-    (``torso chest``, ``torso waist``, ``torso hips``: the nearest of the body's girth levels). Empty
-    when the garment meets the target on the body; largest count first."""
-    length = np.linalg.norm(coarse[model.springs[:, 0]] - coarse[model.springs[:, 1]], axis=1)
-    over = length > allowed_length(model.rest, limits[model.kind])
-    over &= on_body[model.springs[:, 0]] & on_body[model.springs[:, 1]]
+def too_tight_places(coarse: np.ndarray, model, strain: np.ndarray, limits: np.ndarray, on_body: np.ndarray,
+                     body) -> dict[str, int]:
+    """Where the garment is too small for the body: the springs over the target (``springs_over`` of their
+    strain (s,), as ``strain_metrics`` counts them) with both ends on the body (``on_body`` (k,) bool),
+    counted by the body place nearest to their middle: a limb part's name (``upper_arm_l``,
+    ``thigh_r``...), or for the torso its band (``torso chest``, ``torso waist``, ``torso hips``: the
+    nearest of the body's girth levels). Empty when the garment meets the target on the body; largest
+    count first."""
+    over = springs_over(strain, model, limits, on_body)
     if not over.any():
         return {}
     middle = 0.5 * (coarse[model.springs[over, 0]] + coarse[model.springs[over, 1]])

@@ -441,7 +441,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     # --- metrics
     depth = collider.depth(full, full_parts, offset=False)
     spring_strain_, per_vertex, by_kind = strain_metrics(x, model, limits, on_body=has_plane.copy())
-    too_tight = too_tight_places(x, model, limits, has_plane, body)
+    too_tight = too_tight_places(x, model, spring_strain_, limits, has_plane, body)
     wall = time.perf_counter() - t_start
     metrics = {
         "steps": int(step),

@@ -320,3 +320,21 @@ def test_a_guessed_units_top_is_scaled_around_the_bodice_its_sleeves_moved_out_u
     anchor = np.array([lm.center_x, lm.shoulder_y, x[:, 2].mean()])
     y = scale_girth_keep_sleeves(x, anchor, scale, lm)
     assert np.allclose(y[:, [0, 2]], anchor[[0, 2]] + scale * (x[:, [0, 2]] - anchor[[0, 2]]))
+
+
+def test_a_bodice_wider_than_the_shoulders_is_not_a_sleeve():
+    """A sleeveless dress two sizes too big (XXL on a size S body): its bodice reaches past the small
+    body's shoulders like a sleeve would, but it has no opening out there, so the arms are not turned
+    onto it (a 14 degree turn carried an armhole down the arm and stretched the dress 50 % over its limit
+    across the chest); it drapes within its limits."""
+    small = build_body(Measurements(height=158, chest=86, waist=72, hips=92), Pose())
+    dress = garment_mesh("dress", "XXL")
+    model = _prepared(np.array(dress.vertices, dtype=np.float64), np.asarray(dress.faces), "dress")
+    x = align_garment(small, model)
+    lm = body_landmarks(small)
+    assert (np.abs(x[:, 0] - lm.center_x) > 1.4 * lm.shoulder_half).sum() > 50  # what looked like sleeves
+    plan = plan_arms(small, x, "dress", model.coarse_faces)
+    assert plan.left == 0.0 and plan.right == 0.0
+    m = drape(small, model, SimSettings()).metrics
+    assert m["penetrating_vertices"] == 0 and m["rest_reached"]
+    assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0

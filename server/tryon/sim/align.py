@@ -504,6 +504,10 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
         # the openings on this side (a cuff may hang below the level the sleeve points are taken above)
         far = upper & (rel > SLEEVE_REACH * lm.shoulder_half)
         ends = [loop for loop in loops if far[loop].mean() > 0.8]
+        if faces is not None and not ends:
+            # no opening out there: the side of a bodice wider than the body's shoulders (a dress two sizes
+            # too big), not a sleeve; turning the arm onto it carries the armhole down the arm
+            continue
         bent = bent_sleeve_turns(body, side, x, sel, ends)
         if bent is not None:
             out[side] = bent

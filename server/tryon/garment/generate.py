@@ -8,7 +8,7 @@ tubes that share the crotch point. Openings: neck, hem, cuffs, waist, leg hems.
 Placement: as worn by a standing person 1.70 m tall, feet at y = 0, facing +z, left arm towards +x,
 arms in an A-pose (``ARM_ANGLE_DEG`` from the torso side). Metres.
 
-Sizes S, M, L from a standard unisex size chart (body girths, cm) plus each garment's ease.
+Sizes S, M, L, XL, XXL from a standard unisex size chart (body girths, cm) plus each garment's ease.
 
 Run ``python3 -m tryon.garment.generate garments/`` to write the OBJ files and ``catalogue.json``.
 """
@@ -29,9 +29,11 @@ SIZE_CHART = {
     "S": dict(chest=88, waist=74, hips=94, upper_arm=28, wrist=16, thigh=54, knee=36, neck=36),
     "M": dict(chest=96, waist=82, hips=100, upper_arm=30, wrist=17, thigh=57, knee=38, neck=38),
     "L": dict(chest=104, waist=90, hips=106, upper_arm=32, wrist=18, thigh=60, knee=40, neck=40),
+    "XL": dict(chest=112, waist=98, hips=112, upper_arm=34, wrist=19, thigh=63, knee=42, neck=42),
+    "XXL": dict(chest=120, waist=106, hips=118, upper_arm=36, wrist=20, thigh=66, knee=44, neck=44),
 }
 # Shoulder half-width (acromion to the body's mid-plane), m, per size.
-SHOULDER_HALF = {"S": 0.185, "M": 0.195, "L": 0.205}
+SHOULDER_HALF = {"S": 0.185, "M": 0.195, "L": 0.205, "XL": 0.215, "XXL": 0.225}
 
 # Landmark heights (m) of a 1.70 m standing person (anthropometric ratios of stature: shoulder 0.82,
 # armpit 0.72, chest 0.73, waist 0.62, hips 0.53, crotch 0.46, knee 0.28).
@@ -426,7 +428,7 @@ def fitted(s: dict, y0: float, y1: float, ease: float, floor: float = 0.0) -> li
 
 
 def garment_mesh(kind: str, size: str) -> trimesh.Trimesh:
-    """One catalogue garment: kind in ``GARMENTS``, size S | M | L."""
+    """One catalogue garment: kind in ``GARMENTS``, size a key of ``SIZE_CHART`` (S .. XXL)."""
     s = {k: _cm(v) for k, v in SIZE_CHART[size].items()}
     neck = dict(neck_half=s["neck"] / (2 * np.pi) + 0.025, neck_depth=s["neck"] / (2 * np.pi) + 0.025)
     if kind == "tshirt":  # chest + 8 cm (body + 9 cm under the arms), straight, sleeves to mid upper arm

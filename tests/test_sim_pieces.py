@@ -325,8 +325,8 @@ def test_a_guessed_units_top_is_scaled_around_the_bodice_its_sleeves_moved_out_u
 def test_a_bodice_wider_than_the_shoulders_is_not_a_sleeve():
     """A sleeveless dress two sizes too big (XXL on a size S body): its bodice reaches past the small
     body's shoulders like a sleeve would, but it has no opening out there, so the arms are not turned
-    onto it (a 14 degree turn carried an armhole down the arm and stretched the dress 50 % over its limit
-    across the chest); it drapes within its limits."""
+    onto it (a 14 degree turn carried an armhole down the arm and stretched springs across the chest to
+    2.5x their length); it drapes within its limits."""
     small = build_body(Measurements(height=158, chest=86, waist=72, hips=92), Pose())
     dress = garment_mesh("dress", "XXL")
     model = _prepared(np.array(dress.vertices, dtype=np.float64), np.asarray(dress.faces), "dress")

@@ -4,9 +4,9 @@ targets: at rest no vertex deeper than 2 mm in the body, no spring beyond its ty
 
 The bodies span the size chart (``tryon.garment.generate.SIZE_CHART``: S chest 88 / waist 74 / hips 94 cm,
 XL 112 / 98 / 112, XXL 120 / 106 / 118): the small body is a size S person, the medium one a size M, the
-large one a size XL. A garment smaller than its body (an S skirt's 78 cm waistband, 86 cm at its 10 % limit, on a
-100 cm waist) cannot meet both targets: collision wins, and its springs held over the body are the
-"over on body" column, the fit verdict "too tight there".
+large one a size XL. A garment smaller than its body (an S skirt's 78 cm waistband, 86 cm at its 10 %
+limit, on a 100 cm waist) cannot meet both targets: collision wins, and its springs held over the body
+are the "over on body" column, the fit verdict "too tight there".
 """
 
 from __future__ import annotations

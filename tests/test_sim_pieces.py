@@ -292,7 +292,8 @@ def test_a_guessed_units_top_is_scaled_around_the_bodice_its_sleeves_moved_out_u
         model = _prepared(np.array(top.vertices, dtype=np.float64), np.asarray(top.faces), "top")
         x = align_garment(body, model)
         anchor = np.array([lm.center_x, lm.shoulder_y, x[:, 2].mean()])
-        y = scale_girth_keep_sleeves(x, anchor, scale, lm)
+        y = scale_girth_keep_sleeves(x, anchor, scale, lm, boundary_loops(model.coarse_faces, len(x)))
+        assert np.array_equal(y, scale_girth_keep_sleeves(x, anchor, scale, lm))  # the cuffs are openings
         plain = x.copy()
         plain[:, [0, 2]] = anchor[[0, 2]] + scale * (x[:, [0, 2]] - anchor[[0, 2]])
         assert np.array_equal(y[:, 1], x[:, 1])  # heights kept
@@ -320,6 +321,42 @@ def test_a_guessed_units_top_is_scaled_around_the_bodice_its_sleeves_moved_out_u
     anchor = np.array([lm.center_x, lm.shoulder_y, x[:, 2].mean()])
     y = scale_girth_keep_sleeves(x, anchor, scale, lm)
     assert np.allclose(y[:, [0, 2]], anchor[[0, 2]] + scale * (x[:, [0, 2]] - anchor[[0, 2]]))
+
+
+def _cape(radius_top: float, radius_hem: float, length: float, rings: int = 8, around: int = 48):
+    """A cape: a cone of cloth from a neck ring of ``radius_top`` m down ``length`` m to a hem of
+    ``radius_hem`` m, its top at y = 0 (vertices (rings * around, 3), faces (f, 3))."""
+    t = np.linspace(0.0, 1.0, rings)[:, None]
+    a = np.linspace(0.0, 2 * np.pi, around, endpoint=False)[None, :]
+    r = radius_top + (radius_hem - radius_top) * t
+    vertices = np.stack([r * np.cos(a), -length * t + 0 * a, r * np.sin(a)], axis=-1).reshape(-1, 3)
+    k = np.arange(rings - 1)[:, None] * around
+    q = np.arange(around)[None, :]
+    v00, v01, v10, v11 = k + q, k + (q + 1) % around, k + around + q, k + around + (q + 1) % around
+    faces = np.concatenate([np.stack([v00, v10, v01], -1).reshape(-1, 3), np.stack([v01, v10, v11], -1).reshape(-1, 3)])
+    return vertices, faces
+
+
+def test_a_guessed_units_cape_is_scaled_plainly(body):
+    """A cape reaches past the shoulders as far as sleeves do, but has no opening out there (its hem runs
+    round the body): a guessed-units cape is scaled whole, not kept at its size beyond the shoulders like
+    a sleeve (which would leave its sides wide and bend its hem)."""
+    from tryon.sim.align import has_sleeves, scale_girth_keep_sleeves, sleeve_openings
+
+    lm = body_landmarks(body)
+    vertices, faces = _cape(0.09, 0.5, 0.3)
+    model = _prepared(vertices, faces, "top")
+    x = align_garment(body, model)
+    loops = boundary_loops(model.coarse_faces, len(x))
+    assert len(loops) == 2  # the neck and the hem
+    anchor = np.array([lm.center_x, lm.shoulder_y, x[:, 2].mean()])
+    for scale in (0.8, 1.25):
+        plain = x.copy()
+        plain[:, [0, 2]] = anchor[[0, 2]] + scale * (x[:, [0, 2]] - anchor[[0, 2]])
+        assert has_sleeves(x if scale > 1 else plain, lm)  # by reach alone it looks sleeved
+        assert not any(sleeve_openings(x if scale < 1 else plain, lm, sign, loops) for sign in (1.0, -1.0))
+        assert np.allclose(scale_girth_keep_sleeves(x, anchor, scale, lm, loops), plain)
+        assert not np.allclose(scale_girth_keep_sleeves(x, anchor, scale, lm), plain)  # judged by reach alone
 
 
 def test_a_bodice_wider_than_the_shoulders_is_not_a_sleeve():

@@ -207,20 +207,24 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
     bottom = bottom_mask(x, model.coarse_faces, model.meta.category)
     legs = leg_axes(body)
     feet = foot_top(body)
+    loops = boundary_loops(model.coarse_faces, len(x))
     for is_top, sel in ((True, ~bottom), (False, bottom)):
         if sel.any():
-            x[sel], _ = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs, feet)
+            index = np.cumsum(sel) - 1  # a point's index among the selected ones
+            openings = [index[loop] for loop in loops if sel[loop].all()]
+            x[sel], _ = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs, feet, openings)
     return x
 
 
 def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool, guessed: bool,
-                 scale: float | None, legs: dict[float, np.ndarray] | None = None, foot_y: float | None = None
-                 ) -> tuple[np.ndarray, float | None]:
+                 scale: float | None, legs: dict[float, np.ndarray] | None = None, foot_y: float | None = None,
+                 openings: list[np.ndarray] | None = None) -> tuple[np.ndarray, float | None]:
     """Global then local alignment of the points (k, 3) of one kind of piece (``top``: hung from the
     shoulders, else from the waist). ``scale``: the factor a guessed-units garment was already scaled by
     (None: decide it here from the girth); ``legs``: the body's leg axes (``leg_axes``), over which a
     bottom's legs are put; ``foot_y``: the top of the body's feet (``foot_top``), above which a trouser
-    leg's hem is put. Returns the aligned copy and the scale used (None if not guessed)."""
+    leg's hem is put; ``openings``: the pieces' boundary loops (index arrays into x), which tell a sleeve
+    from a wide bodice (``has_sleeves``). Returns the aligned copy and the scale used (None if not guessed)."""
     x = x.copy()
     level = lm.chest_y if top else lm.hips_y
 
@@ -248,7 +252,7 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
                 if not 0.95 <= ratio <= 1.6:
                     scale = (GUESSED_UNITS_EASE if top else GUESSED_UNITS_BOTTOM_EASE) / ratio
         if scale != 1.0 and top:
-            x = scale_girth_keep_sleeves(x, anchor, scale, lm)
+            x = scale_girth_keep_sleeves(x, anchor, scale, lm, openings)
         elif scale != 1.0:
             # around the body only (x, z): the guessed unit already gives a wearable length (ingestion
             # checks it), and a garment modelled on a slimmer or broader body differs in girth; scaling the
@@ -274,21 +278,27 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
     return x, scale
 
 
-def scale_girth_keep_sleeves(x: np.ndarray, anchor: np.ndarray, scale: float, lm: BodyLandmarks
-                             ) -> np.ndarray:
+def scale_girth_keep_sleeves(x: np.ndarray, anchor: np.ndarray, scale: float, lm: BodyLandmarks,
+                             openings: list[np.ndarray] | None = None) -> np.ndarray:
     """A guessed-units top's points (k, 3) scaled around the body by ``scale`` (x and z about ``anchor``
     (3,)), its sleeves excepted: only the bodice's half-width that lands on the body's shoulder joints
     (``shoulder_half / scale`` before scaling) is scaled, and what lies beyond it (the sleeves) moves out
     with the shoulder, unscaled, its depth (z) scale fading from ``scale`` to 1 over ``SLEEVE_BLEND``.
     Scaling a sleeve that hangs at 30-50 degrees in x and z only stretched it along its length and
     flattened its section (a MakeHuman blouse at 1.8 on the large body: sleeves 1.8 x as wide as deep,
-    well past the wrists), which the arms then cut through. A top without sleeves (``has_sleeves``) is
-    scaled plainly: beyond its bodice there is only a flared skirt (the DiffAvatar
-    strap dress, kept at its bodice's size, flew off the large body in front)."""
+    well past the wrists), which the arms then cut through. A top without sleeves (``has_sleeves`` and,
+    if its boundary loops ``openings`` (index arrays into x) are given, ``sleeve_openings``) is scaled plainly: beyond its
+    bodice there is only a flared skirt (the DiffAvatar strap dress, kept at its bodice's size, flew off
+    the large body in front), or the side of a bodice wider than the body's shoulders."""
     plain = x.copy()
     plain[:, [0, 2]] = anchor[[0, 2]] + (x[:, [0, 2]] - anchor[[0, 2]]) * scale
-    if not has_sleeves(x if scale > 1.0 else plain, lm):  # judged at the smaller size: a bodice scaled up
-        return plain  # reaches past SLEEVE_REACH like a sleeve
+    # the sleeve points are looked for at the smaller size (a bodice scaled up reaches past SLEEVE_REACH like
+    # a sleeve), their openings at the larger (a short sleeve's cuff hangs partly inside the reach at the
+    # smaller size: the MakeHuman T-shirt and the DiffAvatar polo on the large body)
+    small, large = (x, plain) if scale > 1.0 else (plain, x)
+    if not has_sleeves(small, lm) or (
+            openings is not None and not all(sleeve_openings(large, lm, sign, openings) for sign in (1.0, -1.0))):
+        return plain
     out = x.copy()
     dx = x[:, 0] - anchor[0]
     inner = lm.shoulder_half / scale
@@ -307,8 +317,22 @@ def sleeve_mask(x: np.ndarray, lm: BodyLandmarks, sign: float) -> np.ndarray:
     return beyond & (x[:, 1] > 0.5 * (lm.chest_y + lm.waist_y))
 
 
+def sleeve_openings(x: np.ndarray, lm: BodyLandmarks, sign: float, loops: list[np.ndarray],
+                    upper: np.ndarray | None = None) -> list[np.ndarray]:
+    """The openings (``loops``: boundary loops, index arrays into the points x (k, 3)) that lie on one side
+    (``sign`` +1: the body's left) beyond ``SLEEVE_REACH`` x the shoulder-joint half-width, 80 % of their
+    points or more (of the points ``upper`` (k,) bool, if given): a sleeve's cuff. A cuff may hang below
+    the level ``sleeve_mask`` takes sleeve points above, so only the reach counts here."""
+    far = (x[:, 0] - lm.center_x) * sign > SLEEVE_REACH * lm.shoulder_half
+    if upper is not None:
+        far &= upper
+    return [loop for loop in loops if far[loop].mean() > 0.8]
+
+
 def has_sleeves(x: np.ndarray, lm: BodyLandmarks) -> bool:
-    """Whether the top's points (k, 3) have a sleeve (``MIN_SLEEVE_POINTS`` or more) on each side."""
+    """Whether the top's points (k, 3) reach out like a sleeve (``MIN_SLEEVE_POINTS`` or more) on each
+    side. Reach alone: the side of a bodice wider than the body's shoulders reaches as far, and only an
+    opening out there (``sleeve_openings``) tells them apart."""
     return all(sleeve_mask(x, lm, sign).sum() >= MIN_SLEEVE_POINTS for sign in (1.0, -1.0))
 
 
@@ -496,15 +520,12 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
     loops = boundary_loops(faces, len(x)) if faces is not None else []
     out = {}
     for side, sign, joint in (("l", 1.0, lm.shoulder_l), ("r", -1.0, lm.shoulder_r)):
-        rel = (x[:, 0] - lm.center_x) * sign
         sel = upper & sleeve_mask(x, lm, sign)
         default_axis = (0.0, 0.0, sign)
         out[side] = (0.0, default_axis, 0.0, default_axis)
         if sel.sum() < MIN_SLEEVE_POINTS:
             continue
-        # the openings on this side (a cuff may hang below the level the sleeve points are taken above)
-        far = upper & (rel > SLEEVE_REACH * lm.shoulder_half)
-        ends = [loop for loop in loops if far[loop].mean() > 0.8]
+        ends = sleeve_openings(x, lm, sign, loops, upper)
         if faces is not None and not ends:
             # no opening out there: the side of a bodice wider than the body's shoulders (a dress two sizes
             # too big), not a sleeve; turning the arm onto it carries the armhole down the arm

@@ -53,9 +53,9 @@ A garment far too small for the body has no such place nearby, and the relaxatio
 around the neck, trousers down to the knees): for each piece of the file of which it moved a tenth of the
 points more than ``RELAX_MAX_MOVE`` it is dropped, and the loop's result for that piece is kept with its
 springs over the target reported (metrics ``relaxed``, ``relax_move_mm``: the largest piece's 90th
-percentile move, the largest move). Then the full mesh is rebuilt from the coarse one (``model.expand``) and
-its vertices are pushed out of the offset body too (again while any still moves: a point pushed out of one
-thigh into the other), so the displayed mesh does not penetrate either.
+percentile move, the largest move). Then the full mesh is rebuilt from the coarse one (``full_mesh``: the
+re-attachment, a few stretch passes over the full mesh's own springs, and its vertices pushed out of the
+offset body too), so the displayed mesh neither stretches beyond the cloth nor penetrates.
 
 The floor (y = ``FLOOR_Y``) is put under the offset body's soles, so a trouser hem on the floor beside a
 foot is not caught between the floor and the sole's offset rim.
@@ -74,6 +74,7 @@ from tryon.garment.model import GarmentModel
 from tryon.sim.align import ArmPlan, align_garment, arm_joints, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
+from tryon.sim.full_mesh import display_strain, follow_coarse
 from tryon.sim.pieces import piece_labels
 from tryon.sim.constraints import (
     cap_stretch, contact_springs, pack_springs, pack_sweep, solve_listed, spring_lengths, sweep_springs,
@@ -153,8 +154,6 @@ CONTACT_WEIGHT = 0.2
 # springs over the target 338 -> 208 (skirt 105 -> 41, shorts 89 -> 29, dress 25 -> 20), all 54
 # catalogue drapes 8427 -> 7854, for ~+1 ms per step on the perf T-shirt (python3 -m tryon.sim.perf).
 CONTACT_PASSES = 2
-# Most collision calls on the full mesh after the polish (each repeats its part loop ROUNDS times).
-FULL_COLLIDE_CALLS = 4
 
 FrameCallback = Callable[[int, np.ndarray], bool]
 
@@ -422,21 +421,8 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         active[:] = True
         collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
 
-    # --- full mesh: follow the coarse one, then push it out of the offset body too
-    full = np.ascontiguousarray(model.expand(x))
-    full_prev = full.copy()
-    full_contact = np.zeros(len(full), dtype=np.bool_)
-    ones = np.ones(len(full))
-    all_active = np.ones(len(full), dtype=np.bool_)
-    np.maximum(full[:, 1], 0.0, out=full[:, 1])
-    full_parts = relevant_parts(body.maps, full.min(axis=0), full.max(axis=0), 0.01)
-    for _ in range(FULL_COLLIDE_CALLS):
-        # a point pushed out of one part into another (crotch, armpit) is caught by the next call, which
-        # only tests the points that moved (the others were outside every part)
-        if not collider.collide(full, full_prev, ones, all_active, full_parts, settings.contact_offset, 0.0, 0.0,
-                                full_contact):
-            break
-        all_active[:] = full_contact
+    # --- full mesh: follow the coarse one, its stretch held to the limits, pushed out of the offset body
+    full, full_parts = follow_coarse(model, x, collider, limits, settings.contact_offset, floor_y)
 
     # --- metrics
     depth = collider.depth(full, full_parts, offset=False)
@@ -451,6 +437,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         "stopped": bool(stopped),
         **penetration_metrics(depth),
         "max_strain": float(spring_strain_.max()) if len(spring_strain_) else 0.0,
+        "display_max_strain": display_strain(full, model),
         "strain_by_kind": by_kind,
         "too_tight": too_tight,
         "kinetic_energy_per_kg": float(energy),

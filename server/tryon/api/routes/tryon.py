@@ -58,6 +58,7 @@ def result_json(result: TryOnResult) -> dict:
         "max_penetration_mm": round(float(m["max_penetration_mm"]), 3),
         "max_strain": round(float(m["max_strain"]), 5),
         "strain": np.round(result.strain, 4).tolist(),
+        "display_max_strain": round(float(m["display_max_strain"]), 5),
         "strain_by_kind": m.get("strain_by_kind", {}),
         "too_tight": m.get("too_tight", {}),
     }

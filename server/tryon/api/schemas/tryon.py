@@ -65,6 +65,8 @@ class TryOnMetricsOut(BaseModel):
     max_penetration_mm: float = Field(description="deepest garment vertex inside the body, mm")
     max_strain: float = Field(description="largest spring strain (length / natural length - 1)")
     strain: list[float] = Field(description="per garment vertex: largest strain of its springs")
+    display_max_strain: float = Field(0.0, description="largest strain of the fitted (displayed) mesh's own "
+                                                        "edges and quad diagonals: how far the shown mesh stretches")
     strain_by_kind: dict[str, dict] = Field(default_factory=dict,
                                             description="per spring type: max strain, its limit, springs over")
     too_tight: dict[str, int] = Field(default_factory=dict,

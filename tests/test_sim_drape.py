@@ -207,3 +207,17 @@ def test_a_top_far_too_small_stays_on_the_shoulders(body):
     lm = body_landmarks(body)
     assert abs(result.vertices[:, 1].max() - lm.shoulder_y) < 0.05  # not over the head
     assert result.vertices[:, 1].min() < lm.chest_y  # its hem still below the chest
+
+
+def test_shorts_far_too_small_are_stretched_no_further_than_the_tear_guard(catalogue):
+    """Shorts S (waist 72 cm) on a 100 cm waist: collision wins over the springs during the drape, and the
+    tear guard keeps every spring under TEAR_GUARD x its natural length, also after the last collision
+    (it left one at 2.75 x, max strain 1.75). The springs held over on the body say where: the waist."""
+    from tryon.sim.run import TEAR_GUARD
+
+    large = build_body(Measurements(height=185, chest=112, waist=100, hips=112), Pose())
+    model = _model(catalogue, "shorts-s.obj", "bottom")
+    m = drape(large, model, SimSettings()).metrics
+    assert np.isfinite(m["max_strain"]) and m["max_strain"] <= TEAR_GUARD - 1.0 + 1e-6
+    assert m["max_strain"] > 1.0  # far too small: it is stretched, not fitted
+    assert "torso waist" in m["too_tight"]

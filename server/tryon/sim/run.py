@@ -421,6 +421,10 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         active[:] = True
         collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, 0.0, 0.0, contact)
 
+    # the tear guard again: the final collision wins over the springs, so a garment far too small for its
+    # body would leave it with springs pushed past TEAR_GUARD (the loop's guard ran before it)
+    cap_stretch(x, inv_mass, springs, rest, TEAR_GUARD, TEAR_PASSES)
+
     # --- full mesh: follow the coarse one, its stretch held to the limits, pushed out of the offset body
     full, full_parts = follow_coarse(model, x, collider, limits, settings.contact_offset, floor_y)
 

@@ -223,8 +223,9 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
     shoulders, else from the waist). ``scale``: the factor a guessed-units garment was already scaled by
     (None: decide it here from the girth); ``legs``: the body's leg axes (``leg_axes``), over which a
     bottom's legs are put; ``foot_y``: the top of the body's feet (``foot_top``), above which a trouser
-    leg's hem is put; ``openings``: the pieces' boundary loops (index arrays into x), which tell a sleeve
-    from a wide bodice (``has_sleeves``). Returns the aligned copy and the scale used (None if not guessed)."""
+    leg's hem is put; ``openings``: the pieces' boundary loops (index arrays into x), which tell a
+    sleeve from a wide bodice or a cape (``sleeve_openings``). Returns the aligned copy and the scale used
+    (None if not guessed)."""
     x = x.copy()
     level = lm.chest_y if top else lm.hips_y
 
@@ -287,9 +288,10 @@ def scale_girth_keep_sleeves(x: np.ndarray, anchor: np.ndarray, scale: float, lm
     Scaling a sleeve that hangs at 30-50 degrees in x and z only stretched it along its length and
     flattened its section (a MakeHuman blouse at 1.8 on the large body: sleeves 1.8 x as wide as deep,
     well past the wrists), which the arms then cut through. A top without sleeves (``has_sleeves`` and,
-    if its boundary loops ``openings`` (index arrays into x) are given, ``sleeve_openings``) is scaled plainly: beyond its
-    bodice there is only a flared skirt (the DiffAvatar strap dress, kept at its bodice's size, flew off
-    the large body in front), or the side of a bodice wider than the body's shoulders."""
+    if its boundary loops ``openings`` (index arrays into x) are given, ``sleeve_openings``) is scaled
+    plainly: beyond its bodice there is only a flared skirt (the DiffAvatar strap dress, kept at its
+    bodice's size, flew off the large body in front), or a cape, or the side of a bodice wider than the
+    body's shoulders."""
     plain = x.copy()
     plain[:, [0, 2]] = anchor[[0, 2]] + (x[:, [0, 2]] - anchor[[0, 2]]) * scale
     # the sleeve points are looked for at the smaller size (a bodice scaled up reaches past SLEEVE_REACH like

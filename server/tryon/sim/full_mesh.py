@@ -50,7 +50,8 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
         satisfy_springs(full, ones, ends, table, DISPLAY_PASSES)
         active[:] = True
         collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact)
-    active[:] = True
+    if DISPLAY_ROUNDS:
+        active[:] = contact  # the last round's collision tested every point: only those it pushed can be inside
     for _ in range(FULL_COLLIDE_CALLS):
         # the later calls test only the points the last one moved (the others were outside every part)
         if not collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact):

@@ -116,6 +116,7 @@ def test_try_on_in_the_browser(page):
         assert side + first.removesuffix("_l").removesuffix("_r").replace("_", " ") in metrics
     else:
         assert "nowhere" in metrics
+    assert {None: "none", True: "around the limbs", False: "off at"}[state["m"]["openings_on_limbs"]] in metrics
 
     page.wait_for_timeout(300)
     dressed = canvas_pixels(page)

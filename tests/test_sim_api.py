@@ -36,8 +36,9 @@ def test_tryon_answers_the_fitted_garment_and_metrics(client_and_id):
     assert f.min() >= 0 and f.max() < len(v)
     m = out["metrics"]
     for key in ("steps", "sim_seconds", "wall_seconds", "rest_reached", "penetrating_vertices",
-                "max_penetration_mm", "max_strain", "strain", "display_max_strain"):
+                "max_penetration_mm", "max_strain", "strain", "display_max_strain", "openings_on_limbs"):
         assert key in m
+    assert sorted(o["opening"] for o in m["limb_openings"]) == ["left leg", "right leg"]
     assert 1 <= m["steps"] <= 60
     assert m["sim_seconds"] == pytest.approx(m["steps"] * 0.02)
     assert len(m["strain"]) == len(v)

@@ -10,6 +10,8 @@ import pytest
 from tryon.body.build import build_body
 from tryon.body.params import Measurements, Pose
 from tryon.garment.catalogue import Catalogue
+from tryon.sim.align import align_garment
+from tryon.sim.limbs import limb_openings, openings_on_limbs
 from tryon.sim.run import drape
 from tryon.sim.settings import SimSettings
 
@@ -65,6 +67,13 @@ def test_tshirt_drapes_on_the_shoulders_with_sleeves_around_the_arms(catalogue, 
         angles = np.sort(np.arctan2(rel @ w, rel @ u))
         largest_gap = max(np.diff(angles).max(), angles[0] + 2 * np.pi - angles[-1])
         assert largest_gap < np.radians(75)
+    # the metric says the same of each sleeve's cuff; moved 30 cm in front of the body they are around nothing
+    assert m["openings_on_limbs"] is True
+    assert sorted(o["around"] for o in m["limb_openings"]) == ["upper_arm_l", "upper_arm_r"]
+    openings = limb_openings(align_garment(body, model), model.coarse_faces, body)
+    assert sorted(f"{side} {limb}" for side, limb, _ in openings) == ["left arm", "right arm"]
+    moved = openings_on_limbs(result.coarse + [0.0, 0.0, 0.3], body, openings)
+    assert not any(o["ok"] or o["around"] or o["past_end"] for o in moved)
     # the shown (full) mesh stretches about as far as the cloth may (shear limit 15 %): where it only
     # followed the coarse one, whose triangles shear and buckle between their springs, it stretched 60 %
     pairs, rest, _ = model.display_springs
@@ -83,6 +92,7 @@ def test_shorts_stay_on_the_hips(catalogue, body):
     top = result.vertices[:, 1].max()
     assert body.levels["hips"] < top < body.levels["waist"] + 0.03  # held between the hips and the waist
     assert m["max_strain"] < 1.0  # a tight band is stretched, never torn
+    assert sorted(o["around"] for o in m["limb_openings"]) == ["thigh_l", "thigh_r"]
     # the band's springs on the hips get extra passes (run.CONTACT_PASSES): the shorts rest where their
     # band is within ~10 % of its limit instead of sliding down until it is 30 % over (measured 0.19;
     # 0.32 before); a few springs over the target remain where the band is tight on the hips

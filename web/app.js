@@ -269,6 +269,9 @@ function showMetrics(done) {
     ['Max strain', Number.isFinite(m.max_strain) ? `${(m.max_strain * 100).toFixed(1)} %` : '—'],
     ['Too tight at', tight === null ? '—' : (tight.length ? tight.slice(0, 3).map(placeName).join(', ') : 'nowhere'),
       tight && tight.length ? 'warn' : 'good'],
+    ['Sleeves, legs', m.openings_on_limbs === undefined ? '—' : (m.openings_on_limbs === null ? 'none'
+      : (m.openings_on_limbs ? 'around the limbs' : 'off at ' + (m.limb_openings || []).filter((o) => !o.ok)
+        .map((o) => o.opening).join(', '))), m.openings_on_limbs === false ? 'warn' : 'good'],
     ['Rest reached', m.rest_reached === undefined ? '—' : (m.rest_reached ? 'yes' : 'no'), m.rest_reached ? 'good' : 'warn'],
     ['Simulated', Number.isFinite(m.sim_seconds) ? `${m.sim_seconds.toFixed(2)} s` : '—'],
   ];

@@ -1,6 +1,7 @@
 """Catalogue fit: every catalogue garment draped on a small, a medium and a large body (issue 5's accuracy
 targets: at rest no vertex deeper than 2 mm in the body, no spring beyond its type's limit by more than
-1 %, every drape at rest). Quick mode: the main garment only.
+1 %, every drape at rest, sleeves around arms and trouser legs around legs: ``sim/limbs.py``). Quick
+mode: the main garment only.
 
 The bodies span the size chart (``tryon.garment.generate.SIZE_CHART``: S chest 88 / waist 74 / hips 94 cm,
 XL 112 / 98 / 112, XXL 120 / 106 / 118): the small body is a size S person, the medium one a size M, the
@@ -39,26 +40,38 @@ def run(ctx: Context, sec: Section) -> None:
                  "wall_s": m["wall_seconds"], "penetrating": m["penetrating_vertices"],
                  "max_penetration_mm": m["max_penetration_mm"], "over": sum(k["over"] for k in kinds),
                  "over_on_body": sum(k.get("over_on_body", 0) for k in kinds), "max_strain": m["max_strain"],
-                 "display_max_strain": m["display_max_strain"], "springs": len(model.springs)}
+                 "display_max_strain": m["display_max_strain"], "springs": len(model.springs),
+                 "on_limbs": m["openings_on_limbs"],
+                 "off_limbs": [o["opening"] for o in m["limb_openings"] if not o["ok"]]}
             data.append(d)
             rows.append([body_name, entry["name"], d["steps"], fmt(d["rest"]), fmt(d["wall_s"]), d["penetrating"],
                          fmt(d["max_penetration_mm"]), d["over"], d["over_on_body"], fmt(d["max_strain"]),
-                         fmt(d["display_max_strain"])])
+                         fmt(d["display_max_strain"]), _limbs(d)])
             ctx.log(f"  fit {body_name} {entry['name']}: over {d['over']}, penetrating {d['penetrating']}")
     sec.data = {"bodies": BODIES, "drapes": data}
     sec.tables.append(Table(
         "Every garment on three bodies (default settings)",
         ["body", "garment", "steps", "at rest", "wall s", "penetrating", "deepest mm", "springs over",
-         "over on body", "max strain", "shown mesh max strain"], rows,
+         "over on body", "max strain", "shown mesh max strain", "sleeves / legs"], rows,
         note="springs over: beyond their type's limit by more than 1 % (0.2 mm for springs under 2 cm); "
              "over on body: of those, both ends touching the body (the garment is too small there); shown "
              "mesh: the full mesh's edges and quad diagonals (where a coarse triangle cuts across a thin "
-             "part, a hand or a foot, the full mesh pushed out around it stretches)"))
+             "part, a hand or a foot, the full mesh pushed out around it stretches); sleeves / legs: whether every "
+             "sleeve, armhole and trouser leg ends around its own arm or leg (``sim/limbs.py``), else the ones "
+             "that do not, '-' for a garment with none"))
     per_body = []
     for body_name in BODIES:
         ds = [d for d in data if d["body"] == body_name]
-        met = sum(d["over"] == 0 and d["penetrating"] == 0 and d["rest"] for d in ds)
+        met = sum(d["over"] == 0 and d["penetrating"] == 0 and d["rest"] and d["on_limbs"] is not False for d in ds)
         per_body.append(f"{body_name} {met}/{len(ds)} (over {sum(d['over'] for d in ds)})")
     sec.headline.append(
         f"fit: {len(data)} drapes, penetrating vertices {sum(d['penetrating'] for d in data)}, at rest "
-        f"{sum(d['rest'] for d in data)}/{len(data)}; meeting every target: " + ", ".join(per_body))
+        f"{sum(d['rest'] for d in data)}/{len(data)}, sleeves and legs around their limbs "
+        f"{sum(d['on_limbs'] is not False for d in data)}/{len(data)}; meeting every target: " + ", ".join(per_body))
+
+
+def _limbs(d: dict) -> str:
+    """The fit table's sleeves / legs cell."""
+    if d["on_limbs"] is None:
+        return "-"
+    return "around" if d["on_limbs"] else "off: " + ", ".join(d["off_limbs"])

@@ -75,6 +75,7 @@ from tryon.sim.align import ArmPlan, align_garment, arm_joints, plan_arms
 from tryon.sim.bodystate import BodyCollider, _rotation
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
 from tryon.sim.full_mesh import display_strain, follow_coarse
+from tryon.sim.limbs import limb_openings, openings_on_limbs
 from tryon.sim.pieces import piece_labels
 from tryon.sim.constraints import (
     cap_stretch, contact_springs, pack_springs, pack_sweep, solve_listed, spring_lengths, sweep_springs,
@@ -242,6 +243,8 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     else:
         x = np.array(initial, dtype=np.float64)
         plan = ArmPlan(0.0, 0.0)
+    # the sleeves' and trouser legs' openings, to tell at the end whether each is around its limb
+    openings = limb_openings(x, model.coarse_faces, body)
     arms = _ArmSchedule(body, collider, plan, settings)
     lo, hi = x.min(axis=0), x.max(axis=0)
     parts = relevant_parts(body.maps, lo, hi, PART_REACH)
@@ -436,6 +439,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     depth = collider.depth(full, full_parts, offset=False)
     spring_strain_, per_vertex, by_kind = strain_metrics(x, model, limits, on_body=has_plane.copy())
     too_tight = too_tight_places(x, model, spring_strain_, limits, has_plane, body)
+    on_limbs = openings_on_limbs(x, body, openings)
     wall = time.perf_counter() - t_start
     metrics = {
         "steps": int(step),
@@ -448,6 +452,8 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         "display_max_strain": display_strain(full, model),
         "strain_by_kind": by_kind,
         "too_tight": too_tight,
+        "limb_openings": on_limbs,
+        "openings_on_limbs": all(o["ok"] for o in on_limbs) if on_limbs else None,
         "kinetic_energy_per_kg": float(energy),
         "grown": bool(grow_steps),
         "arm_turn_deg": [float(np.degrees(plan.left)), float(np.degrees(plan.right))],

@@ -61,6 +61,8 @@ def result_json(result: TryOnResult) -> dict:
         "display_max_strain": round(float(m["display_max_strain"]), 5),
         "strain_by_kind": m.get("strain_by_kind", {}),
         "too_tight": m.get("too_tight", {}),
+        "openings_on_limbs": m.get("openings_on_limbs"),
+        "limb_openings": m.get("limb_openings", []),
     }
     return {"garment": mesh_json(result.vertices, result.faces), "metrics": metrics}
 

@@ -56,6 +56,15 @@ class MeshOut(BaseModel):
     faces: list[list[int]] = Field(description="(f, 3) triangles")
 
 
+class LimbOpeningOut(BaseModel):
+    opening: str = Field(description="'left arm' | 'right arm' | 'left leg' | 'right leg': a sleeve, armhole "
+                                     "or trouser leg opening on that side")
+    around: str | None = Field(description="the body part it ended around ('upper_arm_l', 'forearm_l' with the "
+                                           "hand, 'thigh_l', 'shin_l' with the foot, ...), or null")
+    past_end: bool = Field(description="around no part but past the limb's end (a sleeve longer than the arm)")
+    ok: bool = Field(description="around its limb or past its end")
+
+
 class TryOnMetricsOut(BaseModel):
     steps: int = Field(description="time steps simulated")
     sim_seconds: float = Field(description="simulated time, s")
@@ -73,6 +82,12 @@ class TryOnMetricsOut(BaseModel):
                                       description="where the garment is too small for the body: springs over "
                                                   "their limit with both ends on the body, per body place "
                                                   "(a limb part, or 'torso chest' / 'torso waist' / 'torso hips')")
+
+    openings_on_limbs: bool | None = Field(None, description="whether every sleeve, armhole and trouser leg "
+                                                             "ends around its own arm or leg (or hangs past "
+                                                             "its end); null for a garment with none")
+    limb_openings: list[LimbOpeningOut] = Field(default_factory=list,
+                                                description="each such opening and where it ended")
 
 
 class TryOnOut(BaseModel):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tryon.sim.limbs import MAX_GAP_DEG, around_part
+from tryon.sim.limbs import around_part, ring_order
 
 A = np.array([0.0, 1.0, 0.0])  # the joint
 B = np.array([0.0, 0.6, 0.0])  # the far end: a 40 cm part pointing down
@@ -34,9 +34,25 @@ def test_a_cuff_around_the_limb_is_around_it(surface):
     assert around_part(_ring(0.05, 0.55), A, B, surface)
 
 
-def test_an_opening_beside_the_limb_or_round_only_part_of_it_is_not(surface):
+def test_a_wide_armhole_the_limb_passes_through_near_its_edge_is_around_it(surface):
+    assert around_part(_ring(0.12, 0.95, centre=(0.08, 0.0), n=24), A, B, surface)
+
+
+def test_an_opening_beside_the_limb_is_not_around_it(surface):
     assert not around_part(_ring(0.05, 0.8, centre=(0.15, 0.0)), A, B, surface)  # a cuff hanging beside it
-    assert not around_part(_ring(0.05, 0.8, 0.0, 360.0 - MAX_GAP_DEG - 10.0), A, B, surface)  # a hand out of its side
-    assert around_part(_ring(0.05, 0.8, 0.0, 360.0 - MAX_GAP_DEG + 30.0, n=32), A, B, surface)
+    # a cuff flattened against one side (a hand come out through the side of the sleeve's end)
+    flat = _ring(0.05, 0.8)
+    flat[:, 2] *= 0.1
+    flat[:, 0] += 0.1
+    assert not around_part(flat, A, B, surface)
     assert not around_part(_ring(0.3, 0.8), A, B, surface)  # a skirt-wide ring
     assert not around_part(_ring(0.05, 1.2), A, B, surface)  # above the joint, around nothing of this part
+
+
+def test_ring_order_puts_a_shuffled_tilted_ring_back_in_order():
+    ring = _ring(0.05, 0.8, n=20)
+    ring[:, 1] += 0.5 * ring[:, 0]
+    shuffled = np.random.default_rng(0).permutation(20)
+    order = shuffled[ring_order(ring[shuffled])]
+    steps = np.diff(np.append(order, order[0])) % 20
+    assert set(steps) in ({1}, {19})  # consecutive round the ring, one way or the other

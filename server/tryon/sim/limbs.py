@@ -7,8 +7,8 @@ The openings that should end around a limb are found on the aligned garment (``l
 boundary loop of the coarse mesh lying on one side of the body's centre line (sleeve cuffs, armholes,
 trouser leg hems; a neck, waist or hem opening runs round the centre line). At the end of the drape an
 opening is around a limb part (upper arm or forearm with the hand, thigh or shin with the foot) when, seen
-along the part's axis from the centre of the part's cross-section there, its points leave no angular gap of
-``MAX_GAP_DEG`` or more, its middle lies along the part and within ``MAX_RADIUS`` of it. An opening around
+along the part's axis, it winds once round the centre of the part's cross-section there, its middle lying
+along the part and within ``MAX_RADIUS`` of it. An opening around
 no part but beyond ``END_FRACTION`` of the limb's length hangs past its end (a sleeve longer than the arm):
 the sleeve is around the arm all the same. On the 90 catalogue drapes (``tryon bench --only fit``) every
 opening of a garment of the body's size or larger ends around its limb.
@@ -24,9 +24,8 @@ from tryon.sim.align import body_landmarks, boundary_loops
 # The parts of each limb, from the body's trunk out.
 LIMB_PARTS = {"arm": ("upper_arm", "forearm"), "leg": ("thigh", "shin")}
 SIDES = (("left", "l", 1.0), ("right", "r", -1.0))
-# An opening surrounds an axis when seen along it no gap between its points spans this much: a cuff or hem
-# ring covers 360 degrees less its point spacing; one lying beside the limb spans under 180.
-MAX_GAP_DEG = 120.0
+# m: an opening shorter round than this is a hole in the mesh: no wrist or ankle fits through it.
+MIN_PERIMETER = 0.12
 # m: farther than this from the axis, on average, an opening is not around that limb (a skirt-wide ring).
 MAX_RADIUS = 0.2
 # Along the axis, as a fraction of the part's length from its joint: a cuff may hang over the hand and a
@@ -48,13 +47,18 @@ def _distance_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
 
 def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body) -> list[tuple[str, str, np.ndarray]]:
     """The openings of the aligned garment (coarse points x (k, 3) m, faces (f, 3)) that should end around a
-    limb: (side "left" | "right", limb "arm" | "leg", point ids (q,) int64) for every opening lying
+    limb: (side "left" | "right", limb "arm" | "leg", point ids (q,) int64 in order round it) for every
+    opening at least ``MIN_PERIMETER`` round lying
     (``OPENING_SHARE`` of its points) on one side of the body's centre line, the limb being the one whose
     axis its centre is nearest: sleeve cuffs and armholes, trouser leg hems. A neck, waist or hem opening
     runs round the centre line and is none of them."""
     lm = body_landmarks(body)
     out = []
     for loop in boundary_loops(faces, len(x)):
+        loop = loop[ring_order(x[loop])]
+        perimeter = float(np.linalg.norm(x[loop] - np.roll(x[loop], 1, axis=0), axis=1).sum())
+        if len(loop) < 3 or perimeter < MIN_PERIMETER:
+            continue  # a hole in the mesh, not an opening a limb fits through
         centre = x[loop].mean(axis=0)
         for side, suffix, sign in SIDES:
             if ((x[loop, 0] - lm.center_x) * sign > 0).mean() < OPENING_SHARE:
@@ -70,25 +74,33 @@ def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body) -> list[tuple[st
     return out
 
 
-def around_part(points: np.ndarray, a: np.ndarray, b: np.ndarray, surface: np.ndarray) -> bool:
-    """Whether the points (q, 3) m surround the limb part whose axis runs from a to b (3,) m and whose
-    surface vertices are ``surface`` (p, 3) m (see the module doc). Seen along the axis, around the centre
-    of the part's cross-section where the points are: a joint-to-joint axis may run a centimetre or two off
-    the centre of a wrist, and a cuff tight around it would seem to lie to one side of it."""
+def ring_order(points: np.ndarray) -> np.ndarray:
+    """(q,) int64: the points (q, 3) of an opening in order round it, by angle about their centre in their
+    best-fitting plane (an opening of the aligned garment, still the ring it was made as)."""
+    rel = points - points.mean(axis=0)
+    _, _, vt = np.linalg.svd(rel, full_matrices=False)
+    return np.argsort(np.arctan2(rel @ vt[1], rel @ vt[0]))
+
+
+def around_part(ring: np.ndarray, a: np.ndarray, b: np.ndarray, surface: np.ndarray) -> bool:
+    """Whether the opening ``ring`` (q, 3) m, its points in order round it (``ring_order``), goes round the
+    limb part whose axis runs from a to b (3,) m and whose surface vertices are ``surface`` (p, 3) m: seen
+    along the axis it winds once round the centre of the part's cross-section there (a winding number,
+    so a wide armhole that the arm passes through near its edge counts, and a cuff beside the limb does
+    not), its middle lies along the part and within ``MAX_RADIUS`` of it."""
     axis = b - a
     length = float(np.linalg.norm(axis))
-    if len(points) < 3 or length == 0.0:
+    if len(ring) < 3 or length == 0.0:
         return False
     axis = axis / length
-    along = (points - a) @ axis
-    t = float(np.median(along))
+    t = float(np.median((ring - a) @ axis))
     # the slice of the part nearest the opening (an armhole lies round the shoulder joint, where the
     # upper arm begins)
     t_slice = min(max(t, SECTION_HALF), length - SECTION_HALF)
     section = np.abs((surface - a) @ axis - t_slice) < SECTION_HALF
     if not ALONG[0] <= t / length <= ALONG[1] or section.sum() < 3:
         return False
-    rel = points - surface[section].mean(axis=0)
+    rel = ring - surface[section].mean(axis=0)
     radial = rel - (rel @ axis)[:, None] * axis
     if float(np.linalg.norm(radial, axis=1).mean()) > MAX_RADIUS:
         return False
@@ -96,10 +108,10 @@ def around_part(points: np.ndarray, a: np.ndarray, b: np.ndarray, surface: np.nd
     if np.linalg.norm(u) < 1e-6:  # an axis along z
         u = np.cross(axis, [1.0, 0.0, 0.0])
     u /= np.linalg.norm(u)
-    w = np.cross(axis, u)
-    angles = np.sort(np.arctan2(radial @ w, radial @ u))
-    gap = max(float(np.diff(angles).max(initial=0.0)), float(angles[0] + 2 * np.pi - angles[-1]))
-    return gap < np.radians(MAX_GAP_DEG)
+    angles = np.arctan2(radial @ np.cross(axis, u), radial @ u)
+    turn = np.diff(np.append(angles, angles[0]))
+    turn = (turn + np.pi) % (2 * np.pi) - np.pi  # each step's angle, in [-pi, pi)
+    return abs(float(turn.sum())) > np.pi  # the winding number rounds to +-1
 
 
 def openings_on_limbs(x: np.ndarray, body: Body, openings: list[tuple[str, str, np.ndarray]]) -> list[dict]:

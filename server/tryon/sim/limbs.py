@@ -52,6 +52,9 @@ def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body) -> list[tuple[st
     (``OPENING_SHARE`` of its points) on one side of the body's centre line, the limb being the one whose
     axis its centre is nearest: sleeve cuffs and armholes, trouser leg hems. A neck, waist or hem opening
     runs round the centre line and is none of them."""
+    if "torso" not in body.parts or not any(f"{p}_{c}" in body.parts for ps in LIMB_PARTS.values() for p in ps
+                                            for _, c, _ in SIDES):
+        return []  # a scene's ball or table: no limbs
     lm = body_landmarks(body)
     out = []
     for loop in boundary_loops(faces, len(x)):

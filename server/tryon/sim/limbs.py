@@ -33,8 +33,9 @@ MAX_RADIUS = 0.2
 ALONG = (-0.2, 1.3)
 # m: half the thickness of the slice of a limb part whose centre an opening is seen around.
 SECTION_HALF = 0.015
-# Of the last part's length (forearm with the hand, shin with the foot): an opening not around the part and
-# beyond this hangs past the limb's end (a sleeve longer than the arm, its cuff bunched over the fingers).
+# Of the last part's length (forearm with the hand, shin with the foot): an opening not around the part,
+# beyond this and within MAX_RADIUS of the end hangs past the limb's end (a sleeve longer than the arm, its
+# cuff bunched over the fingers).
 END_FRACTION = 0.9
 # At least this fraction of an opening's points lie on its side of the centre line.
 OPENING_SHARE = 0.8
@@ -136,8 +137,10 @@ def openings_on_limbs(x: np.ndarray, body: Body, openings: list[tuple[str, str, 
             if around_part(x[loop], a, b, surface):
                 around = name
                 break
-            # measured on the last part (forearm with hand, shin with foot): its axis ends at the limb's end
-            past_end = bool(np.median((x[loop] - a) @ (b - a)) > END_FRACTION * ((b - a) @ (b - a)))
+            # measured on the last part (forearm with hand, shin with foot): its axis ends at the limb's end,
+            # and the opening must hang there, not lie anywhere beyond (a shirt slid off onto the floor)
+            past_end = bool(np.median((x[loop] - a) @ (b - a)) > END_FRACTION * ((b - a) @ (b - a))
+                            and np.linalg.norm(x[loop].mean(axis=0) - b) < MAX_RADIUS)
         out.append({"opening": f"{side} {limb}", "around": around, "past_end": past_end and around is None,
                     "ok": around is not None or past_end})
     return out

@@ -70,7 +70,7 @@ def test_tshirt_drapes_on_the_shoulders_with_sleeves_around_the_arms(catalogue, 
     # the metric says the same of each sleeve's cuff; moved 30 cm in front of the body they are around nothing
     assert m["openings_on_limbs"] is True
     assert sorted(o["around"] for o in m["limb_openings"]) == ["upper_arm_l", "upper_arm_r"]
-    openings = limb_openings(align_garment(body, model), model.coarse_faces, body)
+    openings = limb_openings(align_garment(body, model), model.coarse_faces, body, "top")
     assert sorted(f"{side} {limb}" for side, limb, _ in openings) == ["left arm", "right arm"]
     for shift in ([0.0, 0.0, 0.3], [0.0, -1.3, 0.0]):  # in front of the body; slid off onto the floor
         moved = openings_on_limbs(result.coarse + shift, body, openings)

@@ -3,15 +3,16 @@
 a hand through the side of a cuff too small for it, or a shirt slid off the shoulders is reported, not only
 seen.
 
-The openings that should end around a limb are found on the aligned garment (``limb_openings``): every
-boundary loop of the coarse mesh lying on one side of the body's centre line (sleeve cuffs, armholes,
-trouser leg hems; a neck, waist or hem opening runs round the centre line). At the end of the drape an
-opening is around a limb part (upper arm or forearm with the hand, thigh or shin with the foot) when, seen
-along the part's axis, it winds once round the centre of the part's cross-section there, its middle lying
-along the part and within ``MAX_RADIUS`` of it. An opening around
-no part but beyond ``END_FRACTION`` of the limb's length hangs past its end (a sleeve longer than the arm):
-the sleeve is around the arm all the same. On the 90 catalogue drapes (``tryon bench --only fit``) every
-opening of a garment of the body's size or larger ends around its limb.
+The openings that should end around a limb are found on the aligned garment (``limb_openings``): the
+boundary loops of the coarse mesh lying on one side of the body's centre line, nearest an arm on a piece
+over the shoulders (sleeve cuffs, armholes), nearest a leg on a piece hanging from the waist, one on each
+side (trouser leg hems); a neck, waist or hem opening runs round the centre line. At the end of the drape
+an opening is around a limb part (upper arm or forearm with the hand, thigh or shin with the foot) when,
+seen along the part's axis, it winds once round the centre of the part's cross-section there, its middle
+lying along the part and within ``MAX_RADIUS`` of it. An opening around no part but hanging within
+``MAX_RADIUS`` of the limb's end, beyond ``END_FRACTION`` of its last part, is past its end (a sleeve
+longer than the arm): the sleeve is around the arm all the same. On the 90 catalogue drapes
+(``tryon bench --only fit``) every opening ends around its limb.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.sim.align import body_landmarks, boundary_loops
+from tryon.sim.pieces import bottom_mask
 
 # The parts of each limb, from the body's trunk out.
 LIMB_PARTS = {"arm": ("upper_arm", "forearm"), "leg": ("thigh", "shin")}
@@ -46,17 +48,19 @@ def _distance_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(p - (a + t * (b - a))))
 
 
-def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body) -> list[tuple[str, str, np.ndarray]]:
-    """The openings of the aligned garment (coarse points x (k, 3) m, faces (f, 3)) that should end around a
-    limb: (side "left" | "right", limb "arm" | "leg", point ids (q,) int64 in order round it) for every
-    opening at least ``MIN_PERIMETER`` round lying
-    (``OPENING_SHARE`` of its points) on one side of the body's centre line, the limb being the one whose
-    axis its centre is nearest: sleeve cuffs and armholes, trouser leg hems. A neck, waist or hem opening
-    runs round the centre line and is none of them."""
+def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body, category: str) -> list[tuple[str, str, np.ndarray]]:
+    """The openings of the aligned garment (coarse points x (k, 3) m, faces (f, 3), ``category`` top |
+    bottom | dress) that should end around a limb: (side "left" | "right", limb "arm" | "leg", point ids
+    (q,) int64 in order round it) for every opening at least ``MIN_PERIMETER`` round lying (``OPENING_SHARE``
+    of its points) on one side of the body's centre line and nearest that limb's axis: sleeve cuffs and
+    armholes of the pieces over the shoulders, leg hems of the pieces hanging from the waist if there is one
+    on each side (trousers, shorts; not a skirt's slit or a hole low on one side of a dress). A
+    neck, waist or hem opening runs round the centre line and is none of them."""
     if "torso" not in body.parts or not any(f"{p}_{c}" in body.parts for ps in LIMB_PARTS.values() for p in ps
                                             for _, c, _ in SIDES):
         return []  # a scene's ball or table: no limbs
     lm = body_landmarks(body)
+    bottom = bottom_mask(x, faces, category)
     out = []
     for loop in boundary_loops(faces, len(x)):
         loop = loop[ring_order(x[loop])]
@@ -73,9 +77,12 @@ def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body) -> list[tuple[st
                         if f"{p}_{suffix}" in body.parts]
                 if axes:
                     nearest[limb] = min(_distance_to_segment(centre, a, b) for a, b in axes)
-            if nearest:
-                out.append((side, min(nearest, key=nearest.get), loop))
-    return out
+            limb = min(nearest, key=nearest.get) if nearest else None
+            if limb == ("leg" if bottom[loop].all() else "arm"):
+                out.append((side, limb, loop))
+    # trousers have a leg opening on each side; a single one is a skirt's slit or a hole in the mesh
+    leg_sides = {side for side, limb, _ in out if limb == "leg"}
+    return [o for o in out if o[1] == "arm" or len(leg_sides) == 2]
 
 
 def ring_order(points: np.ndarray) -> np.ndarray:

@@ -244,7 +244,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         x = np.array(initial, dtype=np.float64)
         plan = ArmPlan(0.0, 0.0)
     # the sleeves' and trouser legs' openings, to tell at the end whether each is around its limb
-    openings = limb_openings(x, model.coarse_faces, body)
+    openings = limb_openings(x, model.coarse_faces, body, model.meta.category)
     arms = _ArmSchedule(body, collider, plan, settings)
     lo, hi = x.min(axis=0), x.max(axis=0)
     parts = relevant_parts(body.maps, lo, hi, PART_REACH)

@@ -161,7 +161,7 @@ def test_a_sleeve_a_few_degrees_off_the_arm_is_aimed_through_its_cuff(catalogue,
     """The long-sleeve S on the medium body: its right sleeve hangs 3.6 degrees off the arm, under the
     6-degree turn threshold, but its cuff's centre is farther from the arm's line than the cuff's radius.
     Not turned, the hand started across the cuff's rim and ended beside the cuff, out through the side of
-    the sleeve (shown mesh stretched 1.7x over the hand); aimed through the cuff, both cuffs end round the
+    the sleeve (shown-mesh strain 1.7 over the hand); aimed through the cuff, both cuffs end round the
     forearms."""
     from tryon.sim.align import plan_arms
 

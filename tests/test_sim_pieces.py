@@ -11,8 +11,9 @@ from tryon.body.params import Measurements, Pose
 from tryon.garment.generate import garment_mesh
 from tryon.garment.ingest import CleanMesh
 from tryon.garment.prepare import prepare
+from tryon.garment.topology import boundary_loops
 from tryon.sim.align import (
-    align_garment, arm_direction, arm_joints, body_landmarks, boundary_loops, garment_crotch, leg_axes, plan_arms,
+    align_garment, arm_direction, arm_joints, body_landmarks, garment_crotch, leg_axes, plan_arms,
 )
 from tryon.sim.bodystate import _rotation
 from tryon.sim.pieces import bottom_mask, piece_labels

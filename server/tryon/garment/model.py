@@ -93,6 +93,15 @@ class GarmentModel:
         keep = kind != BENDING
         return pairs[keep].astype(np.int64), rest[keep], kind[keep]
 
+    @cached_property
+    def coarse_loops(self) -> list[np.ndarray]:
+        """The coarse mesh's openings (``topology.boundary_loops``): one int64 array of coarse vertex ids per
+        boundary loop. Computed once per model (about 1 ms; the alignment, the arm plan and the sleeve
+        metric all read them)."""
+        from tryon.garment.topology import boundary_loops
+
+        return boundary_loops(self.coarse_faces, len(self.coarse_index))
+
     def expand(self, coarse_positions: np.ndarray) -> np.ndarray:
         """Full-mesh positions (n, 3) from coarse positions (k, 3) via the re-attachment."""
         tri = coarse_positions[self.coarse_faces[self.attach_face]]  # (n, 3, 3)

@@ -16,3 +16,18 @@ def vertex_pieces(faces: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray]:
     graph = scipy.sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_vertices, n_vertices))
     count, label = scipy.sparse.csgraph.connected_components(graph, directed=False)
     return int(count), label.astype(np.int64)
+
+
+def boundary_loops(faces: np.ndarray, n_vertices: int) -> list[np.ndarray]:
+    """The openings of the mesh ``faces`` (f, 3): one int64 array of vertex ids per boundary loop."""
+    f = np.asarray(faces, dtype=np.int64)
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    key, count = np.unique(edges[:, 0] * n_vertices + edges[:, 1], return_counts=True)
+    b = key[count == 1]
+    if len(b) == 0:
+        return []
+    a, c = b // n_vertices, b % n_vertices
+    graph = scipy.sparse.coo_matrix((np.ones(len(b)), (a, c)), shape=(n_vertices, n_vertices))
+    label = scipy.sparse.csgraph.connected_components(graph, directed=False)[1]
+    on = np.unique(np.concatenate([a, c]))
+    return [on[label[on] == k] for k in np.unique(label[on])]

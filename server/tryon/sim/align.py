@@ -21,13 +21,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.csgraph
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from tryon.body.params import POSE_RANGES
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
+from tryon.garment.topology import boundary_loops
 from tryon.sim.bodystate import _rotation
 from tryon.sim.pieces import bottom_mask
 
@@ -213,7 +212,7 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
     bottom = bottom_mask(x, model.coarse_faces, model.meta.category)
     legs = leg_axes(body)
     feet = foot_top(body)
-    loops = boundary_loops(model.coarse_faces, len(x))
+    loops = model.coarse_loops
     for is_top, sel in ((True, ~bottom), (False, bottom)):
         if sel.any():
             index = np.cumsum(sel) - 1  # a point's index among the selected ones
@@ -503,7 +502,8 @@ def arm_angle(body: Body, side: str) -> float:
     return float(np.arctan2(abs(d[0]), -d[1]))
 
 
-def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None = None) -> ArmPlan:
+def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None = None,
+              loops: list[np.ndarray] | None = None) -> ArmPlan:
     """Turns that put each arm along its sleeve, measured from the aligned garment points (k, 3).
 
     Sleeve points: points of the pieces over the shoulders (``faces`` (f, 3), if given, tells the pieces
@@ -528,7 +528,8 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
         return ArmPlan(0.0, 0.0)
     lm = body_landmarks(body)
     upper = np.ones(len(x), dtype=np.bool_) if faces is None else ~bottom_mask(x, faces, category)
-    loops = boundary_loops(faces, len(x)) if faces is not None else []
+    if loops is None:
+        loops = boundary_loops(faces, len(x)) if faces is not None else []
     out = {}
     for side, sign, joint in (("l", 1.0, lm.shoulder_l), ("r", -1.0, lm.shoulder_r)):
         sel = upper & sleeve_mask(x, lm, sign)
@@ -623,21 +624,6 @@ def bent_sleeve_turns(body: Body, side: str, x: np.ndarray, sleeve: np.ndarray, 
         return None
     rest_axis = tuple(float(c) for c in rot.T @ np.asarray(bend_axis))
     return turn, axis, bend, rest_axis
-
-
-def boundary_loops(faces: np.ndarray, n_vertices: int) -> list[np.ndarray]:
-    """The openings of the mesh ``faces`` (f, 3): one int64 array of vertex ids per boundary loop."""
-    f = np.asarray(faces, dtype=np.int64)
-    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    key, count = np.unique(edges[:, 0] * n_vertices + edges[:, 1], return_counts=True)
-    b = key[count == 1]
-    if len(b) == 0:
-        return []
-    a, c = b // n_vertices, b % n_vertices
-    graph = scipy.sparse.coo_matrix((np.ones(len(b)), (a, c)), shape=(n_vertices, n_vertices))
-    label = scipy.sparse.csgraph.connected_components(graph, directed=False)[1]
-    on = np.unique(np.concatenate([a, c]))
-    return [on[label[on] == k] for k in np.unique(label[on])]
 
 
 def arm_direction(body: Body, side: str) -> np.ndarray:

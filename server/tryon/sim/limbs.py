@@ -20,7 +20,8 @@ from __future__ import annotations
 import numpy as np
 
 from tryon.body.types import Body
-from tryon.sim.align import body_landmarks, boundary_loops
+from tryon.garment.topology import boundary_loops
+from tryon.sim.align import body_landmarks
 from tryon.sim.pieces import bottom_mask
 
 # The parts of each limb, from the body's trunk out.
@@ -48,21 +49,23 @@ def _distance_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(p - (a + t * (b - a))))
 
 
-def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body, category: str) -> list[tuple[str, str, np.ndarray]]:
+def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body, category: str,
+                  loops: list[np.ndarray] | None = None) -> list[tuple[str, str, np.ndarray]]:
     """The openings of the aligned garment (coarse points x (k, 3) m, faces (f, 3), ``category`` top |
     bottom | dress) that should end around a limb: (side "left" | "right", limb "arm" | "leg", point ids
     (q,) int64 in order round it) for every opening at least ``MIN_PERIMETER`` round lying (``OPENING_SHARE``
     of its points) on one side of the body's centre line and nearest that limb's axis: sleeve cuffs and
     armholes of the pieces over the shoulders, leg hems of the pieces hanging from the waist if there is one
     on each side (trousers, shorts; not a skirt's slit or a hole low on one side of a dress). A
-    neck, waist or hem opening runs round the centre line and is none of them."""
+    neck, waist or hem opening runs round the centre line and is none of them. ``loops``: the mesh's
+    boundary loops if known (``GarmentModel.coarse_loops``)."""
     if "torso" not in body.parts or not any(f"{p}_{c}" in body.parts for ps in LIMB_PARTS.values() for p in ps
                                             for _, c, _ in SIDES):
         return []  # a scene's ball or table: no limbs
     lm = body_landmarks(body)
     bottom = bottom_mask(x, faces, category)
     out = []
-    for loop in boundary_loops(faces, len(x)):
+    for loop in boundary_loops(faces, len(x)) if loops is None else loops:
         loop = loop[ring_order(x[loop])]
         perimeter = float(np.linalg.norm(x[loop] - np.roll(x[loop], 1, axis=0), axis=1).sum())
         if len(loop) < 3 or perimeter < MIN_PERIMETER:

@@ -239,12 +239,12 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     collider = BodyCollider(body, settings.collision_margin)
     if initial is None:
         x = align_garment(body, model)
-        plan = plan_arms(body, x, model.meta.category, model.coarse_faces)
+        plan = plan_arms(body, x, model.meta.category, model.coarse_faces, model.coarse_loops)
     else:
         x = np.array(initial, dtype=np.float64)
         plan = ArmPlan(0.0, 0.0)
     # the sleeves' and trouser legs' openings, to tell at the end whether each is around its limb
-    openings = limb_openings(x, model.coarse_faces, body, model.meta.category)
+    openings = limb_openings(x, model.coarse_faces, body, model.meta.category, model.coarse_loops)
     arms = _ArmSchedule(body, collider, plan, settings)
     lo, hi = x.min(axis=0), x.max(axis=0)
     parts = relevant_parts(body.maps, lo, hi, PART_REACH)

@@ -516,7 +516,8 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
     wrist) and the sleeve direction.
 
     A sleeve only a few degrees off the arm (under ``MIN_ARM_TURN``) is still turned if the arm would miss
-    its cuff (``CUFF_MISS``): then the arm is aimed through the cuff's centre.
+    its cuff (``CUFF_MISS``): then the arm is aimed through the cuff's centre. ``loops``: the boundary loops
+    of ``faces`` if known (``GarmentModel.coarse_loops``).
 
     A long sleeve bent at the elbow (``bent_sleeve_turns``) is followed in two turns instead: the upper
     arm onto the sleeve's upper part, then the forearm about the elbow onto the sleeve's far opening; a

@@ -130,8 +130,8 @@ def around_part(ring: np.ndarray, a: np.ndarray, b: np.ndarray, surface: np.ndar
 
 def openings_on_limbs(x: np.ndarray, body: Body, openings: list[tuple[str, str, np.ndarray]]) -> list[dict]:
     """Where each opening (``limb_openings``) ended, for the draped coarse points x (k, 3) m:
-    {"opening": "left arm" ..., "around": the part of that limb its points surround ("upper_arm_l" ...;
-    the one nearer the trunk if both) or None, "past_end": whether it hangs past the limb's end (a sleeve
+    {"opening": "left arm" ..., "around": the part of that limb it winds round (``around_part``:
+    "upper_arm_l" ...; the one nearer the trunk if both) or None, "past_end": whether it hangs past the limb's end (a sleeve
     longer than the arm, past the fingertips), "ok": around a part or past the end}."""
     out = []
     for side, limb, loop in openings:

@@ -169,7 +169,7 @@ def body_landmarks(body: Body) -> BodyLandmarks:
         hips_y=float(levels.get("hips", y0 + 0.15 * length)),
         shoulder_l=sh_l,
         shoulder_r=sh_r,
-        crotch_y=float(body.vertices[np.unique(body.faces[body.face_part == kt]), 1].min()),
+        crotch_y=float(part_points(body, kt)[:, 1].min()),
     )
 
 
@@ -188,10 +188,14 @@ def _girth(points: np.ndarray) -> float:
         return 0.0
 
 
+def part_points(body: Body, k: int) -> np.ndarray:
+    """(m, 3) vertices of the body part with index ``k``."""
+    return body.vertices[np.unique(body.faces[body.face_part == k])]
+
+
 def torso_points(body: Body) -> np.ndarray:
     """(m, 3) vertices of the torso part."""
-    kt = _part(body, "torso")
-    return body.vertices[np.unique(body.faces[body.face_part == kt])]
+    return part_points(body, _part(body, "torso"))
 
 
 def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = None) -> np.ndarray:
@@ -432,7 +436,7 @@ def foot_top(body: Body) -> float | None:
         k = _part(body, f"shin_{side}")
         if k is None:
             return None
-        v = body.vertices[np.unique(body.faces[body.face_part == k])]
+        v = part_points(body, k)
         (_, y0, z0), (_, y1, z1) = body.part_axes[k]  # knee to ankle
         axis_z = z0 + (z1 - z0) * np.clip((v[:, 1] - y0) / (y1 - y0), 0.0, 1.0)
         ahead = (v[:, 2] - axis_z > FOOT_REACH) & (v[:, 1] < 0.5 * (y0 + y1))  # not the knee cap

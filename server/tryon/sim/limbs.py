@@ -21,7 +21,7 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.topology import boundary_loops
-from tryon.sim.align import body_landmarks
+from tryon.sim.align import body_landmarks, part_points
 from tryon.sim.pieces import bottom_mask
 
 # The parts of each limb, from the body's trunk out.
@@ -143,8 +143,7 @@ def openings_on_limbs(x: np.ndarray, body: Body, openings: list[tuple[str, str, 
                 continue
             k = body.parts.index(name)
             a, b = body.part_axes[k]
-            surface = body.vertices[np.unique(body.faces[body.face_part == k])]
-            if around_part(x[loop], a, b, surface):
+            if around_part(x[loop], a, b, part_points(body, k)):
                 around = name
                 break
             # measured on the last part (forearm with hand, shin with foot): its axis ends at the limb's end,

@@ -4,9 +4,9 @@ a hand through the side of a cuff too small for it, or a shirt slid off the shou
 seen.
 
 The openings that should end around a limb are found on the aligned garment (``limb_openings``): the
-boundary loops of the coarse mesh lying on one side of the body's centre line, nearest an arm on a piece
-over the shoulders (sleeve cuffs, armholes), nearest a leg on a piece hanging from the waist, one on each
-side (trouser leg hems); a neck, waist or hem opening runs round the centre line. At the end of the drape
+boundary loops of the coarse mesh lying on one side of the body's centre line: on a piece over the
+shoulders, for an arm (sleeve cuffs, armholes); on a piece hanging from the waist, for a leg if there is one
+on each side (trouser leg hems); a neck, waist or hem opening runs round the centre line. At the end of the drape
 an opening is around a limb part (upper arm or forearm with the hand, thigh or shin with the foot) when,
 seen along the part's axis, it winds once round the centre of the part's cross-section there, its middle
 lying along the part and within ``MAX_RADIUS`` of it. An opening around no part but hanging within
@@ -44,19 +44,14 @@ END_FRACTION = 0.9
 OPENING_SHARE = 0.8
 
 
-def _distance_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    t = float(np.clip((p - a) @ (b - a) / max((b - a) @ (b - a), 1e-12), 0.0, 1.0))
-    return float(np.linalg.norm(p - (a + t * (b - a))))
-
-
 def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body, category: str,
                   loops: list[np.ndarray] | None = None) -> list[tuple[str, str, np.ndarray]]:
     """The openings of the aligned garment (coarse points x (k, 3) m, faces (f, 3), ``category`` top |
     bottom | dress) that should end around a limb: (side "left" | "right", limb "arm" | "leg", point ids
     (q,) int64 in order round it) for every opening at least ``MIN_PERIMETER`` round lying (``OPENING_SHARE``
-    of its points) on one side of the body's centre line and nearest that limb's axis: sleeve cuffs and
-    armholes of the pieces over the shoulders, leg hems of the pieces hanging from the waist if there is one
-    on each side (trousers, shorts; not a skirt's slit or a hole low on one side of a dress). A
+    of its points) on one side of the body's centre line: sleeve cuffs and armholes of the pieces over the
+    shoulders, leg hems of the pieces hanging from the waist if there is one on each side (trousers, shorts;
+    not a skirt's slit). A
     neck, waist or hem opening runs round the centre line and is none of them. ``loops``: the mesh's
     boundary loops if known (``GarmentModel.coarse_loops``)."""
     if "torso" not in body.parts or not any(f"{p}_{c}" in body.parts for ps in LIMB_PARTS.values() for p in ps
@@ -70,18 +65,11 @@ def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body, category: str,
         perimeter = float(np.linalg.norm(x[loop] - np.roll(x[loop], 1, axis=0), axis=1).sum())
         if len(loop) < 3 or perimeter < MIN_PERIMETER:
             continue  # a hole in the mesh, not an opening a limb fits through
-        centre = x[loop].mean(axis=0)
-        for side, suffix, sign in SIDES:
-            if ((x[loop, 0] - lm.center_x) * sign > 0).mean() < OPENING_SHARE:
-                continue
-            nearest = {}
-            for limb, parts in LIMB_PARTS.items():
-                axes = [body.part_axes[body.parts.index(f"{p}_{suffix}")] for p in parts
-                        if f"{p}_{suffix}" in body.parts]
-                if axes:
-                    nearest[limb] = min(_distance_to_segment(centre, a, b) for a, b in axes)
-            limb = min(nearest, key=nearest.get) if nearest else None
-            if limb == ("leg" if bottom[loop].all() else "arm"):
+        # a sleeve may be made at any angle to this body's arm (the DiffCloth dress's hang down to its
+        # hips, nearer the thighs than the arms): which piece an opening is on says which limb it is for
+        limb = "leg" if bottom[loop].all() else "arm"
+        for side, _, sign in SIDES:
+            if ((x[loop, 0] - lm.center_x) * sign > 0).mean() >= OPENING_SHARE:
                 out.append((side, limb, loop))
     # trousers have a leg opening on each side; a single one is a skirt's slit or a hole in the mesh
     leg_sides = {side for side, limb, _ in out if limb == "leg"}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -172,6 +173,16 @@ def test_a_sleeve_a_few_degrees_off_the_arm_is_aimed_through_its_cuff(catalogue,
     assert m["openings_on_limbs"] is True, m["limb_openings"]
     assert sorted(o["around"] for o in m["limb_openings"]) == ["forearm_l", "forearm_r"]
     assert m["display_max_strain"] < 0.6
+
+
+def test_sleeves_made_at_another_angle_than_the_arms_are_still_arm_openings(catalogue):
+    """With the arms raised to 70 degrees the long-sleeve's cuffs, as made, hang nearer the thighs than the
+    arms; they are still the sleeves' openings (told by the piece they are on), and the sleeve metric
+    reports on them instead of finding none."""
+    raised = build_body(MEDIUM, replace(Pose(), arm_angle=70.0))
+    model = _model(catalogue, "longsleeve-m.obj", "top")
+    openings = limb_openings(align_garment(raised, model), model.coarse_faces, raised, "top")
+    assert sorted(f"{side} {limb}" for side, limb, _ in openings) == ["left arm", "right arm"]
 
 
 def test_trouser_legs_too_long_for_the_body_start_above_the_feet(catalogue):

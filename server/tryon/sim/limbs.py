@@ -6,10 +6,10 @@ seen.
 The openings that should end around a limb are found on the aligned garment (``limb_openings``): the
 boundary loops of the coarse mesh lying on one side of the body's centre line: on a piece over the
 shoulders, for an arm (sleeve cuffs, armholes); on a piece hanging from the waist, for a leg if there is one
-on each side (trouser leg hems); a neck, waist or hem opening runs round the centre line. At the end of the drape
-an opening is around a limb part (upper arm or forearm with the hand, thigh or shin with the foot) when,
-seen along the part's axis, it winds once round the centre of the part's cross-section there, its middle
-lying along the part and within ``MAX_RADIUS`` of it. An opening around no part but hanging within
+on each side (trouser leg hems); a neck, waist or hem opening runs round the centre line. At the end of the
+drape an opening is around a limb part (upper arm or forearm with the hand, thigh or shin with the foot)
+when, seen along the part's axis, it winds once round the centre of the part's cross-section there, its
+middle lying along the part and within ``MAX_RADIUS`` of it. An opening around no part but hanging within
 ``MAX_RADIUS`` of the limb's end, beyond ``END_FRACTION`` of its last part, is past its end (a sleeve
 longer than the arm): the sleeve is around the arm all the same. On the 90 catalogue drapes
 (``tryon bench --only fit``) every opening ends around its limb.
@@ -51,9 +51,8 @@ def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body, category: str,
     (q,) int64 in order round it) for every opening at least ``MIN_PERIMETER`` round lying (``OPENING_SHARE``
     of its points) on one side of the body's centre line: sleeve cuffs and armholes of the pieces over the
     shoulders, leg hems of the pieces hanging from the waist if there is one on each side (trousers, shorts;
-    not a skirt's slit). A
-    neck, waist or hem opening runs round the centre line and is none of them. ``loops``: the mesh's
-    boundary loops if known (``GarmentModel.coarse_loops``)."""
+    not a skirt's slit). A neck, waist or hem opening runs round the centre line and is none of them.
+    ``loops``: the mesh's boundary loops if known (``GarmentModel.coarse_loops``)."""
     if "torso" not in body.parts or not any(f"{p}_{c}" in body.parts for ps in LIMB_PARTS.values() for p in ps
                                             for _, c, _ in SIDES):
         return []  # a scene's ball or table: no limbs

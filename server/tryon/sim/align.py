@@ -554,18 +554,17 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
         sleeve = x[sel].mean(axis=0) - joint
         arm = arm_direction(body, side)
         turn, axis = _turn_between(arm, sleeve)
+        misses_cuff = False
         if ends:
             # the arm must go through the cuff: aim at the centre of the far opening if the arm misses it
             far = far_opening(x, ends, joint)
             cuff = x[far].mean(axis=0)
             radius = float(np.linalg.norm(x[far] - cuff, axis=1).mean())
             along = (cuff - joint) @ arm
-            miss = float(np.linalg.norm(cuff - joint - along * arm))
-            if miss > CUFF_MISS * radius:
+            misses_cuff = float(np.linalg.norm(cuff - joint - along * arm)) > CUFF_MISS * radius
+            if misses_cuff:
                 turn, axis = _turn_between(arm, cuff - joint)
-                out[side] = (turn, axis, 0.0, default_axis)
-                continue
-        if turn >= MIN_ARM_TURN:
+        if misses_cuff or turn >= MIN_ARM_TURN:
             out[side] = (turn, axis, 0.0, default_axis)
     (lt, la, le, lea), (rt, ra, re, rea) = out["l"], out["r"]
     return ArmPlan(left=lt, right=rt, left_axis=la, right_axis=ra, left_elbow=le, right_elbow=re,

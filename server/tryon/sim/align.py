@@ -54,10 +54,14 @@ EASE_BAND = 0.02
 # 3-4 cm, the foot reaches 11-17 cm forward below ~5 cm), and how far above the feet a trouser hem is put.
 FOOT_REACH = 0.06
 FOOT_CLEARANCE = 0.01
-# A sleeve's points lie beyond this many shoulder-joint half-widths from the centre (past the bodice of a
-# fitted top or dress), above the chest-to-waist mid level; a side with fewer than MIN_SLEEVE_POINTS such
-# points has no sleeve.
-SLEEVE_REACH = 1.4
+# A sleeve's points lie beyond this many torso half-widths from the centre (past the bodice of a fitted top
+# or dress), above the chest-to-waist mid level; a side with fewer than MIN_SLEEVE_POINTS such points has
+# no sleeve. The torso's width, not the shoulder joints': the upper arm's axis starts in its rounded cap,
+# which moves out by 2 cm as the arm comes down from 30 degrees to hanging, and 1.4 of the joints'
+# half-width at arm angle 0 lay beyond the catalogue T-shirt M's cuffs (no sleeve found, no arm turned,
+# the arms inside the bodice). 1.07 is 1.4 joint half-widths at the default 30 degrees on the small,
+# medium and large bodies (within 1 mm).
+SLEEVE_REACH = 1.07
 MIN_SLEEVE_POINTS = 8
 # Smallest difference between sleeve and arm angles worth posing the arms for, radians.
 MIN_ARM_TURN = np.radians(6.0)
@@ -77,12 +81,17 @@ MIN_ELBOW_TURN = np.radians(10.0)
 # The upper part of a sleeve, whose centre line the upper arm is turned onto when the sleeve is bent: its
 # points between these fractions of the upper arm's length from the shoulder joint.
 UPPER_SLEEVE = (0.4, 0.9)
+# The upper part's points lie beyond this many torso half-widths (a ring round the upper arm: its inner side is
+# nearer the torso than the sleeve points SLEEVE_REACH finds).
+RING_REACH = 0.95
 # A sleeve has a forearm part when its far opening is at least this fraction of the forearm's length
-# beyond the elbow (a short sleeve ends above it).
+# off the upper arm (beyond the elbow, or beside it when the sleeve is bent; a short sleeve ends round the
+# upper arm).
 FOREARM_SLEEVE = 0.2
-# Largest elbow turn, radians: the elbow's range of flexion (the body's own pose range); a "bend" beyond
-# it is a short sleeve whose opening lies before the elbow, not a bent long sleeve.
-MAX_ELBOW_TURN = np.radians(POSE_RANGES["elbow_bend"][1])
+# Largest elbow turn, radians: the elbow's range of flexion (the body's own pose range) and 30 degrees
+# more, for a sleeve bent another way than the body's forearm (the catalogue's long-sleeve M, made
+# 10 degrees bent, is 129 degrees off a forearm bent 120 degrees).
+MAX_ELBOW_TURN = np.radians(POSE_RANGES["elbow_bend"][1] + 30.0)
 # m: a bottom's crotch is put at least this far below the body's (a low-rise pair of trousers, whose top
 # sits at the hips, is lowered from the waist until it is); the crotch seam then hangs clear of the body.
 CROTCH_DROP = 0.02
@@ -110,6 +119,7 @@ class BodyLandmarks:
     center_x: float
     shoulder_y: float  # top of the shoulders, between neck and arm
     shoulder_half: float  # half the distance between the shoulder joints, m
+    torso_half: float  # the torso's largest distance from the centre line, m (the same in every pose)
     chest_y: float
     waist_y: float
     hips_y: float
@@ -135,6 +145,9 @@ class ArmPlan:
     right_elbow: float = 0.0
     left_elbow_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     right_elbow_axis: tuple[float, float, float] = (0.0, 0.0, -1.0)
+    # The far opening (point ids into the garment's coarse points) of each turned arm's sleeve, if known.
+    left_cuff: np.ndarray | None = None
+    right_cuff: np.ndarray | None = None
 
 
 def _part(body: Body, name: str) -> int | None:
@@ -164,6 +177,7 @@ def body_landmarks(body: Body) -> BodyLandmarks:
         center_x=cx,
         shoulder_y=shoulder_y,
         shoulder_half=half,
+        torso_half=float(np.abs(part_points(body, kt)[:, 0] - cx).max()),
         chest_y=float(levels.get("chest", y0 + 0.72 * length)),
         waist_y=float(levels.get("waist", y0 + 0.40 * length)),
         hips_y=float(levels.get("hips", y0 + 0.15 * length)),
@@ -320,24 +334,31 @@ def scale_girth_keep_sleeves(x: np.ndarray, anchor: np.ndarray, scale: float, lm
     return out
 
 
-def sleeve_mask(x: np.ndarray, lm: BodyLandmarks, sign: float) -> np.ndarray:
+def sleeve_mask(x: np.ndarray, lm: BodyLandmarks, sign: float, reach: float = SLEEVE_REACH) -> np.ndarray:
     """(k,) bool: the points (k, 3) of the sleeve on one side (``sign`` +1: the body's left, towards +x):
-    beyond ``SLEEVE_REACH`` x the shoulder-joint half-width from the centre (past the bodice of a fitted
-    top or dress), above the chest-to-waist mid level."""
-    beyond = (x[:, 0] - lm.center_x) * sign > SLEEVE_REACH * lm.shoulder_half
+    beyond ``SLEEVE_REACH`` x the torso's half-width from the centre (past the bodice of a fitted top or
+    dress), above the chest-to-waist mid level."""
+    beyond = (x[:, 0] - lm.center_x) * sign > reach * lm.torso_half
     return beyond & (x[:, 1] > 0.5 * (lm.chest_y + lm.waist_y))
 
 
 def sleeve_openings(x: np.ndarray, lm: BodyLandmarks, sign: float, loops: list[np.ndarray],
                     upper: np.ndarray | None = None) -> list[np.ndarray]:
-    """The openings (``loops``: boundary loops, index arrays into the points x (k, 3)) that lie on one side
-    (``sign`` +1: the body's left) beyond ``SLEEVE_REACH`` x the shoulder-joint half-width, 80 % of their
-    points or more (of the points ``upper`` (k,) bool, if given): a sleeve's cuff. A cuff may hang below
-    the level ``sleeve_mask`` takes sleeve points above, so only the reach counts here."""
-    far = (x[:, 0] - lm.center_x) * sign > SLEEVE_REACH * lm.shoulder_half
-    if upper is not None:
-        far &= upper
-    return [loop for loop in loops if far[loop].mean() > 0.8]
+    """The openings (``loops``: boundary loops, index arrays into the points x (k, 3)) on one side (``sign``
+    +1: the body's left) whose centre lies beyond ``SLEEVE_REACH`` x the torso's half-width, all of their
+    points among ``upper`` (k,) bool if given: a sleeve's cuff. A cuff may hang below the level
+    ``sleeve_mask`` takes sleeve points above, so only the reach counts here. The centre, not all the
+    points: a short sleeve's cuff is a ring round the arm whose inner side may lie within the reach (the
+    catalogue's T-shirts S-L on the large body: 57-71 % of their points beyond it), while a sleeveless
+    bodice's armhole, however wide, is centred within it (at most 0.95 of the reach on the catalogue's
+    three bodies; the cuffs at least 1.07)."""
+    out = []
+    for loop in loops:
+        if upper is not None and not upper[loop].all():
+            continue
+        if (x[loop, 0].mean() - lm.center_x) * sign > SLEEVE_REACH * lm.torso_half:
+            out.append(loop)
+    return out
 
 
 def has_sleeves(x: np.ndarray, lm: BodyLandmarks) -> bool:
@@ -511,7 +532,7 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
     """Turns that put each arm along its sleeve, measured from the aligned garment points (k, 3).
 
     Sleeve points: points of the pieces over the shoulders (``faces`` (f, 3), if given, tells the pieces
-    apart; a bottom has no sleeves) beyond 1.4 x the shoulder-joint half-width from the centre (past the
+    apart; a bottom has no sleeves) beyond ``SLEEVE_REACH`` x the torso half-width from the centre (past the
     bodice of a fitted top or dress), above the chest-to-waist mid level. The sleeve direction is from
     the shoulder joint to their centroid, in 3-D: a sleeve made on a body whose arms hang further forward
     (DiffAvatar's long-sleeve shirt: 9 cm in front of this body's arm at the cuff, with a 5 cm cuff
@@ -535,11 +556,12 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
     upper = np.ones(len(x), dtype=np.bool_) if faces is None else ~bottom_mask(x, faces, category)
     if loops is None:
         loops = boundary_loops(faces, len(x)) if faces is not None else []
-    out = {}
+    out, cuffs = {}, {}
     for side, sign, joint in (("l", 1.0, lm.shoulder_l), ("r", -1.0, lm.shoulder_r)):
         sel = upper & sleeve_mask(x, lm, sign)
         default_axis = (0.0, 0.0, sign)
         out[side] = (0.0, default_axis, 0.0, default_axis)
+        cuffs[side] = None
         if sel.sum() < MIN_SLEEVE_POINTS:
             continue
         ends = sleeve_openings(x, lm, sign, loops, upper)
@@ -547,17 +569,24 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
             # no opening out there: the side of a bodice wider than the body's shoulders (a dress two sizes
             # too big), not a sleeve; turning the arm onto it carries the armhole down the arm
             continue
-        bent = bent_sleeve_turns(body, side, x, sel, ends)
+        if ends:
+            cuffs[side] = far_opening(x, ends, joint)
+        bent = bent_sleeve_turns(body, side, x, upper & sleeve_mask(x, lm, sign, RING_REACH), ends)
         if bent is not None:
             out[side] = bent
             continue
         sleeve = x[sel].mean(axis=0) - joint
         arm = arm_direction(body, side)
+        if ends and _part(body, f"forearm_{side}") is not None:
+            # a short sleeve (its cuff round the upper arm) is along the upper arm, however bent the elbow
+            _, elbow, _ = arm_joints(body, side)
+            if (x[cuffs[side]].mean(axis=0) - joint) @ (elbow - joint) < (elbow - joint) @ (elbow - joint):
+                arm = (elbow - joint) / np.linalg.norm(elbow - joint)
         turn, axis = _turn_between(arm, sleeve)
         misses_cuff = False
         if ends:
             # the arm must go through the cuff: aim at the centre of the far opening if the arm misses it
-            far = far_opening(x, ends, joint)
+            far = cuffs[side]
             cuff = x[far].mean(axis=0)
             radius = float(np.linalg.norm(x[far] - cuff, axis=1).mean())
             along = (cuff - joint) @ arm
@@ -568,7 +597,7 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
             out[side] = (turn, axis, 0.0, default_axis)
     (lt, la, le, lea), (rt, ra, re, rea) = out["l"], out["r"]
     return ArmPlan(left=lt, right=rt, left_axis=la, right_axis=ra, left_elbow=le, right_elbow=re,
-                   left_elbow_axis=lea, right_elbow_axis=rea)
+                   left_elbow_axis=lea, right_elbow_axis=rea, left_cuff=cuffs["l"], right_cuff=cuffs["r"])
 
 
 def _turn_between(a: np.ndarray, b: np.ndarray) -> tuple[float, tuple[float, float, float]]:
@@ -621,13 +650,19 @@ def bent_sleeve_turns(body: Body, side: str, x: np.ndarray, sleeve: np.ndarray, 
     turn, axis = _turn_between(elbow - joint, x[ring].mean(axis=0) - joint)
     rot = _rotation(np.asarray(axis), turn)
     posed_elbow = joint + rot @ (elbow - joint)
-    if np.linalg.norm(cuff - posed_elbow) < FOREARM_SLEEVE * fore_len:
+    if _off_segment(cuff, joint, posed_elbow) < FOREARM_SLEEVE * fore_len:
         return None
     bend, bend_axis = _turn_between(rot @ (wrist - elbow), cuff - posed_elbow)
     if not MIN_ELBOW_TURN <= bend <= MAX_ELBOW_TURN:
         return None
     rest_axis = tuple(float(c) for c in rot.T @ np.asarray(bend_axis))
     return turn, axis, bend, rest_axis
+
+
+def _off_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Distance (m) of the point p (3,) from the segment a-b (3,) each."""
+    t = float(np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0))
+    return float(np.linalg.norm(p - a - t * (b - a)))
 
 
 def arm_direction(body: Body, side: str) -> np.ndarray:

@@ -71,8 +71,9 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
-from tryon.sim.align import ArmPlan, align_garment, arm_joints, plan_arms
-from tryon.sim.bodystate import BodyCollider, _rotation
+from tryon.sim.align import ArmPlan, align_garment, plan_arms
+from tryon.sim.arms import ArmSchedule
+from tryon.sim.bodystate import BodyCollider
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
 from tryon.sim.full_mesh import display_strain, follow_coarse
 from tryon.sim.limbs import limb_openings, openings_on_limbs
@@ -123,10 +124,6 @@ RELAX_DRAG = 20.0
 # 90 % of their points at most 12 cm (the large body in S shorts and long sleeves), most under 2 cm.
 RELAX_MOVE_QUANTILE = 0.9
 RELAX_MAX_MOVE = 0.15
-# Degrees per step the arms are turned back from the sleeve pose (slow enough that the arm surface
-# moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).
-ARM_DEG_PER_STEP = 1.0
-
 # Steps between re-sorting the springs from the top down for the hanging-stretch sweep (the garment's
 # vertical order changes slowly once it hangs).
 ORDER_REFRESH = 20
@@ -176,51 +173,6 @@ class TryOnResult:
     metrics: dict = field(default_factory=dict)
 
 
-class _ArmSchedule:
-    """Turns the arms from the sleeve pose back to rest over ``steps`` steps: each upper arm about its
-    shoulder joint, each forearm with it and then about the (turned) elbow, every angle scaled by the
-    fraction of the pose left."""
-
-    def __init__(self, body: Body, collider: BodyCollider, plan, settings: SimSettings):
-        self.collider = collider
-        self.parts = {}
-        for side, angle, axis, bend, bend_axis in (
-                ("l", plan.left, plan.left_axis, plan.left_elbow, plan.left_elbow_axis),
-                ("r", plan.right, plan.right_axis, plan.right_elbow, plan.right_elbow_axis)):
-            if (angle == 0.0 and bend == 0.0) or f"upper_arm_{side}" not in body.parts:
-                continue
-            k_up = body.parts.index(f"upper_arm_{side}")
-            k_fore = body.parts.index(f"forearm_{side}") if f"forearm_{side}" in body.parts else None
-            joint = body.part_axes[k_up, 0].copy()
-            elbow = arm_joints(body, side)[1] if k_fore is not None else joint
-            self.parts[side] = (joint, angle, np.asarray(axis, dtype=np.float64), k_up, k_fore, elbow, bend,
-                                np.asarray(bend_axis, dtype=np.float64))
-        biggest = max((max(abs(a), abs(b)) for _, a, _, _, _, _, b, _ in self.parts.values()), default=0.0)
-        self.steps = int(np.ceil(np.degrees(biggest) / ARM_DEG_PER_STEP)) if self.parts else 0
-
-    def turned_parts(self) -> list[int]:
-        """Body part indices the schedule moves."""
-        return [k for _, _, _, k_up, k_fore, _, _, _ in self.parts.values()
-                for k in (k_up, k_fore) if k is not None]
-
-    def apply(self, step: int) -> None:
-        fraction = 1.0 - min(1.0, step / self.steps) if self.steps else 0.0
-        turns = {}
-        for joint, angle, axis, k_up, k_fore, elbow, bend, bend_axis in self.parts.values():
-            rot = _rotation(axis, angle * fraction)
-            turns[k_up] = (joint, rot)
-            if k_fore is None:
-                continue
-            if bend == 0.0:
-                turns[k_fore] = (joint, rot)
-                continue
-            # forearm: v -> e' + R_e (R_s (v - j) + j - e'), e' the turned elbow, R_e about the turned axis
-            posed_elbow = joint + rot @ (elbow - joint)
-            rot_e = _rotation(rot @ bend_axis, bend * fraction)
-            turns[k_fore] = (joint, rot_e @ rot, (np.eye(3) - rot_e) @ (posed_elbow - joint))
-        self.collider.pose_arms(turns)
-
-
 def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings(),
           on_frame: FrameCallback | None = None, initial: np.ndarray | None = None) -> TryOnResult:
     """Drape ``model`` on ``body``; see the module doc. ``initial`` (k, 3) replaces the alignment
@@ -245,11 +197,12 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         plan = ArmPlan(0.0, 0.0)
     # the sleeves' and trouser legs' openings, to tell at the end whether each is around its limb
     openings = limb_openings(x, model.coarse_faces, body, model.meta.category, model.coarse_loops)
-    arms = _ArmSchedule(body, collider, plan, settings)
+    arms = ArmSchedule(body, collider, plan)
     lo, hi = x.min(axis=0), x.max(axis=0)
     parts = relevant_parts(body.maps, lo, hi, PART_REACH)
     if arms.steps:
         arms.apply(0)
+        arms.attach(x, model.coarse_faces)
         turned = arms.turned_parts()  # the sleeves are around them
         parts = np.union1d(parts, turned).astype(np.int64)
 
@@ -305,6 +258,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
             collider.set_scale(s, refresh=not turning)  # the arms' turn recomputes the surface anyway
         if turning:
             arms.apply(step)
+            arms.carry(x, x_prev)
         if pinned_until and step == pinned_until:
             inv_mass[:] = saved_inv_mass
         # no gravity while the body grows / the arms turn back: the garment must not slide off a body
@@ -418,6 +372,12 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     piece_move = np.array([np.quantile(relax_move[piece == p], RELAX_MOVE_QUANTILE)
                            for p in range(int(piece.max()) + 1)])
     carried = piece_move > RELAX_MAX_MOVE
+    # nor may it take a sleeve or trouser leg off its limb (a T-shirt on arms hanging against the torso:
+    # the sleeves, pinched between arm and torso, pulled up off the arms)
+    for (_, _, loop), before, after in zip(openings, openings_on_limbs(x_loop, body, openings),
+                                           openings_on_limbs(x, body, openings)):
+        if before["ok"] and not after["ok"]:
+            carried[piece[loop[0]]] = True
     relaxed = not carried.any()
     if not relaxed:
         # the relaxation carried a piece away (see RELAX_MAX_MOVE): that piece stays where the loop

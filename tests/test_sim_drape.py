@@ -185,6 +185,36 @@ def test_sleeves_made_at_another_angle_than_the_arms_are_still_arm_openings(cata
     assert sorted(f"{side} {limb}" for side, limb, _ in openings) == ["left arm", "right arm"]
 
 
+@pytest.mark.parametrize("pose", [dict(arm_angle=20.0), dict(arm_angle=70.0), dict(elbow_bend=120.0)])
+def test_long_sleeves_are_carried_back_with_arms_posed_away_from_them(catalogue, pose):
+    """The long-sleeve M, made for arms at 30 degrees, on arms at 20 or 70 degrees or bent 120 degrees at
+    the elbow: the arms start along the sleeves and turn back, carrying the sleeves (``sim/arms.py``). By
+    collision alone one cuff ended beside the hand at 20 and 70 degrees; at 120 degrees the sleeve was
+    129 degrees off the forearm, more than the elbow turn allowed, and the arm cut through it (534 springs
+    over)."""
+    posed = build_body(MEDIUM, replace(Pose(), **pose))
+    m = drape(posed, _model(catalogue, "longsleeve-m.obj", "top"), SimSettings()).metrics
+    assert m["rest_reached"] and m["penetrating_vertices"] == 0
+    assert m["openings_on_limbs"] is True, m["limb_openings"]
+    assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, m["strain_by_kind"]
+
+
+def test_short_sleeves_on_bent_elbows_and_hanging_arms(catalogue):
+    """A T-shirt's sleeve ends round the upper arm: with the elbows bent 90 degrees the arm is not turned
+    (the line from shoulder to wrist, 50 degrees off the sleeve, is not the arm a short sleeve is on), and
+    with the arms at 10 degrees the sleeves are still found (past the torso's width, which no pose moves)
+    and the arms turned along them."""
+    model = _model(catalogue, "tshirt-m.obj", "top")
+    bent = drape(build_body(MEDIUM, replace(Pose(), elbow_bend=90.0)), model, SimSettings()).metrics
+    assert bent["arm_turn_deg"] == [0.0, 0.0] and bent["elbow_turn_deg"] == [0.0, 0.0]
+    low = drape(build_body(MEDIUM, replace(Pose(), arm_angle=10.0)), model, SimSettings()).metrics
+    assert min(low["arm_turn_deg"]) > 10.0
+    for m in (bent, low):
+        assert m["rest_reached"] and m["penetrating_vertices"] == 0
+        assert m["openings_on_limbs"] is True, m["limb_openings"]
+        assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, m["strain_by_kind"]
+
+
 def test_trouser_legs_too_long_for_the_body_start_above_the_feet(catalogue):
     """Trousers M on a 158 cm body reach 5 cm below its soles once their waistband is at its waist: the
     legs are shortened from the crotch down so the hem starts above the feet, and no leg spring starts

@@ -15,7 +15,7 @@ import pytest
 
 from tryon.cli import main
 
-SECTIONS = {"table1", "table2", "table3", "fit", "pareto", "simplify", "peers", "stability", "scaling"}
+SECTIONS = {"table1", "table2", "table3", "fit", "poses", "pareto", "simplify", "peers", "stability", "scaling"}
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
@@ -74,6 +74,10 @@ def test_sections_carry_their_figures(bench):
     assert [d["body"] for d in fit] == ["small", "medium", "large"]
     # the main garment (T-shirt M) on the three bodies: no penetration, at rest, springs within the target
     assert all(d["penetrating"] == 0 and d["rest"] and d["over"] == 0 for d in fit), fit
+    # the main garment with the arms at 10 degrees and the elbows bent 90: sleeves round the arms, every target met
+    poses = _section(report, "poses")["data"]["drapes"]
+    assert [d["pose"] for d in poses] == [{"arm_angle": 10.0}, {"elbow_bend": 90.0}]
+    assert all(d["met"] and d["on_limbs"] for d in poses), poses
     pareto = _section(report, "pareto")["data"]
     assert len(pareto["points"]) >= 2 and pareto["pick"] in pareto["points"]
     assert all(p["rms_mm"] >= 0 for p in pareto["points"])

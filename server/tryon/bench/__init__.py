@@ -1,6 +1,7 @@
 """``tryon bench``: the service's speed and accuracy measured on this machine in one run.
 
-Sections (one module each): the paper's tables 1-3 (``tables``), run time against error and the default
+Sections (one module each): the paper's tables 1-3 (``tables``), the catalogue's fit on three bodies
+(``fit``) and in other poses (``poses``), run time against error and the default
 settings (``pareto``), the paper's simplification against quadric edge collapse (``simplify_compare``),
 peer engines (``peers``: Taichi, Newton), the stability stress summary (``stability``), and scaling
 (``scaling``). Each runs isolated: a failure is reported with its reason and the others still run.
@@ -19,13 +20,14 @@ from tryon.bench.report import now, write_report
 
 def sections():
     """(name, title, function) of every section, in report order."""
-    from tryon.bench import fit, pareto, peers, scaling, simplify_compare, stability, tables
+    from tryon.bench import fit, pareto, peers, poses, scaling, simplify_compare, stability, tables
 
     return [
         ("table1", "Paper table 1: simplification and collision time", tables.table1),
         ("table2", "Paper table 2: inside-triangle tests", tables.table2),
         ("table3", "Paper table 3: pipeline stages", tables.table3),
         ("fit", "Catalogue fit on three bodies", fit.run),
+        ("poses", "Fit in other poses", poses.run),
         ("pareto", "Run time against error", pareto.run),
         ("simplify", "Simplification compared", simplify_compare.run),
         ("peers", "Peer engines", peers.run),

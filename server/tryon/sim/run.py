@@ -25,7 +25,7 @@ normal drape; it keeps a garment far too small for its body from being stretched
 Start-up, for garments that begin tangled with the body (sleeves at another angle than the arms, a
 garment modelled on another body):
 - the arms are posed along the sleeves (``plan_arms``) and turned back to their real pose over the first
-  steps, so the sleeves are carried onto the arms by collision instead of being cut by them;
+  steps (``arms.ArmSchedule``), carrying the sleeves with them, instead of cutting through them;
 - if any garment point is still inside the body, the body grows from ``grow_from`` of its radius to full
   size over ``grow_steps`` steps (each part scaled toward its axis; Houdini Vellum Drape does the same),
   pushing the cloth out the way it came in rather than teleporting points through the body;

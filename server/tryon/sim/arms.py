@@ -67,8 +67,7 @@ def sleeve_weights(x: np.ndarray, faces: np.ndarray, cuff: np.ndarray, joint: np
     upper = float(np.linalg.norm(elbow - joint))
     fore = float(np.linalg.norm(wrist - elbow))
     c = x[cuff].mean(axis=0)
-    d_fore = (wrist - elbow) / fore
-    along_fore = float(np.clip((c - elbow) @ d_fore, 0.0, None))
+    along_fore = float(np.clip((c - elbow) @ (wrist - elbow) / fore, 0.0, None)) if fore > 0.0 else 0.0
     if along_fore > 0.0:
         cuff_at = upper + along_fore
     else:

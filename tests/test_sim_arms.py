@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from tryon.sim.arms import CARRY_RAMP, ELBOW_RAMP, cloth_distance, sleeve_weights
+from tryon.garment.topology import cloth_distance
+from tryon.sim.arms import CARRY_RAMP, ELBOW_RAMP, sleeve_weights
 
 JOINT = np.array([0.0, 1.0, 0.0])
 ELBOW = np.array([0.0, 0.7, 0.0])  # a 30 cm upper arm hanging straight down

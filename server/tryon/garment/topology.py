@@ -1,4 +1,5 @@
-"""Connectivity of a triangle mesh: which separate piece each vertex belongs to."""
+"""Connectivity of a triangle mesh: which separate piece each vertex belongs to, its openings, and
+distances over its edges."""
 
 from __future__ import annotations
 
@@ -31,3 +32,15 @@ def boundary_loops(faces: np.ndarray, n_vertices: int) -> list[np.ndarray]:
     label = scipy.sparse.csgraph.connected_components(graph, directed=False)[1]
     on = np.unique(np.concatenate([a, c]))
     return [on[label[on] == k] for k in np.unique(label[on])]
+
+
+def cloth_distance(x: np.ndarray, faces: np.ndarray, sources: np.ndarray) -> np.ndarray:
+    """(k,) m: the shortest path over the mesh's edges (points x (k, 3), faces (f, 3)) from the nearest of
+    the points ``sources`` (q,) int; inf for points of other pieces."""
+    f = np.asarray(faces, dtype=np.int64)
+    # each edge once: coo_matrix sums repeated entries (an edge listed the same way round by two faces of a
+    # mesh whose faces are not consistently oriented)
+    e = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    w = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
+    graph = scipy.sparse.coo_matrix((w, (e[:, 0], e[:, 1])), shape=(len(x), len(x))).tocsr()
+    return scipy.sparse.csgraph.dijkstra(graph, directed=False, indices=np.asarray(sources), min_only=True)

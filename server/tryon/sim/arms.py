@@ -16,10 +16,9 @@ arm is near the arm but far from the cuff round the seams, and is not carried.
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from tryon.body.types import Body
+from tryon.garment.topology import cloth_distance
 from tryon.sim.align import ArmPlan, arm_joints
 from tryon.sim.bodystate import BodyCollider, _rotation
 
@@ -43,15 +42,6 @@ def _affine(pivot: np.ndarray, rot: np.ndarray, shift: np.ndarray | None = None)
 
 def _ramp(t: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return np.clip((t - lo) / (hi - lo), 0.0, 1.0)
-
-
-def cloth_distance(x: np.ndarray, faces: np.ndarray, sources: np.ndarray) -> np.ndarray:
-    """(k,) m: the shortest path over the mesh's edges (points x (k, 3), faces (f, 3)) from the nearest of
-    the points ``sources`` (q,) int; inf for points of other pieces."""
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    w = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
-    graph = coo_matrix((w, (e[:, 0], e[:, 1])), shape=(len(x), len(x))).tocsr()
-    return dijkstra(graph, directed=False, indices=np.asarray(sources), min_only=True)
 
 
 def sleeve_weights(x: np.ndarray, faces: np.ndarray, cuff: np.ndarray, joint: np.ndarray, elbow: np.ndarray,

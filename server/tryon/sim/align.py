@@ -573,7 +573,7 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
             continue
         if ends:
             cuffs[side] = far_opening(x, ends, joint)
-        bent = bent_sleeve_turns(body, side, x, upper & sleeve_mask(x, lm, sign, RING_REACH), ends)
+        bent = bent_sleeve_turns(body, side, x, upper & sleeve_mask(x, lm, sign, RING_REACH), cuffs[side])
         if bent is not None:
             out[side] = bent
             continue
@@ -628,12 +628,12 @@ def far_opening(x: np.ndarray, ends: list[np.ndarray], joint: np.ndarray) -> np.
     return max(ends, key=lambda loop: float(np.linalg.norm(x[loop].mean(axis=0) - joint)))
 
 
-def bent_sleeve_turns(body: Body, side: str, x: np.ndarray, sleeve: np.ndarray, ends: list[np.ndarray]
+def bent_sleeve_turns(body: Body, side: str, x: np.ndarray, sleeve: np.ndarray, cuff_ids: np.ndarray | None
                       ) -> tuple[float, tuple, float, tuple] | None:
     """(shoulder turn, its axis, elbow turn, its axis in the arm's rest pose) that put the upper arm along
     the sleeve's upper part (the centroid of its points ``UPPER_SLEEVE`` of the upper arm's length from
     the shoulder joint) and then the forearm, turned about the elbow, through the centre of the sleeve's
-    far opening (of the boundary loops ``ends`` on this side, the one farthest from the joint); ``sleeve``
+    far opening ``cuff_ids`` (point ids; ``far_opening``, None if the sleeve has no opening); ``sleeve``
     (k,) bool marks the sleeve's points. None when the sleeve is not a long sleeve bent by
     ``MIN_ELBOW_TURN`` to ``MAX_ELBOW_TURN`` (then one shoulder turn along the whole sleeve is enough), or
     the body has no forearm."""
@@ -642,9 +642,9 @@ def bent_sleeve_turns(body: Body, side: str, x: np.ndarray, sleeve: np.ndarray, 
     joint, elbow, wrist = arm_joints(body, side)
     upper_len = float(np.linalg.norm(elbow - joint))
     fore_len = float(np.linalg.norm(wrist - elbow))
-    if not ends:
+    if cuff_ids is None:
         return None
-    cuff = x[far_opening(x, ends, joint)].mean(axis=0)
+    cuff = x[cuff_ids].mean(axis=0)
     r = np.linalg.norm(x - joint, axis=1)
     ring = sleeve & (r > UPPER_SLEEVE[0] * upper_len) & (r < UPPER_SLEEVE[1] * upper_len)
     if ring.sum() < MIN_SLEEVE_POINTS:

@@ -15,6 +15,8 @@ arm is near the arm but far from the cuff round the seams, and is not carried.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from tryon.body.types import Body
@@ -68,6 +70,21 @@ def sleeve_weights(x: np.ndarray, faces: np.ndarray, cuff: np.ndarray, joint: np
     return on_arm, on_fore
 
 
+class _Arm(NamedTuple):
+    """One arm the schedule turns: its joints (3,) m at rest, the plan's shoulder turn (radians, unit axis
+    (3,)) and elbow turn (radians, axis (3,) in the rest pose), and its part indices (no forearm: None)."""
+
+    joint: np.ndarray
+    elbow: np.ndarray
+    wrist: np.ndarray
+    angle: float
+    axis: np.ndarray
+    bend: float
+    bend_axis: np.ndarray
+    k_up: int
+    k_fore: int | None
+
+
 class ArmSchedule:
     """Turns the arms from the sleeve pose (``plan``) back to the body's pose over ``steps`` steps, every
     angle scaled by the fraction of the pose left; ``carry`` moves the sleeves along (module doc)."""
@@ -85,9 +102,9 @@ class ArmSchedule:
             k_fore = body.parts.index(f"forearm_{side}") if f"forearm_{side}" in body.parts else None
             joint, elbow, wrist = arm_joints(body, side) if k_fore is not None else (
                 body.part_axes[k_up, 0].copy(), body.part_axes[k_up, 1].copy(), body.part_axes[k_up, 1].copy())
-            self.parts[side] = (joint, angle, np.asarray(axis, dtype=np.float64), k_up, k_fore, elbow, bend,
-                                np.asarray(bend_axis, dtype=np.float64), wrist)
-        biggest = max((max(abs(a), abs(b)) for _, a, _, _, _, _, b, _, _ in self.parts.values()), default=0.0)
+            self.parts[side] = _Arm(joint, elbow, wrist, angle, np.asarray(axis, dtype=np.float64), bend,
+                                    np.asarray(bend_axis, dtype=np.float64), k_up, k_fore)
+        biggest = max((max(abs(a.angle), abs(a.bend)) for a in self.parts.values()), default=0.0)
         self.steps = int(np.ceil(np.degrees(biggest) / ARM_DEG_PER_STEP)) if self.parts else 0
         self._last = {}
         self._moves = {}  # side -> (upper arm, forearm) (4, 4) motions of the last ``apply``
@@ -95,25 +112,24 @@ class ArmSchedule:
 
     def turned_parts(self) -> list[int]:
         """Body part indices the schedule moves."""
-        return [k for _, _, _, k_up, k_fore, _, _, _, _ in self.parts.values()
-                for k in (k_up, k_fore) if k is not None]
+        return [k for a in self.parts.values() for k in (a.k_up, a.k_fore) if k is not None]
 
     def _motions(self, fraction: float) -> dict[str, tuple[tuple, tuple | None]]:
         """Per side, the (pivot, R[, shift]) motion of the upper arm and of the forearm (None: no forearm)
         with ``fraction`` of the sleeve pose left."""
         out = {}
-        for side, (joint, angle, axis, k_up, k_fore, elbow, bend, bend_axis, _) in self.parts.items():
-            rot = _rotation(axis, angle * fraction)
-            up = (joint, rot)
-            if k_fore is None:
+        for side, a in self.parts.items():
+            rot = _rotation(a.axis, a.angle * fraction)
+            up = (a.joint, rot)
+            if a.k_fore is None:
                 out[side] = (up, None)
-            elif bend == 0.0:
+            elif a.bend == 0.0:
                 out[side] = (up, up)
             else:
                 # forearm: v -> e' + R_e (R_s (v - j) + j - e'), e' the turned elbow, R_e about the turned axis
-                posed_elbow = joint + rot @ (elbow - joint)
-                rot_e = _rotation(rot @ bend_axis, bend * fraction)
-                out[side] = (up, (joint, rot_e @ rot, (np.eye(3) - rot_e) @ (posed_elbow - joint)))
+                posed_elbow = a.joint + rot @ (a.elbow - a.joint)
+                rot_e = _rotation(rot @ a.bend_axis, a.bend * fraction)
+                out[side] = (up, (a.joint, rot_e @ rot, (np.eye(3) - rot_e) @ (posed_elbow - a.joint)))
         return out
 
     def apply(self, step: int) -> None:
@@ -122,10 +138,9 @@ class ArmSchedule:
         turns = {}
         moves = {}
         for side, (up, fore) in self._motions(fraction).items():
-            _, _, _, k_up, k_fore, _, _, _, _ = self.parts[side]
-            turns[k_up] = up
+            turns[self.parts[side].k_up] = up
             if fore is not None:
-                turns[k_fore] = fore
+                turns[self.parts[side].k_fore] = fore
             moves[side] = (_affine(*up), _affine(*fore) if fore is not None else _affine(*up))
         self.collider.pose_arms(turns)
         self._last, self._moves = self._moves, moves
@@ -133,12 +148,12 @@ class ArmSchedule:
     def attach(self, x: np.ndarray, faces: np.ndarray) -> None:
         """Weigh the garment points x (k, 3) (faces (f, 3)) on each posed arm whose sleeve has a known cuff
         (``sleeve_weights``); call after ``apply(0)``."""
-        for side, (joint, _, _, _, _, elbow, _, _, wrist) in self.parts.items():
+        for side, a in self.parts.items():
             cuff = self.plan.left_cuff if side == "l" else self.plan.right_cuff
             if cuff is None:
                 continue
             up, fore = self._moves[side]
-            posed = [(up @ np.append(p, 1.0))[:3] for p in (joint, elbow)] + [(fore @ np.append(wrist, 1.0))[:3]]
+            posed = [(m @ np.append(p, 1.0))[:3] for m, p in ((up, a.joint), (up, a.elbow), (fore, a.wrist))]
             self._weights[side] = sleeve_weights(x, faces, cuff, *posed)
 
     def carry(self, x: np.ndarray, x_prev: np.ndarray) -> None:

@@ -10,7 +10,7 @@ import trimesh
 from scipy.spatial import ConvexHull
 
 from tryon.body import nurbs
-from tryon.body.build import DEFAULT_RESOLUTION, build_body
+from tryon.body.build import ARM_PRESS, DEFAULT_RESOLUTION, build_body
 from tryon.body.kernels import hull_perimeter_2d
 from tryon.body.params import (
     MEASUREMENT_RANGES,
@@ -136,6 +136,40 @@ def test_default_pose_keeps_the_arms_off_the_torso():
             if name == "upper_arm_l":
                 pts = pts[pts[:, 1] < 0.5 * (body.levels["chest"] + body.levels["waist"])]
             assert (winding_number(body.vertices, torso, pts) < 0.5).all(), (m, name)
+
+
+def arm_press_mm(body) -> float:
+    """How far (mm) the left arm goes into the torso below the chest: the deepest of its vertices there
+    that are inside the torso (winding number), measured in the plane to the torso's horizontal section
+    through it (trimesh's plane section; at least the distance to the surface)."""
+    faces = part_faces(body, "torso")
+    torso = trimesh.Trimesh(body.vertices, faces, process=False)
+    pts = body.vertices[np.unique(np.concatenate([part_faces(body, "upper_arm_l"), part_faces(body, "forearm_l")]))]
+    pts = pts[pts[:, 1] < body.levels["chest"]]
+    deepest = 0.0
+    for p in pts[winding_number(body.vertices, faces, pts) > 0.5]:
+        seg = trimesh.intersections.mesh_plane(torso, [0.0, 1.0, 0.0], p)[:, :, [0, 2]]
+        a, b, q = seg[:, 0], seg[:, 1], p[[0, 2]]
+        t = np.clip(np.einsum("si,si->s", q - a, b - a) / np.maximum(np.einsum("si,si->s", b - a, b - a), 1e-18), 0, 1)
+        deepest = max(deepest, float(np.linalg.norm(a + t[:, None] * (b - a) - q, axis=1).min()))
+    return 1000.0 * deepest
+
+
+@pytest.mark.parametrize("m", [SPREAD[0], Measurements(height=170, chest=96, waist=82, hips=100),
+                               Measurements(height=185, chest=116, waist=104, hips=116)])
+def test_hanging_arms_rest_against_the_torso_instead_of_passing_into_it(m):
+    """Asked for arms hanging straight down (0 degrees), the body raises them to where they rest against the
+    torso: below the chest they press at most ARM_PRESS into it (the medium body's went 40 mm into the chest
+    and its hand 26 mm into the hip), and a degree lower they would press deeper. The built pose says so."""
+    body = build_body(m, Pose(arm_angle=0.0), resolution=16)
+    raised = body.pose["arm_angle"]
+    assert 0.0 < raised < 30.0
+    assert body.pose["elbow_bend"] == 0.0 and body.pose["leg_spread"] == Pose().leg_spread
+    assert arm_press_mm(body) <= 1000.0 * ARM_PRESS + 1.0
+    lower = build_body(m, Pose(arm_angle=raised - 1.0), resolution=16)
+    assert lower.pose["arm_angle"] == pytest.approx(raised, abs=0.5)  # raised again to the same angle
+    # the default A-pose is not raised for these bodies
+    assert build_body(m, resolution=16).pose == {"arm_angle": 30.0, "elbow_bend": 0.0, "leg_spread": 3.0}
 
 
 def test_optional_measurements_are_honoured():
@@ -421,6 +455,10 @@ def test_api_builds_a_body(client):
     assert set(meas["levels"]) == {"chest", "waist", "hips"}
     assert 1.2 < meas["levels"]["chest"] < 1.3
     assert set(meas["estimated"]) == set(OPTIONAL)
+    assert data["pose"]["requested"] == data["pose"]["achieved"] == {"arm_angle": 35, "elbow_bend": 0,
+                                                                      "leg_spread": Pose().leg_spread}
+    hanging = client.post("/api/bodies", json={"measurements": AVERAGE, "pose": {"arm_angle": 0}}).json()["pose"]
+    assert hanging["requested"]["arm_angle"] == 0 and 5.0 < hanging["achieved"]["arm_angle"] < 30.0
 
 
 @pytest.mark.parametrize("payload, field, words", [

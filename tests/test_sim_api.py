@@ -39,6 +39,7 @@ def test_tryon_answers_the_fitted_garment_and_metrics(client_and_id):
                 "max_penetration_mm", "max_strain", "strain", "display_max_strain", "openings_on_limbs"):
         assert key in m
     assert sorted(o["opening"] for o in m["limb_openings"]) == ["left leg", "right leg"]
+    assert m["pose"] == {"arm_angle": 30.0, "elbow_bend": 0.0, "leg_spread": 3.0}  # the default, as built
     assert 1 <= m["steps"] <= 60
     assert m["sim_seconds"] == pytest.approx(m["steps"] * 0.02)
     assert len(m["strain"]) == len(v)

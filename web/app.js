@@ -174,7 +174,14 @@ async function refreshBody() {
 function describeBody(body) {
   const a = body.measurements?.achieved || body.achieved || {};
   const parts = ['chest', 'waist', 'hips'].filter((k) => Number.isFinite(a[k])).map((k) => `${k} ${a[k].toFixed(1)}`);
-  return parts.length ? `Your body as built: ${parts.join(' · ')} cm` : '';
+  let text = parts.length ? `Your body as built: ${parts.join(' · ')} cm` : '';
+  // an arm angle too low for the arm to clear the torso is raised to where the arm rests against it
+  const asked = body.pose?.requested?.arm_angle;
+  const built = body.pose?.achieved?.arm_angle;
+  if (Number.isFinite(asked) && Number.isFinite(built) && built > asked + 0.05) {
+    text += `${text ? '. ' : ''}Arms at ${built.toFixed(1)}°: lower, they would pass into the torso`;
+  }
+  return text;
 }
 
 // ---- try-on ------------------------------------------------------------------------------------

@@ -47,11 +47,12 @@ def face_vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.nda
 
 
 @njit(cache=True)
-def hull_perimeter_2d(points: np.ndarray) -> float:
-    """Perimeter of the convex hull of (k, 2) points (Andrew's monotone chain); 0 for fewer than 3."""
+def convex_hull_2d(points: np.ndarray) -> np.ndarray:
+    """(m, 2) corners of the convex hull of (k, 2) points, counter-clockwise (Andrew's monotone chain);
+    empty for fewer than 3 points."""
     k = points.shape[0]
     if k < 3:
-        return 0.0
+        return np.empty((0, 2))
     by_y = np.argsort(points[:, 1], kind="mergesort")
     order = by_y[np.argsort(points[by_y, 0], kind="mergesort")]  # lexicographic (x, y)
     p = points[order]
@@ -70,9 +71,18 @@ def hull_perimeter_2d(points: np.ndarray) -> float:
             m -= 1
         hull[m] = p[i]
         m += 1
+    return hull[:m - 1].copy()  # the chain ends where it began
+
+
+@njit(cache=True)
+def hull_perimeter_2d(points: np.ndarray) -> float:
+    """Perimeter of the convex hull of (k, 2) points; 0 for fewer than 3."""
+    hull = convex_hull_2d(points)
+    m = hull.shape[0]
     total = 0.0
-    for i in range(m - 1):
-        total += np.sqrt((hull[i + 1, 0] - hull[i, 0]) ** 2 + (hull[i + 1, 1] - hull[i, 1]) ** 2)
+    for i in range(m):
+        j = (i + 1) % m
+        total += np.sqrt((hull[j, 0] - hull[i, 0]) ** 2 + (hull[j, 1] - hull[i, 1]) ** 2)
     return total
 
 
@@ -113,3 +123,57 @@ def section_points_2d(vertices: np.ndarray, edges: np.ndarray, point: np.ndarray
                 out[k, r] = s
             k += 1
     return out[:k]
+
+
+@njit(cache=True)
+def section_depths(points: np.ndarray, vertices: np.ndarray, edges: np.ndarray, step: float) -> np.ndarray:
+    """(n,) depth (m) of each point (n, 3) inside the convex hull of the horizontal section of the mesh
+    edges (e, 2) at its height rounded to ``step`` m (distance to the hull's nearest edge line), 0 outside."""
+    n = points.shape[0]
+    depth = np.zeros(n)
+    if n == 0:
+        return depth
+    level = np.empty(n, np.int64)
+    for p in range(n):
+        level[p] = np.int64(np.round(points[p, 1] / step))
+    order = np.argsort(level)
+    section = np.empty((edges.shape[0], 2))
+    start = 0
+    while start < n:
+        value = level[order[start]]
+        stop = start
+        while stop < n and level[order[stop]] == value:
+            stop += 1
+        y = value * step
+        k = 0
+        for e in range(edges.shape[0]):  # where the plane y cuts each edge (x, z)
+            i, j = edges[e, 0], edges[e, 1]
+            di = vertices[i, 1] - y
+            dj = vertices[j, 1] - y
+            if di == 0.0:
+                section[k, 0] = vertices[i, 0]
+                section[k, 1] = vertices[i, 2]
+                k += 1
+            elif di * dj < 0.0:
+                t = di / (di - dj)
+                section[k, 0] = vertices[i, 0] + t * (vertices[j, 0] - vertices[i, 0])
+                section[k, 1] = vertices[i, 2] + t * (vertices[j, 2] - vertices[i, 2])
+                k += 1
+        hull = convex_hull_2d(section[:k])
+        m = hull.shape[0]
+        if m >= 3:
+            for q in range(start, stop):
+                p = order[q]
+                inside = np.inf
+                for c in range(m):  # counter-clockwise: the inward normal is the edge turned left
+                    d = (c + 1) % m
+                    ex = hull[d, 0] - hull[c, 0]
+                    ez = hull[d, 1] - hull[c, 1]
+                    length = np.sqrt(ex * ex + ez * ez)
+                    if length == 0.0:
+                        continue
+                    dist = (-ez * (points[p, 0] - hull[c, 0]) + ex * (points[p, 2] - hull[c, 1])) / length
+                    inside = min(inside, dist)
+                depth[p] = max(inside, 0.0)
+        start = stop
+    return depth

@@ -74,7 +74,8 @@ REQUIRED = ("height", "chest", "waist", "hips")
 OPTIONAL = ("shoulder_width", "arm_length", "inseam", "neck", "thigh", "upper_arm")
 
 # Angles, degrees. arm_angle: between the upper arm and the side of the torso in the frontal plane
-# (0 = hanging down, 90 = T-pose). elbow_bend: forearm flexion (0 = straight). leg_spread: each leg's
+# (0 = hanging down, 90 = T-pose; ``build_body`` raises an angle at which the arm would pass into the
+# torso to where it rests against it). elbow_bend: forearm flexion (0 = straight). leg_spread: each leg's
 # abduction from vertical.
 POSE_RANGES: dict[str, tuple[float, float]] = {
     "arm_angle": (0.0, 90.0),
@@ -83,7 +84,8 @@ POSE_RANGES: dict[str, tuple[float, float]] = {
 }
 
 POSE_DESCRIPTIONS: dict[str, str] = {
-    "arm_angle": "angle between the upper arm and the side of the torso, frontal plane, degrees (0 = hanging)",
+    "arm_angle": "angle between the upper arm and the side of the torso, frontal plane, degrees (0 = hanging; "
+                 "raised, if lower, to where the arm rests against the torso)",
     "elbow_bend": "elbow flexion, forearm forwards, degrees (0 = straight arm)",
     "leg_spread": "abduction of each leg from vertical, degrees",
 }

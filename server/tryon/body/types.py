@@ -26,6 +26,8 @@ class Body:
     maps: per-part OBBs and cylinder maps for collision.
     requested / achieved: measurements in cm; levels: height (m) at which each girth was taken.
     estimated: the optional measurements that were not given and were estimated (cm).
+    pose: the pose built, degrees (``Pose`` fields): the one asked for, except an arm angle too low for
+    the arm to clear the torso, which is raised to where the arm rests against it.
     """
 
     vertices: np.ndarray
@@ -40,3 +42,4 @@ class Body:
     achieved: dict
     levels: dict
     estimated: dict = field(default_factory=dict)
+    pose: dict = field(default_factory=dict)

@@ -423,5 +423,6 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         "polish_rounds": int(polish_rounds),
         "relax_move_mm": [float(1000 * piece_move.max()), float(1000 * relax_move.max())],
         "relaxed": bool(relaxed),
+        "pose": dict(body.pose),
     }
     return TryOnResult(vertices=full, faces=model.faces, strain=per_vertex, coarse=x, metrics=metrics)

@@ -42,9 +42,10 @@ PART_COLOURS = np.array([
 ], dtype=np.uint8)
 
 
-def body_json(body: Body) -> dict:
-    """The JSON answer of ``POST /api/bodies`` (see ``BodyOut``); arrays left as numpy (``json_bytes``),
-    the same content as ``export.mesh_json`` (vertices rounded to 0.01 mm)."""
+def body_json(body: Body, requested_pose: dict) -> dict:
+    """The JSON answer of ``POST /api/bodies`` (see ``BodyOut``) for a body built in ``requested_pose``
+    (degrees); arrays left as numpy (``json_bytes``), the same content as ``export.mesh_json`` (vertices
+    rounded to 0.01 mm)."""
     out = mesh_arrays(body.vertices, body.faces, decimals=5)
     out["parts"] = list(body.parts)
     out["face_part"] = np.ascontiguousarray(body.face_part)
@@ -54,6 +55,7 @@ def body_json(body: Body) -> dict:
         "levels": {k: round(v, 5) for k, v in body.levels.items()},
         "estimated": {k: round(v, 3) for k, v in body.estimated.items()},
     }
+    out["pose"] = {"requested": requested_pose, "achieved": body.pose}
     return out
 
 
@@ -75,13 +77,16 @@ def create_body(
     format: MeshFormatBody = Query("json", description="json (mesh + measurements) or glb (binary glTF)"),
 ) -> Response:
     """Build the body for the measurements (cm) and pose (degrees): metres, y up, feet on y = 0, facing +z.
-    The JSON answer gives the achieved measurements of the built mesh beside the requested ones."""
+    The JSON answer gives the achieved measurements of the built mesh beside the requested ones, and the
+    pose built beside the one asked for (an arm angle too low for the arm to clear the torso is raised to
+    where the arm rests against it)."""
     m, pose = to_body_params(request.measurements, request.pose)
     body = build_body(m, pose, request.resolution)
     if format == "glb":
         return Response(body_glb(body), media_type=MEDIA_TYPES["glb"],
-                        headers={"X-Body-Measurements": json.dumps(body.achieved, separators=(",", ":"))})
-    return Response(json_bytes(body_json(body)), media_type="application/json")
+                        headers={"X-Body-Measurements": json.dumps(body.achieved, separators=(",", ":")),
+                                 "X-Body-Pose": json.dumps(body.pose, separators=(",", ":"))})
+    return Response(json_bytes(body_json(body, request.pose.model_dump())), media_type="application/json")
 
 
 @router.get("/bodies/ranges", response_model=RangesOut)

@@ -127,6 +127,13 @@ class BodyMeasurementsOut(BaseModel):
     estimated: dict[str, float] = Field(description="optional measurements that were estimated, cm")
 
 
+class BodyPoseOut(BaseModel):
+    requested: dict[str, float] = Field(description="pose angles as given, degrees")
+    achieved: dict[str, float] = Field(description="pose angles of the built body, degrees: as given, except an "
+                                                   "arm angle too low for the arm to clear the torso, raised to "
+                                                   "where the arm rests against it")
+
+
 class BodyOut(BaseModel):
     """The body mesh: metres, y up, feet on y = 0, facing +z, its left arm towards +x."""
 
@@ -135,6 +142,7 @@ class BodyOut(BaseModel):
     parts: list[str] = Field(description="part names; face_part indexes this list")
     face_part: list[int] = Field(description="(f,) part index of every face")
     measurements: BodyMeasurementsOut
+    pose: BodyPoseOut
 
 
 class RangeOut(BaseModel):

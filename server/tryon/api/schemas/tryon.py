@@ -88,6 +88,10 @@ class TryOnMetricsOut(BaseModel):
                                                              "its end); null for a garment with none")
     limb_openings: list[LimbOpeningOut] = Field(default_factory=list,
                                                 description="each such opening and where it ended")
+    pose: dict[str, float] = Field(default_factory=dict,
+                                   description="pose angles of the body draped on, degrees: as asked, except an arm "
+                                               "angle too low for the arm to clear the torso, raised to where the "
+                                               "arm rests against it")
 
 
 class TryOnOut(BaseModel):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 
 from tryon.body.build import build_body
 from tryon.body.params import Measurements, Pose
@@ -83,7 +84,9 @@ def test_each_piece_is_aligned_by_its_kind_with_its_legs_over_the_legs(outfit, b
     # the trousers hang from the body's waist (the local turn may lift the back of the band a little),
     # not |LIFT| below where the shirt would have put them
     assert abs(x[trousers, 1].max() - lm.waist_y) < 0.03
-    crotch = garment_crotch(x[trousers], lm.center_x)
+    index = np.cumsum(trousers) - 1
+    faces = index[model.coarse_faces[trousers[model.coarse_faces].all(axis=1)]]
+    crotch = garment_crotch(x[trousers], faces, lm.center_x)
     assert crotch is not None and crotch < lm.crotch_y
     # each leg's centre is on the body's leg axis at the shin (it was SPLAY / 2 or more off there)
     y = x[:, 1]
@@ -96,10 +99,28 @@ def test_each_piece_is_aligned_by_its_kind_with_its_legs_over_the_legs(outfit, b
             assert abs(centre[0] - target_x) < 0.02, (sign, height, centre[0], target_x)
 
 
+@pytest.mark.parametrize("kind", ["trousers", "shorts"])
+def test_the_crotch_is_where_the_legs_part_however_close_they_hang(kind):
+    """The crotch found on the coarse mesh is where the full mesh's section (trimesh) goes from one loop to
+    two, within 2 cm. The catalogue's trousers hang with their legs within 2 cm of each other down to the
+    knees, and the lowest point near the centre line (the crotch before) was there; the shorts' was their
+    hem, and they were taken for a skirt."""
+    mesh = garment_mesh(kind, "M")
+    model = _prepared(np.array(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces), "bottom")
+    crotch = garment_crotch(model.coarse_vertices, model.coarse_faces, 0.0)
+    assert crotch is not None
+    full = trimesh.Trimesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), process=False)
+
+    def loops(y):
+        return len(full.section(plane_origin=[0.0, y, 0.0], plane_normal=[0.0, 1.0, 0.0]).discrete)
+
+    assert loops(crotch + 0.02) == 1 and loops(crotch - 0.02) == 2
+
+
 def test_a_skirt_has_no_crotch_and_its_points_keep_their_shape(body):
     skirt = garment_mesh("skirt", "M")
     model = _prepared(np.array(skirt.vertices, dtype=np.float64), np.asarray(skirt.faces), "bottom")
-    assert garment_crotch(model.coarse_vertices, 0.0) is None
+    assert garment_crotch(model.coarse_vertices, model.coarse_faces, 0.0) is None
     x = align_garment(body, model)
     # a rigid motion (translation and a turn about x): every distance is kept
     d0 = np.linalg.norm(model.coarse_vertices[1:] - model.coarse_vertices[:-1], axis=1)

@@ -44,3 +44,11 @@ def cloth_distance(x: np.ndarray, faces: np.ndarray, sources: np.ndarray) -> np.
     w = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
     graph = scipy.sparse.coo_matrix((w, (e[:, 0], e[:, 1])), shape=(len(x), len(x))).tocsr()
     return scipy.sparse.csgraph.dijkstra(graph, directed=False, indices=np.asarray(sources), min_only=True)
+
+
+def face_edge_ids(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(edges (e, 2) int64, ids (f, 3) int64): the unique undirected edges of the triangles ``faces``
+    (f, 3), and which one each face's edge from corner c to corner c + 1 is."""
+    ends = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    edges, ids = np.unique(ends.astype(np.int64), axis=0, return_inverse=True)
+    return edges, ids.reshape(-1, 3)

@@ -26,9 +26,9 @@ from scipy.spatial import ConvexHull, QhullError, cKDTree
 from tryon.body.params import POSE_RANGES
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
-from tryon.garment.topology import boundary_loops
+from tryon.garment.topology import boundary_loops, face_edge_ids
 from tryon.sim.bodystate import _rotation
-from tryon.sim.pieces import bottom_mask
+from tryon.sim.pieces import bottom_mask, section_sides
 
 # m: the garment's shoulder line is placed this far above the body's (a few mm of air, so the first
 # step does not start in contact; gravity closes the gap at once).
@@ -103,6 +103,10 @@ CENTRE_BAND = 0.02
 # A bottom has legs when its crotch is higher than this fraction of its height above its hem (shorts:
 # ~0.3, trousers ~0.75; a skirt's centre line reaches its hem: 0).
 MIN_LEG_FRACTION = 0.15
+# m: the crotch is looked for in sections this far apart; a piece of a section counts with this many
+# edges crossed or more (a leg of the coarse trousers crosses ~25).
+CROTCH_STEP = 0.01
+MIN_SECTION_EDGES = 3
 # m: height of the bands in which a trouser leg's centre is measured, and the height below the crotch
 # over which the leg's shift onto the body's leg blends in.
 LEG_BIN = 0.08
@@ -237,20 +241,23 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
         if sel.any():
             index = np.cumsum(sel) - 1  # a point's index among the selected ones
             openings = [index[loop] for loop in loops if sel[loop].all()]
-            x[sel], _ = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs, feet, openings)
+            faces = index[model.coarse_faces[sel[model.coarse_faces].all(axis=1)]]
+            x[sel], _ = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs, feet, openings, faces)
     return x
 
 
 def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool, guessed: bool,
                  scale: float | None, legs: dict[float, np.ndarray] | None = None, foot_y: float | None = None,
-                 openings: list[np.ndarray] | None = None) -> tuple[np.ndarray, float | None]:
+                 openings: list[np.ndarray] | None = None,
+                 faces: np.ndarray | None = None) -> tuple[np.ndarray, float | None]:
     """Global then local alignment of the points (k, 3) of one kind of piece (``top``: hung from the
     shoulders, else from the waist). ``scale``: the factor a guessed-units garment was already scaled by
     (None: decide it here from the girth); ``legs``: the body's leg axes (``leg_axes``), over which a
     bottom's legs are put; ``foot_y``: the top of the body's feet (``foot_top``), above which a trouser
     leg's hem is put; ``openings``: the pieces' boundary loops (index arrays into x), which tell a
-    sleeve from a wide bodice or a cape (``sleeve_openings``). Returns the aligned copy and the scale used
-    (None if not guessed)."""
+    sleeve from a wide bodice or a cape (``sleeve_openings``); ``faces`` (f, 3) its triangles, in which a
+    bottom's crotch is found (None: no legs). Returns the aligned copy and the scale used (None if not
+    guessed)."""
     x = x.copy()
     level = lm.chest_y if top else lm.hips_y
 
@@ -291,16 +298,17 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
 
     # --- local: turn about X through the collar / waistband centre (paper 3.1)
     x = local_alignment(x, torso, lm, top)
-    if not top:
-        crotch = garment_crotch(x, lm.center_x)
+    if not top and faces is not None:
+        crotch = garment_crotch(x, faces, lm.center_x)
         if crotch is not None and crotch > lm.crotch_y - CROTCH_DROP:
             # a low-rise bottom (its top at the hips on the body it was made for), or one the turn lifted:
             # lowered until its crotch is under the body's, rather than cut the body's crotch with its seam
             x[:, 1] += lm.crotch_y - CROTCH_DROP - crotch
-        if legs is not None:
-            x = fit_legs(x, lm, legs)
-        if foot_y is not None:
-            x = clear_feet(x, lm.center_x, foot_y)
+            crotch = lm.crotch_y - CROTCH_DROP
+        if crotch is not None and legs is not None:
+            x = fit_legs(x, lm, legs, crotch)
+        if crotch is not None and foot_y is not None:
+            x = clear_feet(x, crotch, foot_y)
     return x, scale
 
 
@@ -370,18 +378,19 @@ def has_sleeves(x: np.ndarray, lm: BodyLandmarks) -> bool:
     return all(sleeve_mask(x, lm, sign).sum() >= MIN_SLEEVE_POINTS for sign in (1.0, -1.0))
 
 
-def garment_crotch(x: np.ndarray, cx: float) -> float | None:
-    """Height (m) of a bottom's crotch: the lowest of its points (k, 3) on the centre line x = ``cx``
-    (the seams meet there above the legs); None for a skirt, whose centre line runs down to its hem."""
-    # a coarse piece (a MakeHuman skirt keeps 49 vertices) may have no vertex within CENTRE_BAND of the
-    # centre line on some of its rings: the band is at least the points' typical spacing
-    spacing = float(np.median(cKDTree(x).query(x, k=2)[0][:, 1])) if len(x) > 2 else 0.0
-    centre = np.abs(x[:, 0] - cx) < max(CENTRE_BAND, spacing)
-    if centre.sum() < 3:
-        return None
+def garment_crotch(x: np.ndarray, faces: np.ndarray, cx: float) -> float | None:
+    """Height (m) of a bottom's crotch, to ``CROTCH_STEP``: the highest level, down from its top, whose
+    section has a piece on each side of the centre line x = ``cx`` (``pieces.section_sides``); None for a
+    skirt, whose section never parts. Its points (k, 3), its faces (f, 3). The lowest point near the centre line,
+    used before, was the catalogue trousers' knees (their legs hang within 2 cm of each other down to there)
+    and the shorts' hems (no crotch: shorts were taken for a skirt)."""
     y0, y1 = float(x[:, 1].min()), float(x[:, 1].max())
-    crotch = float(x[centre, 1].min())
-    return crotch if crotch - y0 > MIN_LEG_FRACTION * (y1 - y0) else None
+    edges, face_edges = face_edge_ids(faces)
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    for y in np.arange(y1 - CROTCH_STEP, y0, -CROTCH_STEP):
+        if all(section_sides(x, faces, face_edges, edges, float(y), cx, MIN_SECTION_EDGES)):
+            return float(y) if y - y0 > MIN_LEG_FRACTION * (y1 - y0) else None
+    return None
 
 
 def leg_axes(body: Body) -> dict[float, np.ndarray] | None:
@@ -397,43 +406,66 @@ def leg_axes(body: Body) -> dict[float, np.ndarray] | None:
     return out
 
 
-def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray]) -> np.ndarray:
-    """Move each trouser leg of the bottom points (k, 3) over the body's leg: the leg's centre at each
-    height (mean of its points in a band) is moved onto the body's leg axis at that height, blending in
-    over ``LEG_BLEND`` below the crotch so the seat does not move. A garment modelled on a body standing
-    with its feet further apart (MakeHuman) otherwise starts with the body's shins outside its legs, and
-    the collision pulls the legs across (twisted or splayed legs). Nothing moves for a skirt, or when no
-    leg is off by ``MIN_LEG_SHIFT``."""
+def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], crotch: float) -> np.ndarray:
+    """Move each trouser leg of the bottom points (k, 3) over the body's leg. First the leg is turned,
+    rigidly, from its own direction (a line through its centres, the mean of its points in bands) onto the
+    body leg's, about its centre at the crotch; then its centre at each height is moved onto the body's leg
+    axis. Both blend in over ``LEG_BLEND`` below the crotch so the seat does not move. A garment modelled on
+    a body standing with its feet further apart (MakeHuman) or closer together (the catalogue's trousers on
+    legs spread 20 degrees) otherwise starts with the body's shins outside its legs, and the collision pulls
+    the legs across (twisted or splayed legs). Moving the centres alone shears a leg: on legs spread 20
+    degrees the trousers M started with 816 springs over their limits, strained up to 69 %. ``crotch``: its
+    height (``garment_crotch``). Nothing moves when no leg is off by ``MIN_LEG_SHIFT``."""
     cx = lm.center_x
-    crotch = garment_crotch(x, cx)
-    if crotch is None:
-        return x
     y = x[:, 1]
     low = float(y.min())
     n_bins = max(2, int(np.ceil((crotch - low) / LEG_BIN)))
     edges = np.linspace(low, crotch, n_bins + 1)
     centres = 0.5 * (edges[:-1] + edges[1:])
-    shifts = {}
+
+    def leg_centres(x, leg):  # (n_bins, 2) x, z of the leg's centre in each band, or None if one is empty
+        b = np.clip(np.searchsorted(edges, x[leg, 1]) - 1, 0, n_bins - 1)
+        count = np.bincount(b, minlength=n_bins)
+        if (count == 0).any():
+            return None
+        return np.stack([np.bincount(b, weights=x[leg, c], minlength=n_bins) / count for c in (0, 2)], axis=1)
+
+    def axis_at(axis):  # (n_bins, 2) x, z of the body's leg axis at the bands' heights
+        ay = axis[::-1, 1]  # the polyline runs downwards: reverse it for np.interp
+        return np.stack([np.interp(centres, ay, axis[::-1, c]) for c in (0, 2)], axis=1)
+
+    found = {}
     for sign, axis in legs.items():
         leg = (sign * (x[:, 0] - cx) > 0) & (y < crotch)
         if leg.sum() < 3 * n_bins:
             return x
-        b = np.clip(np.searchsorted(edges, y[leg]) - 1, 0, n_bins - 1)
-        count = np.bincount(b, minlength=n_bins)
-        if (count == 0).any():
+        centre = leg_centres(x, leg)
+        if centre is None:
             return x
-        centre = np.stack([np.bincount(b, weights=x[leg, c], minlength=n_bins) / count for c in (0, 2)], axis=1)
-        # the body's axis at the bins' heights (the polyline runs downwards: reverse it for np.interp)
-        ay = axis[::-1, 1]
-        target = np.stack([np.interp(centres, ay, axis[::-1, c]) for c in (0, 2)], axis=1)
-        shifts[sign] = (leg, target - centre)
-    if max(np.abs(d).max() for _, d in shifts.values()) < MIN_LEG_SHIFT:
+        found[sign] = (leg, centre)
+    if max(np.abs(axis_at(legs[s]) - c).max() for s, (_, c) in found.items()) < MIN_LEG_SHIFT:
         return x
     x = x.copy()
-    for leg, d in shifts.values():
-        blend = np.clip((crotch - y[leg]) / LEG_BLEND, 0.0, 1.0)
+    for sign, (leg, centre) in found.items():
+        blend = np.clip((crotch - y[leg]) / LEG_BLEND, 0.0, 1.0)[:, None]
+        # the leg's direction: a line x, z = a + b y through the centres of the bands below the blend
+        below = centres < crotch - LEG_BLEND
+        if below.sum() >= 2:
+            slope = np.polyfit(centres[below], centre[below], 1)[0]  # (2,) dx/dy, dz/dy
+            own = -np.array([slope[0], 1.0, slope[1]])
+            own /= np.linalg.norm(own)
+            body_dir = legs[sign][-1] - legs[sign][0]
+            body_dir /= np.linalg.norm(body_dir)
+            turn_axis = np.cross(own, body_dir)
+            sin_a = float(np.linalg.norm(turn_axis))
+            if sin_a > 1e-6:
+                turn = _rotation(turn_axis / sin_a, float(np.arctan2(sin_a, own @ body_dir)))
+                top = np.array([np.interp(crotch, centres, centre[:, 0]), crotch, np.interp(crotch, centres, centre[:, 1])])
+                x[leg] += blend * ((x[leg] - top) @ turn.T + top - x[leg])
+                centre = leg_centres(x, leg)
+        d = axis_at(legs[sign]) - centre
         for j, c in enumerate((0, 2)):
-            x[leg, c] += blend * np.interp(y[leg], centres, d[:, j])
+            x[leg, c] += blend[:, 0] * np.interp(x[leg, 1], centres, d[:, j])
     return x
 
 
@@ -468,17 +500,17 @@ def foot_top(body: Body) -> float | None:
     return max(tops) if tops else None
 
 
-def clear_feet(x: np.ndarray, cx: float, foot_y: float) -> np.ndarray:
+def clear_feet(x: np.ndarray, crotch: float, foot_y: float) -> np.ndarray:
     """A bottom's points (k, 3) whose legs reach below ``foot_y`` + ``FOOT_CLEARANCE`` (trousers made for a
     taller body, or whose hem lies on the floor) with the legs shortened from the crotch down, uniformly,
     so that the hem starts just above the feet: a hem placed through the feet starts with each foot
     through the leg's front (the springs across the instep, which growth cannot undo: no point is inside),
     and the foot keeps the leg caught. The legs' springs, compressed, lengthen again in the first steps,
-    and the hem comes down around the foot. Nothing changes for a skirt or shorts."""
-    crotch = garment_crotch(x, cx)
+    and the hem comes down around the foot. ``crotch``: its height (``garment_crotch``). Nothing changes
+    for shorts."""
     target = foot_y + FOOT_CLEARANCE
     hem = float(x[:, 1].min())
-    if crotch is None or hem >= target or crotch <= target:
+    if hem >= target or crotch <= target:
         return x
     x = x.copy()
     legs = x[:, 1] < crotch

@@ -18,6 +18,7 @@ microseconds on a 700-vertex coarse mesh, cheaper than a new cached model format
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from tryon.garment.topology import vertex_pieces
 
@@ -52,3 +53,49 @@ def bottom_mask(points: np.ndarray, faces: np.ndarray, category: str) -> np.ndar
     highest = int(np.argmax(top_y))
     cut = low_y[highest] + BOTTOM_TOP_FRACTION * (top_y[highest] - low_y[highest])
     return (top_y < cut)[label]
+
+
+@njit(cache=True, nogil=True)
+def _root(parent, e):
+    while parent[e] != e:
+        parent[e] = parent[parent[e]]  # path halving
+        e = parent[e]
+    return e
+
+
+@njit(cache=True, nogil=True)
+def section_sides(x, faces, face_edges, edges, y, cx, min_edges):
+    """(left, right): whether the horizontal section at height ``y`` (m) of the mesh (points x (k, 3),
+    faces (f, 3), their edges from ``topology.face_edge_ids``) has a piece whose mean x is below ``cx``
+    (m), and one whose mean x is above it. A piece is a connected run of the section (the crossed edges of
+    adjacent faces) crossing ``min_edges`` edges or more. A pair of trousers has one piece above its crotch
+    (the seat, about the centre line) and two below (the legs), however close the legs hang."""
+    n_e = edges.shape[0]
+    parent = np.arange(n_e)
+    crossed = np.empty(n_e, np.bool_)
+    for e in range(n_e):
+        crossed[e] = (x[edges[e, 0], 1] > y) != (x[edges[e, 1], 1] > y)
+    for f in range(faces.shape[0]):
+        first = -1
+        for c in range(3):
+            e = face_edges[f, c]
+            if crossed[e]:
+                if first < 0:
+                    first = e
+                else:  # a face crossed by the plane joins its two crossed edges
+                    parent[_root(parent, e)] = _root(parent, first)
+    count = np.zeros(n_e)
+    sum_x = np.zeros(n_e)
+    for e in range(n_e):
+        if crossed[e]:
+            r = _root(parent, e)
+            count[r] += 1.0
+            sum_x[r] += 0.5 * (x[edges[e, 0], 0] + x[edges[e, 1], 0])
+    left = False
+    right = False
+    for r in range(n_e):
+        if count[r] >= min_edges:
+            mean = sum_x[r] / count[r]
+            left = left or mean < cx
+            right = right or mean > cx
+    return left, right

@@ -51,9 +51,11 @@ MAX_LOCAL_TURN = np.radians(15.0)
 # body's) is measured for the local turn (see ``local_alignment``).
 EASE_BAND = 0.02
 # m: how far in front of the shin's axis the body's surface counts as the foot (the ankle's radius is
-# 3-4 cm, the foot reaches 11-17 cm forward below ~5 cm), and how far above the feet a trouser hem is put.
+# 3-4 cm, the foot reaches 11-17 cm forward below ~5 cm), and how far above the feet a trouser hem is put
+# (with 1 cm, once the legs were shortened from the real crotch, the small body's trousers S caught the
+# front of a hem on the instep: 88 springs over down its shin; with 2 or 3 cm none are).
 FOOT_REACH = 0.06
-FOOT_CLEARANCE = 0.01
+FOOT_CLEARANCE = 0.02
 # A sleeve's points lie beyond this many torso half-widths from the centre (past the bodice of a fitted top
 # or dress), above the chest-to-waist mid level; a side with fewer than MIN_SLEEVE_POINTS such points has
 # no sleeve. The torso's width, not the shoulder joints': the upper arm's axis starts in its rounded cap,

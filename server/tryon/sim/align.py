@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError, cKDTree
+from scipy.spatial import ConvexHull, QhullError
 
 from tryon.body.params import POSE_RANGES
 from tryon.body.types import Body
@@ -99,11 +99,8 @@ MAX_ELBOW_TURN = np.radians(POSE_RANGES["elbow_bend"][1] + 30.0)
 # m: a bottom's crotch is put at least this far below the body's (a low-rise pair of trousers, whose top
 # sits at the hips, is lowered from the waist until it is); the crotch seam then hangs clear of the body.
 CROTCH_DROP = 0.02
-# m: half-width of the centre line on which a bottom's crotch is looked for (the coarse mesh's edges are
-# 2-3 cm: a seam vertex lies within 2 cm of the centre).
-CENTRE_BAND = 0.02
 # A bottom has legs when its crotch is higher than this fraction of its height above its hem (shorts:
-# ~0.3, trousers ~0.75; a skirt's centre line reaches its hem: 0).
+# ~0.3, trousers ~0.75; a skirt's section never parts).
 MIN_LEG_FRACTION = 0.15
 # m: the crotch is looked for in sections this far apart; a piece of a section counts with this many
 # edges crossed or more (a leg of the coarse trousers crosses ~25).
@@ -383,9 +380,9 @@ def has_sleeves(x: np.ndarray, lm: BodyLandmarks) -> bool:
 def garment_crotch(x: np.ndarray, faces: np.ndarray, cx: float) -> float | None:
     """Height (m) of a bottom's crotch, to ``CROTCH_STEP``: the highest level, down from its top, whose
     section has a piece on each side of the centre line x = ``cx`` (``pieces.section_sides``); None for a
-    skirt, whose section never parts. Its points (k, 3), its faces (f, 3). The lowest point near the centre line,
-    used before, was the catalogue trousers' knees (their legs hang within 2 cm of each other down to there)
-    and the shorts' hems (no crotch: shorts were taken for a skirt)."""
+    skirt, whose section never parts. Its points (k, 3), its faces (f, 3). The lowest point near the
+    centre line, used before, was the catalogue trousers' knees (their legs hang within 2 cm of each other
+    down to there) and the shorts' hems (no crotch: shorts were taken for a skirt)."""
     y0, y1 = float(x[:, 1].min()), float(x[:, 1].max())
     edges, face_edges = face_edge_ids(faces)
     faces = np.ascontiguousarray(faces, dtype=np.int64)
@@ -462,7 +459,8 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], cr
             sin_a = float(np.linalg.norm(turn_axis))
             if sin_a > 1e-6:
                 turn = _rotation(turn_axis / sin_a, float(np.arctan2(sin_a, own @ body_dir)))
-                top = np.array([np.interp(crotch, centres, centre[:, 0]), crotch, np.interp(crotch, centres, centre[:, 1])])
+                top = np.array([np.interp(crotch, centres, centre[:, 0]), crotch,
+                                np.interp(crotch, centres, centre[:, 1])])
                 x[leg] += blend * ((x[leg] - top) @ turn.T + top - x[leg])
                 centre = leg_centres(x, leg)
         d = axis_at(legs[sign]) - centre

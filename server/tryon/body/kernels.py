@@ -137,29 +137,16 @@ def section_depths(points: np.ndarray, vertices: np.ndarray, edges: np.ndarray, 
     for p in range(n):
         level[p] = np.int64(np.round(points[p, 1] / step))
     order = np.argsort(level)
-    section = np.empty((edges.shape[0], 2))
+    up = np.array([0.0, 1.0, 0.0])
+    basis = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # the section's (x, -z), as ``plane_basis`` gives
     start = 0
     while start < n:
         value = level[order[start]]
         stop = start
         while stop < n and level[order[stop]] == value:
             stop += 1
-        y = value * step
-        k = 0
-        for e in range(edges.shape[0]):  # where the plane y cuts each edge (x, z)
-            i, j = edges[e, 0], edges[e, 1]
-            di = vertices[i, 1] - y
-            dj = vertices[j, 1] - y
-            if di == 0.0:
-                section[k, 0] = vertices[i, 0]
-                section[k, 1] = vertices[i, 2]
-                k += 1
-            elif di * dj < 0.0:
-                t = di / (di - dj)
-                section[k, 0] = vertices[i, 0] + t * (vertices[j, 0] - vertices[i, 0])
-                section[k, 1] = vertices[i, 2] + t * (vertices[j, 2] - vertices[i, 2])
-                k += 1
-        hull = convex_hull_2d(section[:k])
+        section = section_points_2d(vertices, edges, np.array([0.0, value * step, 0.0]), up, basis, 1e-10)
+        hull = convex_hull_2d(section)
         m = hull.shape[0]
         if m >= 3:
             for q in range(start, stop):
@@ -167,12 +154,12 @@ def section_depths(points: np.ndarray, vertices: np.ndarray, edges: np.ndarray, 
                 inside = np.inf
                 for c in range(m):  # counter-clockwise: the inward normal is the edge turned left
                     d = (c + 1) % m
-                    ex = hull[d, 0] - hull[c, 0]
-                    ez = hull[d, 1] - hull[c, 1]
-                    length = np.sqrt(ex * ex + ez * ez)
+                    e0 = hull[d, 0] - hull[c, 0]
+                    e1 = hull[d, 1] - hull[c, 1]
+                    length = np.sqrt(e0 * e0 + e1 * e1)
                     if length == 0.0:
                         continue
-                    dist = (-ez * (points[p, 0] - hull[c, 0]) + ex * (points[p, 2] - hull[c, 1])) / length
+                    dist = (-e1 * (points[p, 0] - hull[c, 0]) + e0 * (-points[p, 2] - hull[c, 1])) / length
                     inside = min(inside, dist)
                 depth[p] = max(inside, 0.0)
         start = stop

@@ -246,16 +246,15 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
 
 
 def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool, guessed: bool,
-                 scale: float | None, legs: dict[float, np.ndarray] | None = None, foot_y: float | None = None,
-                 openings: list[np.ndarray] | None = None,
-                 faces: np.ndarray | None = None) -> tuple[np.ndarray, float | None]:
+                 scale: float | None, legs: dict[float, np.ndarray] | None, foot_y: float | None,
+                 openings: list[np.ndarray], faces: np.ndarray) -> tuple[np.ndarray, float | None]:
     """Global then local alignment of the points (k, 3) of one kind of piece (``top``: hung from the
     shoulders, else from the waist). ``scale``: the factor a guessed-units garment was already scaled by
     (None: decide it here from the girth); ``legs``: the body's leg axes (``leg_axes``), over which a
     bottom's legs are put; ``foot_y``: the top of the body's feet (``foot_top``), above which a trouser
     leg's hem is put; ``openings``: the pieces' boundary loops (index arrays into x), which tell a
     sleeve from a wide bodice or a cape (``sleeve_openings``); ``faces`` (f, 3) its triangles, in which a
-    bottom's crotch is found (None: no legs). Returns the aligned copy and the scale used (None if not
+    bottom's crotch is found. Returns the aligned copy and the scale used (None if not
     guessed)."""
     x = x.copy()
     level = lm.chest_y if top else lm.hips_y
@@ -297,7 +296,7 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
 
     # --- local: turn about X through the collar / waistband centre (paper 3.1)
     x = local_alignment(x, torso, lm, top)
-    if not top and faces is not None:
+    if not top:
         crotch = garment_crotch(x, faces, lm.center_x)
         if crotch is not None and crotch > lm.crotch_y - CROTCH_DROP:
             # a low-rise bottom (its top at the hips on the body it was made for), or one the turn lifted:
@@ -441,11 +440,11 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], cr
         centre = leg_centres(x, leg)
         if centre is None:
             return x
-        found[sign] = (leg, centre)
-    if max(np.abs(axis_at(legs[s]) - c).max() for s, (_, c) in found.items()) < MIN_LEG_SHIFT:
+        found[sign] = (leg, centre, axis_at(axis))
+    if max(np.abs(target - centre).max() for _, centre, target in found.values()) < MIN_LEG_SHIFT:
         return x
     x = x.copy()
-    for sign, (leg, centre) in found.items():
+    for sign, (leg, centre, target) in found.items():
         blend = np.clip((crotch - y[leg]) / LEG_BLEND, 0.0, 1.0)[:, None]
         # the leg's direction: a line x, z = a + b y through the centres of the bands below the blend
         below = centres < crotch - LEG_BLEND
@@ -463,7 +462,7 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], cr
                                 np.interp(crotch, centres, centre[:, 1])])
                 x[leg] += blend * ((x[leg] - top) @ turn.T + top - x[leg])
                 centre = leg_centres(x, leg)
-        d = axis_at(legs[sign]) - centre
+        d = target - centre
         for j, c in enumerate((0, 2)):
             x[leg, c] += blend[:, 0] * np.interp(x[leg, 1], centres, d[:, j])
     return x

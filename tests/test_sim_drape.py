@@ -175,6 +175,28 @@ def test_a_sleeve_a_few_degrees_off_the_arm_is_aimed_through_its_cuff(catalogue,
     assert m["display_max_strain"] < 0.6
 
 
+def test_sleeves_made_hanging_beside_the_torso_end_round_the_arms(catalogue, body, monkeypatch):
+    """A long-sleeve made on arms hanging at the sides (3 degrees, the generator's sleeves turned down; the
+    DiffCloth dress's sleeves hang so): its sleeves lie within the torso's width, where no sleeve is looked
+    for, and its cuffs at the hips. The arms are aimed through the cuffs and turned back, carrying the
+    sleeves. Before, the arms stayed at 30 degrees, cut through the sleeves, and neither cuff ended round
+    an arm."""
+    from tryon.garment import generate
+    from tryon.sim.align import plan_arms
+
+    monkeypatch.setattr(generate, "ARM_ANGLE_DEG", 3.0)
+    text = generate.obj_text(generate.garment_mesh("longsleeve", "M"), "long-sleeve M, sleeves hanging")
+    meta = catalogue.ingest(text.encode(), name="hanging sleeves", category="top", units="m",
+                            filename="longsleeve-hanging.obj")
+    model = catalogue.model(meta.id)
+    plan = plan_arms(body, align_garment(body, model), "top", model.coarse_faces, model.coarse_loops)
+    # the body's arms are at 30 degrees, the sleeves at 3
+    assert 22.0 < np.degrees(plan.left) < 32.0 and 22.0 < np.degrees(plan.right) < 32.0
+    m = drape(body, model, SimSettings()).metrics
+    assert m["rest_reached"] and m["penetrating_vertices"] == 0
+    assert sorted(o["around"] for o in m["limb_openings"]) == ["forearm_l", "forearm_r"]
+
+
 def test_sleeves_made_at_another_angle_than_the_arms_are_still_arm_openings(catalogue):
     """With the arms raised to 70 degrees the long-sleeve's cuffs, as made, hang nearer the thighs than the
     arms; they are still the sleeves' openings (told by the piece they are on), and the sleeve metric

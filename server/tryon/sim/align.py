@@ -65,6 +65,17 @@ FOOT_CLEARANCE = 0.02
 # medium and large bodies (within 1 mm).
 SLEEVE_REACH = 1.07
 MIN_SLEEVE_POINTS = 8
+# A sleeve made on arms hanging at the sides (the DiffCloth dress's, whose cuffs hang at the hips) lies within
+# the torso's half-width, where no sleeve is looked for: its cuff is an opening on one side centred more
+# than this x the upper arm's length from the shoulder joint. On the medium body a sleeveless bodice's
+# armhole is centred 0.14-0.3 of it from the joint (the catalogue's sleeveless dresses, the DiffAvatar strap
+# dress), a short sleeve's cuff 0.73-0.86 (the catalogue's and DiffAvatar's T-shirts), the DiffCloth dress's 1.18.
+HANGING_CUFF = 0.6
+# An opening on one side of the body (a sleeve's cuff, an armhole, a trouser hem) has at least this fraction
+# of its points on that side of the centre line (a neck, waist or hem opening runs round it).
+OPENING_SHARE = 0.8
+# m: an opening shorter round than this is a hole in the mesh: no wrist or ankle fits through it.
+MIN_PERIMETER = 0.12
 # Smallest difference between sleeve and arm angles worth posing the arms for, radians.
 MIN_ARM_TURN = np.radians(6.0)
 # A sleeve whose cuff's centre lies farther than CUFF_MISS x the cuff's mean radius from the arm's line is
@@ -369,6 +380,39 @@ def sleeve_openings(x: np.ndarray, lm: BodyLandmarks, sign: float, loops: list[n
     return out
 
 
+def hanging_cuff(body: Body, side: str, x: np.ndarray, lm: BodyLandmarks, sign: float, loops: list[np.ndarray],
+                 upper: np.ndarray) -> np.ndarray | None:
+    """The cuff (point ids into x (k, 3)) of a sleeve hanging beside the torso on one side (``side`` "l" |
+    "r", ``sign`` +1 for the body's left), or None: of the openings of the pieces over the shoulders
+    (``upper`` (k,) bool) lying on that side of the centre line (``OPENING_SHARE`` of their points) and at
+    least ``MIN_PERIMETER`` round, the one farthest below the shoulder joint, if its centre is more than
+    ``HANGING_CUFF`` x the upper arm's length from the joint and off the arm's line by more than its own
+    radius (the arm would miss it). A sleeveless bodice's armhole is centred near the joint."""
+    if _part(body, f"upper_arm_{side}") is None:
+        return None
+    joint, elbow, _ = arm_joints(body, side)
+    reach = HANGING_CUFF * float(np.linalg.norm(elbow - joint))
+    arm = arm_direction(body, side)
+    best, best_drop = None, 0.0
+    for loop in loops:
+        if len(loop) < 3 or not upper[loop].all():
+            continue
+        p = x[loop]
+        if ((p[:, 0] - lm.center_x) * sign > 0).mean() < OPENING_SHARE:
+            continue
+        if float(np.linalg.norm(p - np.roll(p, 1, axis=0), axis=1).sum()) < MIN_PERIMETER:
+            continue
+        centre = p.mean(axis=0)
+        radius = float(np.linalg.norm(p - centre, axis=1).mean())
+        rel = centre - joint
+        if np.linalg.norm(rel) < reach or np.linalg.norm(rel - (rel @ arm) * arm) <= CUFF_MISS * radius:
+            continue
+        drop = joint[1] - centre[1]
+        if drop > best_drop:
+            best, best_drop = loop, drop
+    return best
+
+
 def has_sleeves(x: np.ndarray, lm: BodyLandmarks) -> bool:
     """Whether the top's points (k, 3) reach out like a sleeve (``MIN_SLEEVE_POINTS`` or more) on each
     side. Reach alone: the side of a bodice wider than the body's shoulders reaches as far, and only an
@@ -595,12 +639,17 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
         default_axis = (0.0, 0.0, sign)
         out[side] = (0.0, default_axis, 0.0, default_axis)
         cuffs[side] = None
-        if sel.sum() < MIN_SLEEVE_POINTS:
-            continue
-        ends = sleeve_openings(x, lm, sign, loops, upper)
-        if faces is not None and not ends:
-            # no opening out there: the side of a bodice wider than the body's shoulders (a dress two sizes
-            # too big), not a sleeve; turning the arm onto it carries the armhole down the arm
+        ends = sleeve_openings(x, lm, sign, loops, upper) if sel.sum() >= MIN_SLEEVE_POINTS else []
+        if not ends and (faces is not None or sel.sum() < MIN_SLEEVE_POINTS):
+            # no sleeve reaching out with an opening out there. Maybe the side of a bodice wider than the
+            # body's shoulders (a dress two sizes too big), not a sleeve: turning the arm onto it would carry
+            # the armhole down the arm. But a sleeve made on arms at the sides hangs beside the torso: the
+            # arm is aimed through its cuff
+            hanging = hanging_cuff(body, side, x, lm, sign, loops, upper)
+            if hanging is not None:
+                cuffs[side] = hanging
+                turn, axis = _turn_between(arm_direction(body, side), x[hanging].mean(axis=0) - joint)
+                out[side] = (turn, axis, 0.0, default_axis)
             continue
         if ends:
             cuffs[side] = far_opening(x, ends, joint)

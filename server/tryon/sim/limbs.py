@@ -21,14 +21,12 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.topology import boundary_loops
-from tryon.sim.align import body_landmarks, part_points
+from tryon.sim.align import MIN_PERIMETER, OPENING_SHARE, body_landmarks, part_points
 from tryon.sim.pieces import bottom_mask
 
 # The parts of each limb, from the body's trunk out.
 LIMB_PARTS = {"arm": ("upper_arm", "forearm"), "leg": ("thigh", "shin")}
 SIDES = (("left", "l", 1.0), ("right", "r", -1.0))
-# m: an opening shorter round than this is a hole in the mesh: no wrist or ankle fits through it.
-MIN_PERIMETER = 0.12
 # m: farther than this from the axis, on average, an opening is not around that limb (a skirt-wide ring).
 MAX_RADIUS = 0.2
 # Along the axis, as a fraction of the part's length from its joint: a cuff may hang over the hand and a
@@ -40,8 +38,6 @@ SECTION_HALF = 0.015
 # beyond this and within MAX_RADIUS of the end hangs past the limb's end (a sleeve longer than the arm, its
 # cuff bunched over the fingers).
 END_FRACTION = 0.9
-# At least this fraction of an opening's points lie on its side of the centre line.
-OPENING_SHARE = 0.8
 
 
 def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body, category: str,

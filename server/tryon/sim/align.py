@@ -624,8 +624,10 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
     A long sleeve bent at the elbow (``bent_sleeve_turns``) is followed in two turns instead: the upper
     arm onto the sleeve's upper part, then the forearm about the elbow onto the sleeve's far opening; a
     straight arm turned at the shoulder only cuts through such a sleeve below the elbow.
+    A sleeve made on arms hanging at the sides lies within the torso's width, with no points out there: the
+    arm is aimed through its cuff (``hanging_cuff``), an opening on that side far below the shoulder joint.
     No sleeve (bottoms, too few points, or no opening out there: a sleeveless bodice wider than the body's
-    shoulders): no turn.
+    shoulders, whose armhole is centred near the joint): no turn.
     """
     if category == "bottom":
         return ArmPlan(0.0, 0.0)

@@ -115,10 +115,17 @@ def test_live_figures(tmp_path):
             t.start()
             threads.append(t)
             time.sleep(0.3)
-        time.sleep(0.5)
         latencies = []
         with httpx.Client(timeout=5) as client:
-            busy = client.get(f"{url}/api/health").json()["simulations"]
+            # until every worker runs and the queue is full: on a loaded machine the last admissions can
+            # come later than the requests' spacing (a fixed wait once saw 1 waiting of 2)
+            deadline = time.monotonic() + 15.0
+            while True:
+                busy = client.get(f"{url}/api/health").json()["simulations"]
+                full = busy["running"] == busy["workers"] and busy["waiting"] == busy["queue"]
+                if full or time.monotonic() > deadline:
+                    break
+                time.sleep(0.05)
             for _ in range(30):
                 t = time.perf_counter()
                 client.get(f"{url}/api/health")

@@ -380,12 +380,22 @@ def sleeve_openings(x: np.ndarray, lm: BodyLandmarks, sign: float, loops: list[n
     return out
 
 
+def side_opening(points: np.ndarray, lm: BodyLandmarks, sign: float) -> bool:
+    """Whether an opening, its points (q, 3) in order round it, is one a limb fits through on one side of the
+    body (``sign`` +1: the body's left): at least ``MIN_PERIMETER`` round, ``OPENING_SHARE`` of its points on
+    that side of the centre line (a sleeve's cuff, an armhole, a trouser hem; not a neck, waist or hem)."""
+    if len(points) < 3:
+        return False
+    if float(np.linalg.norm(points - np.roll(points, 1, axis=0), axis=1).sum()) < MIN_PERIMETER:
+        return False
+    return bool(((points[:, 0] - lm.center_x) * sign > 0).mean() >= OPENING_SHARE)
+
+
 def hanging_cuff(body: Body, side: str, x: np.ndarray, lm: BodyLandmarks, sign: float, loops: list[np.ndarray],
                  upper: np.ndarray) -> np.ndarray | None:
     """The cuff (point ids into x (k, 3)) of a sleeve hanging beside the torso on one side (``side`` "l" |
     "r", ``sign`` +1 for the body's left), or None: of the openings of the pieces over the shoulders
-    (``upper`` (k,) bool) lying on that side of the centre line (``OPENING_SHARE`` of their points) and at
-    least ``MIN_PERIMETER`` round, the one farthest below the shoulder joint, if its centre is more than
+    (``upper`` (k,) bool) on that side (``side_opening``), the one farthest below the shoulder joint, if its centre is more than
     ``HANGING_CUFF`` x the upper arm's length from the joint and off the arm's line by more than its own
     radius (the arm would miss it). A sleeveless bodice's armhole is centred near the joint."""
     if _part(body, f"upper_arm_{side}") is None:
@@ -395,12 +405,10 @@ def hanging_cuff(body: Body, side: str, x: np.ndarray, lm: BodyLandmarks, sign: 
     arm = arm_direction(body, side)
     best, best_drop = None, 0.0
     for loop in loops:
-        if len(loop) < 3 or not upper[loop].all():
+        if not upper[loop].all():
             continue
         p = x[loop]
-        if ((p[:, 0] - lm.center_x) * sign > 0).mean() < OPENING_SHARE:
-            continue
-        if float(np.linalg.norm(p - np.roll(p, 1, axis=0), axis=1).sum()) < MIN_PERIMETER:
+        if not side_opening(p, lm, sign):
             continue
         centre = p.mean(axis=0)
         radius = float(np.linalg.norm(p - centre, axis=1).mean())

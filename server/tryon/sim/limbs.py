@@ -21,7 +21,7 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.topology import boundary_loops
-from tryon.sim.align import MIN_PERIMETER, OPENING_SHARE, body_landmarks, part_points
+from tryon.sim.align import body_landmarks, part_points, side_opening
 from tryon.sim.pieces import bottom_mask
 
 # The parts of each limb, from the body's trunk out.
@@ -44,8 +44,8 @@ def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body, category: str,
                   loops: list[np.ndarray] | None = None) -> list[tuple[str, str, np.ndarray]]:
     """The openings of the aligned garment (coarse points x (k, 3) m, faces (f, 3), ``category`` top |
     bottom | dress) that should end around a limb: (side "left" | "right", limb "arm" | "leg", point ids
-    (q,) int64 in order round it) for every opening at least ``MIN_PERIMETER`` round lying (``OPENING_SHARE``
-    of its points) on one side of the body's centre line: sleeve cuffs and armholes of the pieces over the
+    (q,) int64 in order round it) for every opening on one side of the body's centre line that a limb fits
+    through (``align.side_opening``): sleeve cuffs and armholes of the pieces over the
     shoulders, leg hems of the pieces hanging from the waist if there is one on each side (trousers, shorts;
     not a skirt's slit). A neck, waist or hem opening runs round the centre line and is none of them.
     ``loops``: the mesh's boundary loops if known (``GarmentModel.coarse_loops``)."""
@@ -57,14 +57,11 @@ def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body, category: str,
     out = []
     for loop in boundary_loops(faces, len(x)) if loops is None else loops:
         loop = loop[ring_order(x[loop])]
-        perimeter = float(np.linalg.norm(x[loop] - np.roll(x[loop], 1, axis=0), axis=1).sum())
-        if len(loop) < 3 or perimeter < MIN_PERIMETER:
-            continue  # a hole in the mesh, not an opening a limb fits through
         # a sleeve may be made at any angle to this body's arm (the DiffCloth dress's hang down to its
         # hips, nearer the thighs than the arms): which piece an opening is on says which limb it is for
         limb = "leg" if bottom[loop].all() else "arm"
         for side, _, sign in SIDES:
-            if ((x[loop, 0] - lm.center_x) * sign > 0).mean() >= OPENING_SHARE:
+            if side_opening(x[loop], lm, sign):  # not a hole in the mesh, nor a neck, waist or hem
                 out.append((side, limb, loop))
     # trousers have a leg opening on each side; a single one is a skirt's slit or a hole in the mesh
     leg_sides = {side for side, limb, _ in out if limb == "leg"}

@@ -391,13 +391,23 @@ def side_opening(points: np.ndarray, lm: BodyLandmarks, sign: float) -> bool:
     return bool(((points[:, 0] - lm.center_x) * sign > 0).mean() >= OPENING_SHARE)
 
 
+def arm_misses(cuff: np.ndarray, joint: np.ndarray, arm: np.ndarray) -> bool:
+    """Whether an arm from the shoulder ``joint`` (3,) along the unit direction ``arm`` (3,) misses the
+    opening whose points are ``cuff`` (q, 3): the opening's centre lies farther from the arm's line than
+    ``CUFF_MISS`` x its mean radius."""
+    centre = cuff.mean(axis=0)
+    radius = float(np.linalg.norm(cuff - centre, axis=1).mean())
+    rel = centre - joint
+    return float(np.linalg.norm(rel - (rel @ arm) * arm)) > CUFF_MISS * radius
+
+
 def hanging_cuff(body: Body, side: str, x: np.ndarray, lm: BodyLandmarks, sign: float, loops: list[np.ndarray],
                  upper: np.ndarray) -> np.ndarray | None:
     """The cuff (point ids into x (k, 3)) of a sleeve hanging beside the torso on one side (``side`` "l" |
     "r", ``sign`` +1 for the body's left), or None: of the openings of the pieces over the shoulders
-    (``upper`` (k,) bool) on that side (``side_opening``), the one farthest below the shoulder joint, if its centre is more than
-    ``HANGING_CUFF`` x the upper arm's length from the joint and off the arm's line by more than its own
-    radius (the arm would miss it). A sleeveless bodice's armhole is centred near the joint."""
+    (``upper`` (k,) bool) on that side (``side_opening``), the one farthest below the shoulder joint, if
+    its centre is more than ``HANGING_CUFF`` x the upper arm's length from the joint and the arm would miss
+    it (``arm_misses``). A sleeveless bodice's armhole is centred near the joint."""
     if _part(body, f"upper_arm_{side}") is None:
         return None
     joint, elbow, _ = arm_joints(body, side)
@@ -411,9 +421,7 @@ def hanging_cuff(body: Body, side: str, x: np.ndarray, lm: BodyLandmarks, sign: 
         if not side_opening(p, lm, sign):
             continue
         centre = p.mean(axis=0)
-        radius = float(np.linalg.norm(p - centre, axis=1).mean())
-        rel = centre - joint
-        if np.linalg.norm(rel) < reach or np.linalg.norm(rel - (rel @ arm) * arm) <= CUFF_MISS * radius:
+        if np.linalg.norm(centre - joint) < reach or not arm_misses(p, joint, arm):
             continue
         drop = joint[1] - centre[1]
         if drop > best_drop:
@@ -678,13 +686,10 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
         misses_cuff = False
         if ends:
             # the arm must go through the cuff: aim at the centre of the far opening if the arm misses it
-            far = cuffs[side]
-            cuff = x[far].mean(axis=0)
-            radius = float(np.linalg.norm(x[far] - cuff, axis=1).mean())
-            along = (cuff - joint) @ arm
-            misses_cuff = float(np.linalg.norm(cuff - joint - along * arm)) > CUFF_MISS * radius
+            far = x[cuffs[side]]
+            misses_cuff = arm_misses(far, joint, arm)
             if misses_cuff:
-                turn, axis = _turn_between(arm, cuff - joint)
+                turn, axis = _turn_between(arm, far.mean(axis=0) - joint)
         if misses_cuff or turn >= MIN_ARM_TURN:
             out[side] = (turn, axis, 0.0, default_axis)
     (lt, la, le, lea), (rt, ra, re, rea) = out["l"], out["r"]

@@ -27,6 +27,10 @@ from tryon.garment.topology import vertex_pieces
 # MakeHuman trousers and skirt tops are at 0.05-0.25 of their shirt's or blouse's height, and a collar,
 # belt or sleeve piece modelled beside a top reaches far higher.
 BOTTOM_TOP_FRACTION = 0.5
+# A piece of a section counts as a leg when it crosses at least this share of the section's crossed edges (a
+# trouser leg below the crotch: about half; the DiffCloth skirt's section meets small flaps, 4-6 edges of 95,
+# on either side of the centre line, and it was taken for shorts and lowered from the waist).
+LEG_SHARE = 0.25
 
 
 def piece_labels(faces: np.ndarray, n_vertices: int) -> np.ndarray:
@@ -68,7 +72,7 @@ def section_sides(x, faces, face_edges, edges, y, cx, min_edges):
     """(left, right): whether the horizontal section at height ``y`` (m) of the mesh (points x (k, 3),
     faces (f, 3), their edges from ``topology.face_edge_ids``) has a piece whose mean x is below ``cx``
     (m), and one whose mean x is above it. A piece is a connected run of the section (the crossed edges of
-    adjacent faces) crossing ``min_edges`` edges or more. A pair of trousers has one piece above its crotch
+    adjacent faces) crossing ``min_edges`` edges or more, and ``LEG_SHARE`` of the section's. A pair of trousers has one piece above its crotch
     (the seat, about the centre line) and two below (the legs), however close the legs hang."""
     n_e = edges.shape[0]
     parent = np.arange(n_e)
@@ -86,15 +90,17 @@ def section_sides(x, faces, face_edges, edges, y, cx, min_edges):
                     parent[_root(parent, e)] = _root(parent, first)
     count = np.zeros(n_e)
     sum_x = np.zeros(n_e)
+    total = 0.0
     for e in range(n_e):
         if crossed[e]:
             r = _root(parent, e)
             count[r] += 1.0
+            total += 1.0
             sum_x[r] += 0.5 * (x[edges[e, 0], 0] + x[edges[e, 1], 0])
     left = False
     right = False
     for r in range(n_e):
-        if count[r] >= min_edges:
+        if count[r] >= max(min_edges, LEG_SHARE * total):
             mean = sum_x[r] / count[r]
             left = left or mean < cx
             right = right or mean > cx

@@ -14,8 +14,10 @@ from tryon.garment.ingest import CleanMesh
 from tryon.garment.prepare import prepare
 from tryon.garment.topology import boundary_loops
 from tryon.sim.align import (
-    align_garment, arm_direction, arm_joints, body_landmarks, garment_crotch, leg_axes, plan_arms,
+    LEG_BLEND, LEG_EASE, align_garment, arm_direction, arm_joints, body_landmarks, garment_crotch, leg_axes,
+    leg_points, leg_radii, plan_arms,
 )
+from tryon.sim.constraints import spring_strain
 from tryon.sim.bodystate import _rotation
 from tryon.sim.pieces import bottom_mask, piece_labels
 from tryon.sim.run import drape
@@ -126,6 +128,52 @@ def test_a_skirt_has_no_crotch_and_its_points_keep_their_shape(body):
     d0 = np.linalg.norm(model.coarse_vertices[1:] - model.coarse_vertices[:-1], axis=1)
     d1 = np.linalg.norm(x[1:] - x[:-1], axis=1)
     assert np.allclose(d0, d1, atol=1e-9)
+
+
+def test_a_skirt_with_small_flaps_either_side_has_no_crotch():
+    """A section's small pieces are not legs: the DiffCloth skirt's section meets folds of 4-6 edges of 95 on
+    either side of the centre line, and it was taken for shorts (and lowered from the waist). Here the
+    generated skirt, 5 mm left of the centre line, with a narrow strip of cloth 5 cm right of it."""
+    skirt = garment_mesh("skirt", "M")
+    v = np.array(skirt.vertices, dtype=np.float64)
+    v[:, 0] -= 0.005
+    y0 = float(v[:, 1].max()) - 0.15
+    grid = np.array([[0.05 + 0.005 * i, y0 + 0.01 * j, 0.0] for j in range(6) for i in range(4)])
+    quads = [(4 * j + i, 4 * j + i + 1, 4 * (j + 1) + i, 4 * (j + 1) + i + 1) for j in range(5) for i in range(3)]
+    strip = np.array([f for a, b, c, d in quads for f in ((a, b, c), (b, d, c))]) + len(v)
+    faces = np.vstack([np.asarray(skirt.faces), strip])
+    assert garment_crotch(np.vstack([v, grid]), faces, 0.0) is None
+
+
+@pytest.mark.parametrize("thin", [0.8, 0.7])
+def test_a_guessed_units_bottoms_legs_keep_their_girth_but_not_less_than_the_legs(body, thin):
+    """Trousers modelled on a thinner body (the generator's, ``thin`` x as wide and deep), units guessed: the
+    waistband is scaled to the body's waist (1.22 and 1.39 x), the legs are not. Scaled, they started with
+    their hoop springs 22 % long, and shrank back in the first steps unevenly: the MakeHuman trousers' hems
+    slid off the large body's shins. At 0.8 every leg spring is within its limit; at 0.7 the legs are
+    narrower than the body's calves, and keep LEG_EASE x their width."""
+    trousers = garment_mesh("trousers", "M")
+    v = np.array(trousers.vertices, dtype=np.float64)
+    v[:, [0, 2]] *= thin
+    mesh = CleanMesh(vertices=v, faces=np.asarray(trousers.faces).astype(np.int32), units="m", units_guessed=True)
+    model = prepare(mesh, id="t", name="t", category="bottom", size="M", source_sha256="0", source_name="t.obj")
+    x = align_garment(body, model)
+    lm = body_landmarks(body)
+    def band_width(points):  # m, across the top 2 cm
+        return np.ptp(points[points[:, 1] > points[:, 1].max() - 0.02, 0])
+
+    assert band_width(x) > 1.15 * band_width(model.coarse_vertices)  # the waistband was scaled
+    crotch = garment_crotch(x, model.coarse_faces, lm.center_x)
+    strain = spring_strain(x, model.springs, model.rest)
+    legs = (x[model.springs, 1] < crotch - LEG_BLEND).all(axis=1) & (model.kind == 0)
+    if thin == 0.8:
+        assert strain[legs].max() <= 0.10 + 1e-6
+    surface, axes = leg_points(body), leg_axes(body)
+    for sign in (1.0, -1.0):
+        for y in (0.3, 0.5):
+            ring = x[(np.abs(x[:, 1] - y) < 0.03) & (sign * (x[:, 0] - lm.center_x) > 0)][:, [0, 2]]
+            radius = np.linalg.norm(ring - ring.mean(axis=0), axis=1).mean()
+            assert radius >= 0.95 * LEG_EASE * leg_radii(surface[sign], axes[sign], np.array([y]))[0]
 
 
 def test_arms_turn_in_3d_onto_sleeves_in_front_of_them(body):

@@ -4,7 +4,8 @@
    top's (or dress's) shoulder line sits on the body's shoulders, or a bottom's waistband at the body's
    waist level. A garment whose units were guessed at ingestion is also scaled so that its girth at the
    chest (hips for bottoms) is about 1.15 x the body's (a garment in the right units is never rescaled:
-   its size is the point of trying it on); a top's sleeves move out with its shoulders, unscaled.
+   its size is the point of trying it on); a top's sleeves move out with its shoulders, unscaled, and a
+   bottom's legs keep their own girth (but no less than the body's legs).
 2. Local alignment (the paper's construction): a = the garment's rear-most point (smallest z) on the
    torso, b = the body point nearest to a, c = the garment's highest point near the centre line (the
    collar for a top, the waistband for a bottom); the garment turns about the X axis through c by the
@@ -126,6 +127,10 @@ LEG_BLEND = 0.10
 # body, are 0-4.3 cm off on the small, medium and large bodies, and moving them changed their drapes both
 # ways; the MakeHuman outfits' trousers are 12-22 cm off).
 MIN_LEG_SHIFT = 0.05
+# A guessed-units bottom's legs keep their own girth, not the waistband's scale, but never less than this
+# times the body's leg at each height (the MakeHuman T-shirt outfit's trousers end mid-calf, narrower than a
+# large body's calf).
+LEG_EASE = 1.1
 
 
 @dataclass(frozen=True)
@@ -245,6 +250,7 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
     guessed = bool(getattr(model.meta, "units_guessed", False))
     bottom = bottom_mask(x, model.coarse_faces, model.meta.category)
     legs = leg_axes(body)
+    leg_surface = leg_points(body) if legs is not None else None
     feet = foot_top(body)
     loops = model.coarse_loops
     for is_top, sel in ((True, ~bottom), (False, bottom)):
@@ -252,20 +258,23 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
             index = np.cumsum(sel) - 1  # a point's index among the selected ones
             openings = [index[loop] for loop in loops if sel[loop].all()]
             faces = index[model.coarse_faces[sel[model.coarse_faces].all(axis=1)]]
-            x[sel], _ = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs, feet, openings, faces)
+            x[sel], _ = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs, feet, openings, faces,
+                                     leg_surface)
     return x
 
 
 def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool, guessed: bool,
                  scale: float | None, legs: dict[float, np.ndarray] | None, foot_y: float | None,
-                 openings: list[np.ndarray], faces: np.ndarray) -> tuple[np.ndarray, float | None]:
+                 openings: list[np.ndarray], faces: np.ndarray,
+                 leg_surface: dict[float, np.ndarray] | None = None) -> tuple[np.ndarray, float | None]:
     """Global then local alignment of the points (k, 3) of one kind of piece (``top``: hung from the
     shoulders, else from the waist). ``scale``: the factor a guessed-units garment was already scaled by
     (None: decide it here from the girth); ``legs``: the body's leg axes (``leg_axes``), over which a
     bottom's legs are put; ``foot_y``: the top of the body's feet (``foot_top``), above which a trouser
     leg's hem is put; ``openings``: the pieces' boundary loops (index arrays into x), which tell a
     sleeve from a wide bodice or a cape (``sleeve_openings``); ``faces`` (f, 3) its triangles, in which a
-    bottom's crotch is found. Returns the aligned copy and the scale used (None if not
+    bottom's crotch is found; ``leg_surface``: the body's leg points (``leg_points``), the least girth a
+    guessed-units bottom's legs keep. Returns the aligned copy and the scale used (None if not
     guessed)."""
     x = x.copy()
     level = lm.chest_y if top else lm.hips_y
@@ -315,7 +324,10 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
             x[:, 1] += lm.crotch_y - CROTCH_DROP - crotch
             crotch = lm.crotch_y - CROTCH_DROP
         if crotch is not None and legs is not None:
-            x = fit_legs(x, lm, legs, crotch)
+            # the girth scale is for the waistband, what holds the bottom up: the legs keep their own
+            # girth (scaled, they start stretched by the scale all round and shrink back in the first
+            # steps, unevenly: the MakeHuman trousers' hems slid off the large body's shins)
+            x = fit_legs(x, lm, legs, crotch, 1.0 / scale if scale else 1.0, leg_surface)
         if crotch is not None and foot_y is not None:
             x = clear_feet(x, crotch, foot_y)
     return x, scale
@@ -464,7 +476,30 @@ def leg_axes(body: Body) -> dict[float, np.ndarray] | None:
     return out
 
 
-def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], crotch: float) -> np.ndarray:
+def leg_points(body: Body) -> dict[float, np.ndarray]:
+    """Each leg's surface points (m, 3), thigh and shin, keyed by side as ``leg_axes``."""
+    out = {}
+    for sign, side in ((1.0, "l"), (-1.0, "r")):
+        parts = [k for k in (_part(body, f"thigh_{side}"), _part(body, f"shin_{side}")) if k is not None]
+        out[sign] = np.concatenate([part_points(body, k) for k in parts]) if parts else np.empty((0, 3))
+    return out
+
+
+def leg_radii(points: np.ndarray, axis: np.ndarray, heights: np.ndarray) -> np.ndarray:
+    """Median horizontal distance (m) of a leg's surface points (m, 3) from its axis (``leg_axes``, a
+    polyline running down) in bands ``LEG_BIN`` high about ``heights`` (h,); 0 where a band has none."""
+    ay = axis[::-1, 1]
+    out = np.zeros(len(heights))
+    for b, y in enumerate(heights):
+        near = points[np.abs(points[:, 1] - y) < 0.5 * LEG_BIN]
+        if len(near):
+            centre = np.array([np.interp(y, ay, axis[::-1, 0]), np.interp(y, ay, axis[::-1, 2])])
+            out[b] = float(np.median(np.linalg.norm(near[:, [0, 2]] - centre, axis=1)))
+    return out
+
+
+def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], crotch: float,
+             girth: float = 1.0, leg_surface: dict[float, np.ndarray] | None = None) -> np.ndarray:
     """Move each trouser leg of the bottom points (k, 3) over the body's leg. First the leg is turned,
     rigidly, from its own direction (a line through its centres, the mean of its points in bands) onto the
     body leg's, about its centre at the crotch; then its centre at each height is moved onto the body's leg
@@ -473,7 +508,10 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], cr
     legs spread 20 degrees) otherwise starts with the body's shins outside its legs, and the collision pulls
     the legs across (twisted or splayed legs). Moving the centres alone shears a leg: on legs spread 20
     degrees the trousers M started with 816 springs over their limits, strained up to 69 %. ``crotch``: its
-    height (``garment_crotch``). Nothing moves when no leg is off by ``MIN_LEG_SHIFT``."""
+    height (``garment_crotch``). Nothing moves when no leg is off by ``MIN_LEG_SHIFT``. ``girth``: each leg is
+    also scaled by this about its centres, around the leg (x, z), blending in as above (undoing a guessed-units
+    girth scale, ``_align_piece``), but not to less than ``LEG_EASE`` x the body's leg (``leg_surface``: its
+    points by side, ``leg_points``)."""
     cx = lm.center_x
     y = x[:, 1]
     low = float(y.min())
@@ -501,11 +539,25 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], cr
         if centre is None:
             return x
         found[sign] = (leg, centre, axis_at(axis))
-    if max(np.abs(target - centre).max() for _, centre, target in found.values()) < MIN_LEG_SHIFT:
+    shift = max(np.abs(target - centre).max() for _, centre, target in found.values()) >= MIN_LEG_SHIFT
+    if not shift and girth == 1.0:
         return x
     x = x.copy()
     for sign, (leg, centre, target) in found.items():
         blend = np.clip((crotch - y[leg]) / LEG_BLEND, 0.0, 1.0)[:, None]
+        if girth != 1.0:
+            mids = np.stack([np.interp(x[leg, 1], centres, centre[:, j]) for j in range(2)], axis=1)
+            rel = x[leg][:, [0, 2]] - mids
+            band = np.clip(np.searchsorted(edges, x[leg, 1]) - 1, 0, n_bins - 1)
+            radius = np.bincount(band, weights=np.linalg.norm(rel, axis=1), minlength=n_bins) / np.bincount(
+                band, minlength=n_bins)
+            # a band keeps its own girth, but no less than the body's leg there (with LEG_EASE): a hem too
+            # narrow for the calf would start inside it, and the growing calf pushes it aside
+            skin = leg_radii(leg_surface[sign], legs[sign], centres) if leg_surface is not None else 0.0
+            factor = np.interp(x[leg, 1], centres, np.clip(LEG_EASE * skin / radius, girth, 1.0))
+            x[np.flatnonzero(leg)[:, None], [0, 2]] = mids + rel * (1.0 + blend * (factor[:, None] - 1.0))
+        if not shift:
+            continue
         # the leg's direction: a line x, z = a + b y through the centres of the bands below the blend
         below = centres < crotch - LEG_BLEND
         if below.sum() >= 2:

@@ -132,17 +132,17 @@ class BodyCollider:
     # ------------------------------------------------------------------ queries
 
     def collide(self, x, x_prev, inv_mass, active, parts, lam, mu_static, mu_kinetic, contact, x_pred=None,
-                near=0.0, planes=None, hold_pinched=False) -> int:
+                near=0.0, planes=None, hold_pinched=False, held=None) -> int:
         """Push points ``x`` out of the offset body in place; returns how many moved (see collide_points).
         planes: optional (has_plane (k,), plane_point (k, 3), plane_normal (k, 3)) filled with contact planes;
-        hold_pinched: see collide_points (only for a body that does not move)."""
+        hold_pinched, held: see collide_points (only for a body that does not move)."""
         if planes is None:
             planes = (np.zeros(len(x), dtype=np.bool_), np.empty((len(x), 3)), np.empty((len(x), 3)))
         return collide_points(
             x, x_prev, x if x_pred is None else x_pred, inv_mass, active, parts, self.obb_normals, self.obb_offsets, self.cyl_origin,
             self.cyl_axes, self.cyl_zrange, self.cyl_shape, self.cell_base, self.cell_start, self.cell_faces,
             self.cell_rmax, self.offset, self.faces, self.offset_normals, lam, mu_static, mu_kinetic, contact,
-            self.cover, near, planes[0], planes[1], planes[2], self.offset_boxes, hold_pinched,
+            self.cover, near, planes[0], planes[1], planes[2], self.offset_boxes, hold_pinched, held,
         )
 
     def depth(self, points: np.ndarray, parts: np.ndarray, offset: bool = False) -> np.ndarray:

@@ -477,7 +477,7 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
 def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_offsets, cyl_origin, cyl_axes,
                    cyl_zrange, cyl_shape, cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, lam,
                    mu_static, mu_kinetic, contact, cover, near, has_plane, plane_point, plane_normal, fbox,
-                   hold_pinched=False):
+                   hold_pinched=False, held=None):
     """Push garment points out of the offset body, in place (paper 3.4, eq. 4 plus the fallbacks above).
 
     x, x_prev (k, 3) m (x_prev: positions at the start of the step; both updated in place); x_pred (k, 3)
@@ -492,7 +492,9 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
     lambda, and normal), for ``constraints.solve_constraints``; untested points keep theirs (and their
     contact flag).
     hold_pinched: a point pushed out of one part into another in every round (``ROUNDS``) stays where it
-    was at the start of the step (only while the body does not move: a growing body would grow into it).
+    was at the start of the step (only while the body does not move: a growing body would grow into it);
+    held (k,) bool out, if given: which tested points were held so (the caller keeps them still for the
+    step).
     One point at a time, each writing only its own row: safe to split the loop across threads.
     """
     target = np.empty(3)
@@ -508,6 +510,8 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
             continue
         contact[i] = False
         has_plane[i] = False
+        if held is not None:
+            held[i] = False
         p = x[i]
         x0[0] = p[0]
         x0[1] = p[1]
@@ -552,6 +556,8 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
             for ax in range(3):
                 p[ax] = x_prev[i, ax]
             has_plane[i] = False
+            if held is not None:
+                held[i] = True
             moved += 1
             continue
         if contact[i]:

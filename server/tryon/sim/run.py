@@ -12,7 +12,8 @@ substeps converge much further than the same passes on one step). Each substep:
    contacts still within ``PLANE_REUSE`` of where they touched only reuse their plane (no map query);
    later substeps push onto the planes, with friction on the predicted motion; a point pinched between two
    parts (pushed out of each into the other: cloth between touching thighs) is held where the step began
-   (``hold_pinched``, once the body no longer grows or turns);
+   (``hold_pinched``, once the body no longer grows or turns), and one flipping between the parts is kept
+   still through the step's substeps too (``PINCH_FLIP``);
 3. the strain-limited springs (eq. 2-3), ``passes / substeps`` Gauss-Seidel passes, each followed by the
    contact planes (springs and contacts converge together);
 4. the top-down sweep for hanging cloth (``sweep_downward``: a sagging free end follows the point above
@@ -132,6 +133,16 @@ ORDER_REFRESH = 20
 NEAR = 0.005
 # m: a contact plane is reused (no map query) while the point stays this close to where it touched.
 PLANE_REUSE = 0.01
+# m: a point held in a pinch (see the module doc) whose last two steps moved it more than this each, the
+# second back against the first, is flipping between the two parts (the springs moving it through one and
+# back every other step; ~5 cm under the armpit of the long-sleeve M with the arm at 15 degrees, the elbow
+# bent 100, which never came to rest): it is kept still, springs included, for as long as it stays
+# pinched. Only once the garment has fallen (after the start-up and ``min_steps``): holding every pinched
+# point still, or every one that moved over 1 cm, or flipping ones from the start, left a sleeveless dress's
+# armhole off the arm with the arms hanging, its cloth caught while falling, and a long-sleeve L with the
+# elbow bent 120 not at rest (``tryon bench --only poses``); flips over 1 cm left 26 springs over on the
+# T-shirt M with the elbow bent 120, over 3 cm the long-sleeve L at 15 degrees still flipping.
+PINCH_FLIP = 0.02
 # m: the floor the body stands on (its feet are on y = 0); trouser legs and long hems rest on it.
 FLOOR_Y = 0.001
 # Whether the floor is put under the offset body's soles (see ``drape``).
@@ -158,6 +169,14 @@ CONTACT_WEIGHT = 0.2
 CONTACT_PASSES = 1
 
 FrameCallback = Callable[[int, np.ndarray], bool]
+
+
+def flipped(last: np.ndarray, before: np.ndarray, least: float) -> np.ndarray:
+    """(k,) bool: which points' last move ``last`` (k, 3) m went back against the move before it ``before``
+    (k, 3), both longer than ``least`` m (an angle over 120 degrees between them)."""
+    a = np.linalg.norm(last, axis=1)
+    b = np.linalg.norm(before, axis=1)
+    return (a > least) & (b > least) & (np.einsum("ij,ij->i", last, before) < -0.5 * a * b)
 
 
 @dataclass
@@ -227,6 +246,9 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     push = np.zeros(len(x))
     has_plane = np.zeros(len(x), dtype=np.bool_)
     planes = (has_plane, np.zeros((len(x), 3)), np.zeros((len(x), 3)))
+    held = np.zeros(len(x), dtype=np.bool_)  # held in a pinch between two parts this step
+    flipping = np.zeros(len(x), dtype=np.bool_)  # held, and flipping between them: kept still (PINCH_FLIP)
+    moves = np.zeros((2, len(x), 3))  # m, each point's move in the step before and in the one before that
 
     startup = max(grow_steps, arms.steps)
     # the contact passes' and the sweep's springs, chosen each step once the body is complete
@@ -276,13 +298,19 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
             # moved since their last test and touch nothing are not tested at all
             reuse_planes(x, x_prev, *planes, PLANE_REUSE, mu_s, mu_k, contact, reused)
             points_to_test(x, x_checked, has_plane, reused, REST_MOVE, active)
+            active |= held
         collided = collider.collide(x, x_prev, inv_mass, active, parts, settings.contact_offset, mu_s, mu_k,
-                                    contact, near=NEAR, planes=planes, hold_pinched=not changing)
+                                    contact, near=NEAR, planes=planes, hold_pinched=not changing, held=held)
         x_checked[active] = x[active]
         touching = np.flatnonzero(has_plane)  # the points with a contact plane this step
+        # a point flipping in a pinch stays still for the whole step, springs included (PINCH_FLIP)
+        flipping &= held
+        if held.any() and step > startup + settings.min_steps:
+            flipping |= held & flipped(moves[0], moves[1], PINCH_FLIP)
+        step_mass = np.where(flipping, 0.0, inv_mass) if flipping.any() else inv_mass
         # points on the body count as heavier in the springs, so hanging cloth hangs from them instead of
         # dragging them in (mass scaling)
-        w_eff = np.where(has_plane, inv_mass * CONTACT_WEIGHT, inv_mass)
+        w_eff = np.where(has_plane, step_mass * CONTACT_WEIGHT, step_mass)
         contact_passes = CONTACT_PASSES if not changing else 0
         if contact_passes:
             body_ends, body_table = contact_springs(ends, table, has_plane)
@@ -296,7 +324,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
             sweep_ends, sweep_lmax = sweep_springs(ordered_ends, ordered_lmax, has_plane)
         # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its upward bias
         # would make a tight garment climb off the body
-        finish_step(x, x_prev, inv_mass, w_eff, h, gravity, settings.air_drag, settings.max_speed, n_sub, per_sub,
+        finish_step(x, x_prev, step_mass, w_eff, h, gravity, settings.air_drag, settings.max_speed, n_sub, per_sub,
                     ends, table, contact_passes, body_ends, body_table, touching, planes[1], planes[2], has_plane,
                     push, mu_s, mu_k, not changing, FTL_EVERY_SUBSTEP, sweep_ends, sweep_lmax, floor_y)
         # guard: collision wins over the springs within the step, so a garment far too small for its
@@ -307,6 +335,8 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         # at rest = the garment's own motion over the whole step (positions, not the solver's internal
         # velocities, which the strain limits and contact planes keep resetting)
         energy = kinetic_energy_per_kg(x, x_step, mass, dt)
+        moves[1] = moves[0]
+        np.subtract(x, x_step, out=moves[0])
         x_step[:] = x
         if not np.isfinite(energy):
             raise FloatingPointError(f"simulation diverged at step {step}")

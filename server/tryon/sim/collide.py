@@ -493,8 +493,8 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
     contact flag).
     hold_pinched: a point pushed out of one part into another in every round (``ROUNDS``) stays where it
     was at the start of the step (only while the body does not move: a growing body would grow into it);
-    held (k,) bool out, if given: which tested points were held so (the caller keeps them still for the
-    step).
+    held (k,) bool out, if given: which tested points were held so (``run.drape`` keeps those flipping
+    between two parts still for the step).
     One point at a time, each writing only its own row: safe to split the loop across threads.
     """
     target = np.empty(3)

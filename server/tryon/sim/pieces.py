@@ -72,8 +72,9 @@ def section_sides(x, faces, face_edges, edges, y, cx, min_edges):
     """(left, right): whether the horizontal section at height ``y`` (m) of the mesh (points x (k, 3),
     faces (f, 3), their edges from ``topology.face_edge_ids``) has a piece whose mean x is below ``cx``
     (m), and one whose mean x is above it. A piece is a connected run of the section (the crossed edges of
-    adjacent faces) crossing ``min_edges`` edges or more, and ``LEG_SHARE`` of the section's. A pair of trousers has one piece above its crotch
-    (the seat, about the centre line) and two below (the legs), however close the legs hang."""
+    adjacent faces) crossing ``min_edges`` edges or more, and ``LEG_SHARE`` of the section's. A pair of
+    trousers has one piece above its crotch (the seat, about the centre line) and two below (the legs),
+    however close the legs hang."""
     n_e = edges.shape[0]
     parent = np.arange(n_e)
     crossed = np.empty(n_e, np.bool_)

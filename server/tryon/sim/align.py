@@ -250,7 +250,7 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
     guessed = bool(getattr(model.meta, "units_guessed", False))
     bottom = bottom_mask(x, model.coarse_faces, model.meta.category)
     legs = leg_axes(body)
-    leg_surface = leg_points(body) if legs is not None else None
+    leg_surface = leg_points(body) if legs is not None and guessed else None  # only guessed units use it
     feet = foot_top(body)
     loops = model.coarse_loops
     for is_top, sel in ((True, ~bottom), (False, bottom)):
@@ -488,14 +488,19 @@ def leg_points(body: Body) -> dict[float, np.ndarray]:
 def leg_radii(points: np.ndarray, axis: np.ndarray, heights: np.ndarray) -> np.ndarray:
     """Median horizontal distance (m) of a leg's surface points (m, 3) from its axis (``leg_axes``, a
     polyline running down) in bands ``LEG_BIN`` high about ``heights`` (h,); 0 where a band has none."""
-    ay = axis[::-1, 1]
+    centres = axis_at(axis, heights)
     out = np.zeros(len(heights))
     for b, y in enumerate(heights):
         near = points[np.abs(points[:, 1] - y) < 0.5 * LEG_BIN]
         if len(near):
-            centre = np.array([np.interp(y, ay, axis[::-1, 0]), np.interp(y, ay, axis[::-1, 2])])
-            out[b] = float(np.median(np.linalg.norm(near[:, [0, 2]] - centre, axis=1)))
+            out[b] = float(np.median(np.linalg.norm(near[:, [0, 2]] - centres[b], axis=1)))
     return out
+
+
+def axis_at(axis: np.ndarray, heights: np.ndarray) -> np.ndarray:
+    """(h, 2) x, z (m) of a leg's axis (``leg_axes``, a polyline running down) at ``heights`` (h,) m."""
+    ay = axis[::-1, 1]  # the polyline runs downwards: reverse it for np.interp
+    return np.stack([np.interp(heights, ay, axis[::-1, c]) for c in (0, 2)], axis=1)
 
 
 def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], crotch: float,
@@ -526,10 +531,6 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], cr
             return None
         return np.stack([np.bincount(b, weights=x[leg, c], minlength=n_bins) / count for c in (0, 2)], axis=1)
 
-    def axis_at(axis):  # (n_bins, 2) x, z of the body's leg axis at the bands' heights
-        ay = axis[::-1, 1]  # the polyline runs downwards: reverse it for np.interp
-        return np.stack([np.interp(centres, ay, axis[::-1, c]) for c in (0, 2)], axis=1)
-
     found = {}
     for sign, axis in legs.items():
         leg = (sign * (x[:, 0] - cx) > 0) & (y < crotch)
@@ -538,7 +539,7 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], cr
         centre = leg_centres(x, leg)
         if centre is None:
             return x
-        found[sign] = (leg, centre, axis_at(axis))
+        found[sign] = (leg, centre, axis_at(axis, centres))
     shift = max(np.abs(target - centre).max() for _, centre, target in found.values()) >= MIN_LEG_SHIFT
     if not shift and girth == 1.0:
         return x

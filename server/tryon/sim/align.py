@@ -524,12 +524,17 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], cr
     edges = np.linspace(low, crotch, n_bins + 1)
     centres = 0.5 * (edges[:-1] + edges[1:])
 
+    def band_of(heights):  # the band each height (m) falls in
+        return np.clip(np.searchsorted(edges, heights) - 1, 0, n_bins - 1)
+
+    def band_mean(band, values):  # (n_bins,) mean of the values in each band (every band must have one)
+        return np.bincount(band, weights=values, minlength=n_bins) / np.bincount(band, minlength=n_bins)
+
     def leg_centres(x, leg):  # (n_bins, 2) x, z of the leg's centre in each band, or None if one is empty
-        b = np.clip(np.searchsorted(edges, x[leg, 1]) - 1, 0, n_bins - 1)
-        count = np.bincount(b, minlength=n_bins)
-        if (count == 0).any():
+        b = band_of(x[leg, 1])
+        if (np.bincount(b, minlength=n_bins) == 0).any():
             return None
-        return np.stack([np.bincount(b, weights=x[leg, c], minlength=n_bins) / count for c in (0, 2)], axis=1)
+        return np.stack([band_mean(b, x[leg, c]) for c in (0, 2)], axis=1)
 
     found = {}
     for sign, axis in legs.items():
@@ -549,9 +554,7 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], cr
         if girth != 1.0:
             mids = np.stack([np.interp(x[leg, 1], centres, centre[:, j]) for j in range(2)], axis=1)
             rel = x[leg][:, [0, 2]] - mids
-            band = np.clip(np.searchsorted(edges, x[leg, 1]) - 1, 0, n_bins - 1)
-            radius = np.bincount(band, weights=np.linalg.norm(rel, axis=1), minlength=n_bins) / np.bincount(
-                band, minlength=n_bins)
+            radius = band_mean(band_of(x[leg, 1]), np.linalg.norm(rel, axis=1))
             # a band keeps its own girth, but no less than the body's leg there (with LEG_EASE): a hem too
             # narrow for the calf would start inside it, and the growing calf pushes it aside
             skin = leg_radii(leg_surface[sign], legs[sign], centres) if leg_surface is not None else 0.0

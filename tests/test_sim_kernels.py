@@ -177,3 +177,23 @@ def test_top_down_order_is_a_stable_sort_of_the_steep_springs_by_upper_end():
     order = top_down_order(x, springs)
     assert np.array_equal(order, everything[steep[everything]])
     assert 0 < len(order) < len(springs)
+
+
+def test_spring_visits_count_the_passes_and_sweeps_of_a_step():
+    """``perf.spring_visits`` (what the perf figure's step is made of) from finish_step's own arguments: 8
+    substeps of 2 passes over 10 springs and 1 over the 4 on the body, the 6 hanging ones swept every
+    substep, or only in the last; ``passed=1`` leaves out the first substep's passes (the caller's)."""
+    import inspect
+
+    from tryon.sim import perf
+
+    names = list(inspect.signature(finish_step.py_func).parameters)
+    args = dict.fromkeys(names, 0)
+    args.update(n_sub=8, per_sub=2, ends=np.zeros((10, 2)), contact_passes=1, body_ends=np.zeros((4, 2)),
+                sweep=True, sweep_every_substep=True, sweep_ends=np.zeros((6, 2)))
+    visits = perf.spring_visits([args[n] for n in names])
+    assert visits["per_step"] == {"springs": 160, "contact_springs": 32, "sweep_springs": 48}
+    assert visits["total"] == 240
+    assert perf.spring_visits([args[n] for n in names], passed=1)["total"] == 140 + 28 + 48
+    args["sweep_every_substep"] = False
+    assert perf.spring_visits([args[n] for n in names])["per_step"]["sweep_springs"] == 6

@@ -7,7 +7,13 @@ times every kernel of the loop. Run ``python3 -m tryon.sim.perf``.
 
 ``finish_step`` runs 15 of a step's 16 substeps in one call; ``finish_step_ms_near_rest`` splits one such
 call, ten steps before rest, into what its spring passes, contact passes and top-down sweep add (on a
-quiet machine at 0af09b0: whole 4.9 ms = passes 2.2 + contact passes 1.5 + sweep 1.1 + tail 0.4).
+quiet machine at 0af09b0: whole 4.9 ms = passes 2.2 + contact passes 1.5 + sweep 1.1 + tail 0.4), and
+``spring_visits`` counts the springs such a step visits: at 1215040 16 substeps x (16,938 springs + 5,086 on
+the body + 10,068 hanging) = 513,472, at ~9 ns each. A step of about 1 ms would need ~2 ns a visit or
+about a fifth of the visits: a pass over the springs that only reads them (no writes, no branch on the
+result) already costs ~5 ns a spring here, and fewer substeps (8 or 4, as many passes) took more steps to
+rest and left waistbands over their limits on the small and medium bodies (the 90 catalogue drapes: 8 x 1
+pass, 398 springs over and 21 % more steps, about the same wall time; 4 x 1, 803 over, twice the steps).
 """
 
 from __future__ import annotations
@@ -124,6 +130,24 @@ def finish_step_split(args: list, repeats: int = 15) -> dict:
     return out
 
 
+def spring_visits(args: list, passed: int = 0) -> dict:
+    """How many springs one step visits, from ``finish_step``'s positional ``args`` on a captured step:
+    each of the ``n_sub`` substeps passes ``per_sub`` times over the springs and ``contact_passes`` times
+    over those with both ends on the body, and sweeps the hanging ones once (or only the last substep);
+    what a step's cost is made of (the passes are serial Gauss-Seidel, ~9 ns a visit). ``passed``: how
+    many substeps' passes to leave out (1: only what ``finish_step`` itself visits, the first substep's
+    passes being its caller's)."""
+    a = dict(zip(inspect.signature(run_module.finish_step.py_func).parameters, args))
+    n_sub = int(a["n_sub"])
+    sweeps = (n_sub if a["sweep_every_substep"] else 1) if a["sweep"] else 0
+    per_step = {
+        "springs": (n_sub - passed) * int(a["per_sub"]) * len(a["ends"]),
+        "contact_springs": (n_sub - passed) * int(a["contact_passes"]) * len(a["body_ends"]),
+        "sweep_springs": sweeps * len(a["sweep_ends"]),
+    }
+    return {"substeps": n_sub, "per_step": per_step, "total": sum(per_step.values())}
+
+
 def perf(repeats: int = 3, settings: SimSettings = SimSettings()) -> dict:
     """Best-of-``repeats`` timings (wall, after a warm-up run) of a full drape; see the module doc."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -157,6 +181,8 @@ def perf(repeats: int = 3, settings: SimSettings = SimSettings()) -> dict:
     totals = frames[-1][1]
     loop = sum(totals.values())
     loop_wall = (frames[-1][0] - frames[0][0]) / max(1, len(frames) - 1)
+    split = finish_step_split(timer.captured) if timer.captured else {}
+    visits = spring_visits(timer.captured) if timer.captured else {}
     return {
         "garment_vertices": int(len(model.vertices)),
         "particles": int(len(model.coarse_index)),
@@ -170,7 +196,11 @@ def perf(repeats: int = 3, settings: SimSettings = SimSettings()) -> dict:
         "ms_per_step": round(1000 * loop / steps, 3),
         "loop_wall_ms_per_step": round(1000 * loop_wall, 3),
         "ms_per_step_by_kernel": {k: round(1000 * v / steps, 3) for k, v in sorted(totals.items())},
-        "finish_step_ms_near_rest": finish_step_split(timer.captured) if timer.captured else {},
+        "finish_step_ms_near_rest": split,
+        "spring_visits_near_rest": visits,
+        # finish_step's time over the visits it makes
+        "ns_per_spring_visit": round(1e6 * split["whole"] / spring_visits(timer.captured, passed=1)["total"], 2)
+        if timer.captured else None,
         "penetrating_vertices": result.metrics["penetrating_vertices"],
         "max_strain": round(result.metrics["max_strain"], 3),
         "springs_over_target": sum(v["over"] for v in result.metrics["strain_by_kind"].values()),

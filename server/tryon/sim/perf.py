@@ -108,15 +108,18 @@ class _Timer:
 _FINISH_PARTS = {"passes": {"per_sub": 0}, "contact_passes": {"contact_passes": 0}, "sweep": {"sweep": False}}
 
 
+def finish_step_arguments(args: list) -> dict:
+    """``finish_step``'s positional ``args`` by parameter name (in its order)."""
+    return dict(zip(inspect.signature(run_module.finish_step.py_func).parameters, args))
+
+
 def finish_step_split(args: list, repeats: int = 15) -> dict:
     """What each part of ``finish_step`` costs on one captured step (its positional ``args``), ms: the
     whole call, and the time each of the spring passes, the contact passes and the top-down sweep adds
     (the call without it, subtracted from the whole; median of ``repeats``); the rest is the tail (Verlet,
     planes, friction, floor)."""
-    names = list(inspect.signature(run_module.finish_step.py_func).parameters)
-
     def timed(**off) -> float:
-        call = dict(zip(names, [a.copy() if hasattr(a, "copy") else a for a in args]))
+        call = finish_step_arguments([a.copy() if hasattr(a, "copy") else a for a in args])
         call.update(off)
         t = time.perf_counter()
         run_module.finish_step(*call.values())
@@ -137,7 +140,7 @@ def spring_visits(args: list, passed: int = 0) -> dict:
     what a step's cost is made of (the passes are serial Gauss-Seidel, ~9 ns a visit). ``passed``: how
     many substeps' passes to leave out (1: only what ``finish_step`` itself visits, the first substep's
     passes being its caller's)."""
-    a = dict(zip(inspect.signature(run_module.finish_step.py_func).parameters, args))
+    a = finish_step_arguments(args)
     n_sub = int(a["n_sub"])
     sweeps = (n_sub if a["sweep_every_substep"] else 1) if a["sweep"] else 0
     per_step = {

@@ -46,6 +46,9 @@ BAND_BELOW_WAIST = 0.02
 # see ``scale_girth_keep_sleeves``): over 5 cm an edge across it was stretched up to 1.7 x the scale
 # (3.1 x on the MakeHuman blouse at scale 1.8), over 15 cm 1.0-1.05 x.
 SLEEVE_BLEND = 0.15
+# Height bands between the body's waist and chest lines in which a top's centre line is found
+# (``bodice_centre_x``).
+CENTRE_BANDS = 5
 # Largest local-alignment turn about X, radians: the construction is a correction, not a re-posing.
 MAX_LOCAL_TURN = np.radians(15.0)
 # m: half-height of the band around the rear-most point a in which a top's ease (its depth beyond the
@@ -282,6 +285,10 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
     # --- global: centre x, place vertically, centre z
     x[:, 0] += lm.center_x - 0.5 * (x[:, 0].min() + x[:, 0].max())
     if top:
+        # a top is centred on its bodice, not on its whole extent (a skirt flared to one side, a sleeve
+        # raised higher than the other), first hung by its highest point to find the bodice's height
+        x[:, 1] += lm.shoulder_y - x[:, 1].max()
+        x[:, 0] += lm.center_x - bodice_centre_x(x, lm)
         dx = np.abs(x[:, 0] - lm.center_x)
         band = (dx > 0.5 * lm.shoulder_half) & (dx < 0.9 * lm.shoulder_half)
         garment_y = x[band, 1].max() if band.sum() >= 3 else x[:, 1].max()
@@ -331,6 +338,22 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
         if crotch is not None and foot_y is not None:
             x = clear_feet(x, crotch, foot_y)
     return x, scale
+
+
+def bodice_centre_x(x: np.ndarray, lm: BodyLandmarks) -> float:
+    """x (m) of the centre line of a top's points (k, 3) hung on the body: the median, over
+    ``CENTRE_BANDS`` height bands between the body's waist and chest lines, of the middle of the points'
+    extent in x in the band (the bodice, with the sleeves where they hang beside it). The middle of the
+    whole extent was off where a garment is not symmetric below its bodice: the DiffAvatar strap dress's
+    skirt flares further to one side, so its bodice started 1.8 cm off the body's centre, one side inside
+    the torso, and the body growing out of it pushed that side's strap off the shoulder (medium body, left
+    armhole off the arm). The middle of the whole extent if no band holds a point."""
+    mids = []
+    for y in np.linspace(lm.waist_y, lm.chest_y, CENTRE_BANDS):
+        band = x[np.abs(x[:, 1] - y) < 0.5 * (lm.chest_y - lm.waist_y) / CENTRE_BANDS, 0]
+        if len(band):
+            mids.append(0.5 * (band.min() + band.max()))
+    return float(np.median(mids)) if mids else 0.5 * float(x[:, 0].min() + x[:, 0].max())
 
 
 def scale_girth_keep_sleeves(x: np.ndarray, anchor: np.ndarray, scale: float, lm: BodyLandmarks,

@@ -242,6 +242,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         pinned_until = PIN_STEPS
     x_checked = x.copy()
     x_step = x.copy()
+    x_back = x.copy()  # where each point was two steps before (for the rest test)
     reused = np.zeros(len(x), dtype=np.bool_)
     push = np.zeros(len(x))
     has_plane = np.zeros(len(x), dtype=np.bool_)
@@ -332,11 +333,16 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         # its natural length a spring wins instead (the point may stay inside the body: the metrics
         # report it). Never active in a normal drape, whose springs stay within their limits.
         cap_stretch(x, inv_mass, springs, rest, TEAR_GUARD, TEAR_PASSES)
-        # at rest = the garment's own motion over the whole step (positions, not the solver's internal
-        # velocities, which the strain limits and contact planes keep resetting)
-        energy = kinetic_energy_per_kg(x, x_step, mass, dt)
+        # at rest = the garment's own motion over the last two steps (positions, not the solver's internal
+        # velocities, which the strain limits and contact planes keep resetting). Over two steps, because a
+        # point caught between the collision and its springs can flip between two places every step, going
+        # nowhere: three such points at the armpit of the DiffCloth dress on the large body (2-3 cm a step)
+        # kept it from rest for 400 steps. Over two steps, the 27 real-garment drapes all come to rest
+        # (25 before) in 1,800 steps instead of 2,433; the 90 catalogue drapes in 6,313 instead of 6,487.
         moves[1] = moves[0]
         np.subtract(x, x_step, out=moves[0])
+        x_back[:] = x_step - moves[1] if step > 1 else x_step
+        energy = kinetic_energy_per_kg(x, x_back, mass, 2 * dt if step > 1 else dt)
         x_step[:] = x
         if not np.isfinite(energy):
             raise FloatingPointError(f"simulation diverged at step {step}")

@@ -33,7 +33,8 @@ class SimSettings:
         a contact sticks while its tangential motion in a step is below friction_static x its depth, so a
         garment stays on shoulders and hips instead of creeping off them.
     rest_energy: J/kg (= m^2/s^2): the run stops when the mean kinetic energy per kilogram of cloth,
-        sum(m v^2 / 2) / sum(m) with v the step's displacement / time_step, stays under this for
+        sum(m v^2 / 2) / sum(m) with v the displacement over the last two steps / (2 time_step) (a point
+        flipping between two places every step goes nowhere), stays under this for
         ``rest_steps`` steps; 1e-3 J/kg = an rms speed of 4.5 cm/s (under 1 mm per 0.02 s step): the
         garment no longer visibly moves, the strain-limit solver's small jitter aside.
     rest_steps: consecutive steps under ``rest_energy`` needed to call the garment at rest.

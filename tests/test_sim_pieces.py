@@ -445,3 +445,22 @@ def test_a_bodice_wider_than_the_shoulders_is_not_a_sleeve():
     m = drape(small, model, SimSettings()).metrics
     assert m["penetrating_vertices"] == 0 and m["rest_reached"]
     assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0
+
+
+def test_a_dress_flared_to_one_side_is_centred_on_its_bodice(body):
+    """A sleeveless dress whose skirt flares 10 cm further to one side at the hem: its bodice is put on the
+    body's centre line (within 3 mm, as the symmetric dress), not its whole extent (which would put the
+    bodice 5 cm off, one side inside the torso: the DiffAvatar strap dress lost a strap so)."""
+    dress = garment_mesh("dress", "M")
+    v = np.array(dress.vertices, dtype=np.float64)
+    hips = v[:, 1].min() + 0.4 * (v[:, 1].max() - v[:, 1].min())
+    flared = v.copy()
+    right = v[:, 0] > 0.5 * (v[:, 0].min() + v[:, 0].max())
+    flared[right, 0] += 0.10 * np.clip((hips - v[right, 1]) / (hips - v[:, 1].min()), 0.0, 1.0)
+    lm = body_landmarks(body)
+    for points in (v, flared):
+        model = _prepared(points, np.asarray(dress.faces), "dress")
+        x = align_garment(body, model)
+        chest = x[np.abs(x[:, 1] - lm.chest_y) < 0.02, 0]
+        assert abs(0.5 * (chest.min() + chest.max()) - lm.center_x) < 0.003
+    assert np.ptp(flared[:, 0]) > np.ptp(v[:, 0]) + 0.09  # the flare widened the dress by ~10 cm

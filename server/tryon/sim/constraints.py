@@ -427,29 +427,15 @@ def sweep_downward(x, x_prev, inv_mass, sweep_ends, sweep_lmax, touching):
     body (``touching`` (k,) bool, e.g. a sleeve around an arm) the cloth does not hang, and pulling it up
     would ratchet a tight garment up the body; such springs are split by inverse mass.
 
-    Only cloth that hangs is lifted: a lower end follows only an upper end that is supported, i.e.
-    touches the body, is pinned, or hangs (through the springs already swept) from such a point. Cloth
-    that hangs from nothing falls: lifting every lower end by up to its fall held a strap dress that had
-    slid off the large body in the air beside it for 300 steps (its springs 1-3 % over their limits, as
-    one pass per substep leaves them, were enough to cancel gravity).
-
     Garments hang from their top (shoulders, waist): corrected from the support down, each correction
     sees an already corrected upper end, so a hanging chain of any length is within its limits after
     one sweep, where mass-weighted Gauss-Seidel needs a number of passes that grows with the square of
     its length (a sagging, over-stretched hem). Only stretch is limited here (compression is the
     symmetric passes' job). No races: serial.
     """
-    supported = touching.copy()
-    for i in range(inv_mass.shape[0]):
-        if inv_mass[i] == 0.0:
-            supported[i] = True
     for q in range(sweep_ends.shape[0]):
         i = sweep_ends[q, 0]
         j = sweep_ends[q, 1]
-        if x[i, 1] < x[j, 1]:
-            i, j = j, i  # i is the upper end
-        if supported[i]:
-            supported[j] = True
         dx = x[j, 0] - x[i, 0]
         dy = x[j, 1] - x[i, 1]
         dz = x[j, 2] - x[i, 2]
@@ -457,6 +443,11 @@ def sweep_downward(x, x_prev, inv_mass, sweep_ends, sweep_lmax, touching):
         lmax = sweep_lmax[q]
         if d2 <= lmax * lmax:
             continue
+        if x[i, 1] < x[j, 1]:
+            i, j = j, i  # i is the upper end
+            dx = -dx
+            dy = -dy
+            dz = -dz
         if inv_mass[j] == 0.0:
             if inv_mass[i] == 0.0:
                 continue
@@ -468,7 +459,7 @@ def sweep_downward(x, x_prev, inv_mass, sweep_ends, sweep_lmax, touching):
         if d < 1e-12:
             continue
         f = (d - lmax) / d
-        if abs(dy) >= STEEP * d and not touching[j] and supported[i]:
+        if abs(dy) >= STEEP * d and not touching[j]:
             lift = (d - lmax) * d / abs(dy)
             fell = x_prev[j, 1] - x[j, 1]
             lift = min(lift, max(fell, 0.0))

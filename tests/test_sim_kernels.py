@@ -197,4 +197,3 @@ def test_spring_visits_count_the_passes_and_sweeps_of_a_step():
     assert perf.spring_visits([args[n] for n in names], passed=1)["total"] == 140 + 28 + 48
     args["sweep_every_substep"] = False
     assert perf.spring_visits([args[n] for n in names])["per_step"]["sweep_springs"] == 6
-

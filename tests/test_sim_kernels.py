@@ -96,10 +96,14 @@ def test_sweep_springs_keep_the_top_down_order_of_those_off_the_body():
     order = top_down_order(x, springs)
     ordered_ends, ordered_lmax = pack_sweep(ends, table, order)
     assert np.array_equal(ordered_ends, ends[order]) and np.array_equal(ordered_lmax, table[order, 0])
-    sweep_ends, sweep_lmax = sweep_springs(ordered_ends, ordered_lmax, on_body)
+    hangs = np.ones(len(x), dtype=np.bool_)
+    sweep_ends, sweep_lmax = sweep_springs(ordered_ends, ordered_lmax, on_body, hangs)
     off = ~(on_body[springs[order, 0]] & on_body[springs[order, 1]])
     assert np.array_equal(sweep_ends, ends[order[off]])
     assert np.array_equal(sweep_lmax, table[order[off], 0])
+    # a piece that hangs from nothing is left out whole (it falls)
+    hangs[:] = False
+    assert len(sweep_springs(ordered_ends, ordered_lmax, on_body, hangs)[0]) == 0
 
 
 def test_solve_by_list_matches_solve_by_mask():
@@ -146,7 +150,8 @@ def test_finish_step_is_the_substeps_kernels_one_by_one():
     normal = np.tile([0.0, 1.0, 0.0], (len(x), 1))
     touching = np.flatnonzero(on_body)
     body_ends, body_table = contact_springs(ends, table, on_body)
-    sweep_ends, sweep_lmax = sweep_springs(*pack_sweep(ends, table, top_down_order(x, springs)), on_body)
+    sweep_ends, sweep_lmax = sweep_springs(*pack_sweep(ends, table, top_down_order(x, springs)), on_body,
+                                           np.ones(len(x), dtype=np.bool_))
     h, n_sub, floor_y = 0.02 / 8, 8, float(x[:, 1].min()) + 0.01
     a, a_prev, a_push = x.copy(), x_prev.copy(), np.zeros(len(x))
     finish_step(a, a_prev, inv_mass, w_eff, h, 9.81, 1.0, 10.0, n_sub, 1, ends, table, 2, body_ends, body_table,

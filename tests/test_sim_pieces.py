@@ -19,7 +19,7 @@ from tryon.sim.align import (
 )
 from tryon.sim.constraints import spring_strain
 from tryon.sim.bodystate import _rotation
-from tryon.sim.pieces import bottom_mask, piece_labels
+from tryon.sim.pieces import bottom_mask, hanging_pieces, piece_labels
 from tryon.sim.run import drape
 from tryon.sim.settings import SimSettings
 
@@ -60,6 +60,10 @@ def outfit():
 def test_pieces_are_the_connected_components():
     faces = np.array([[0, 1, 2], [1, 2, 3], [4, 5, 6]])
     assert piece_labels(faces, 7).tolist() == [0, 0, 0, 0, 1, 1, 1]
+    # a piece hangs when any of its points is held (touches the body, or is pinned); the rest falls
+    held = np.zeros(7, dtype=bool)
+    held[2] = True
+    assert hanging_pieces(piece_labels(faces, 7), held).tolist() == [True] * 4 + [False] * 3
 
 
 def test_the_piece_hanging_from_a_waist_is_the_bottom(outfit):

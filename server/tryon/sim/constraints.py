@@ -396,20 +396,24 @@ def contact_springs(ends, table, on_body):
 
 
 @njit(cache=True, nogil=True)
-def sweep_springs(sweep_ends, sweep_lmax, on_body):
-    """The springs of a packed sweep (``pack_sweep``) with an end off the body (``on_body`` (k,) bool), in
-    the same order: springs with both ends on the body are the contact passes' job (the sweep would only
-    split them by inverse mass: one more stretch pass over them). Returns (ends (q, 2) uint32,
-    l_max (q,))."""
+def sweep_springs(sweep_ends, sweep_lmax, on_body, hangs):
+    """The springs of a packed sweep (``pack_sweep``) with an end off the body (``on_body`` (k,) bool) and
+    in cloth that hangs from something (``hangs`` (k,) bool: ``hanging_pieces``), in the same order:
+    springs with both ends on the body are the contact passes' job (the sweep would only split them by
+    inverse mass: one more stretch pass over them), and a piece that touches nothing must fall (the
+    sweep's lift only pulls lower ends up, so it would hold the piece in the air). Returns (ends (q, 2)
+    uint32, l_max (q,))."""
     n = 0
     for q in range(sweep_ends.shape[0]):
-        if not (on_body[sweep_ends[q, 0]] and on_body[sweep_ends[q, 1]]):
+        i = sweep_ends[q, 0]
+        if hangs[i] and not (on_body[i] and on_body[sweep_ends[q, 1]]):
             n += 1
     kept_ends = np.empty((n, 2), dtype=np.uint32)
     kept_lmax = np.empty(n)
     m = 0
     for q in range(sweep_ends.shape[0]):
-        if not (on_body[sweep_ends[q, 0]] and on_body[sweep_ends[q, 1]]):
+        i = sweep_ends[q, 0]
+        if hangs[i] and not (on_body[i] and on_body[sweep_ends[q, 1]]):
             kept_ends[m, 0] = sweep_ends[q, 0]
             kept_ends[m, 1] = sweep_ends[q, 1]
             kept_lmax[m] = sweep_lmax[q]

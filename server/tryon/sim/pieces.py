@@ -39,6 +39,15 @@ def piece_labels(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return vertex_pieces(faces, n_vertices)[1]
 
 
+def hanging_pieces(label: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """(k,) bool: which points are in a piece (``label`` (k,) int64, ``piece_labels``) of which some point
+    is ``held`` (k,) bool (touching the body, or pinned): cloth that can hang. A piece held by nothing
+    is falling (it slid off the body)."""
+    held_piece = np.zeros(int(label.max()) + 1 if len(label) else 0, dtype=np.bool_)
+    held_piece[label[held]] = True
+    return held_piece[label]
+
+
 def bottom_mask(points: np.ndarray, faces: np.ndarray, category: str) -> np.ndarray:
     """(k,) bool: which of the garment's points (k, 3), metres, y up, belong to a piece aligned as a bottom
     (see the module doc). ``faces`` (f, 3) index ``points``; ``category`` is top | bottom | dress."""

@@ -78,7 +78,7 @@ from tryon.sim.bodystate import BodyCollider
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
 from tryon.sim.full_mesh import display_strain, follow_coarse
 from tryon.sim.limbs import limb_openings, openings_on_limbs
-from tryon.sim.pieces import piece_labels
+from tryon.sim.pieces import hanging_pieces, piece_labels
 from tryon.sim.constraints import (
     cap_stretch, contact_springs, pack_springs, pack_sweep, solve_listed, spring_lengths, sweep_springs,
     top_down_order,
@@ -206,6 +206,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     mass = np.ascontiguousarray(model.mass, dtype=np.float64)
     inv_mass = np.where(mass > 0, 1.0 / np.where(mass > 0, mass, 1.0), 0.0)
     ends, table = pack_springs(springs, rest, kind, limits, compression)
+    piece = piece_labels(model.coarse_faces, len(mass))  # a file's separate garments (an outfit's)
 
     collider = BodyCollider(body, settings.collision_margin)
     if initial is None:
@@ -321,7 +322,8 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         if step % ORDER_REFRESH == 1:
             ordered_ends, ordered_lmax = pack_sweep(ends, table, top_down_order(x, springs))
         if not changing:
-            sweep_ends, sweep_lmax = sweep_springs(ordered_ends, ordered_lmax, has_plane)
+            sweep_ends, sweep_lmax = sweep_springs(ordered_ends, ordered_lmax, has_plane,
+                                                   hanging_pieces(piece, has_plane | (inv_mass == 0.0)))
         # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its upward bias
         # would make a tight garment climb off the body
         finish_step(x, x_prev, step_mass, w_eff, h, gravity, settings.air_drag, settings.max_speed, n_sub, per_sub,
@@ -403,7 +405,6 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     relax_move = np.linalg.norm(x - x_loop, axis=1)  # m, per coarse point: how far the relaxation moved it
     # each piece of the file on its own (pieces meet only the body, never each other): an outfit's
     # trousers may be carried down the legs while its shirt barely moves
-    piece = piece_labels(model.coarse_faces, len(x))
     piece_move = np.array([np.quantile(relax_move[piece == p], RELAX_MOVE_QUANTILE)
                            for p in range(int(piece.max()) + 1)])
     carried = piece_move > RELAX_MAX_MOVE

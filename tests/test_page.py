@@ -117,6 +117,8 @@ def test_try_on_in_the_browser(page):
     else:
         assert "nowhere" in metrics
     assert {None: "none", True: "around the limbs", False: "off at"}[state["m"]["openings_on_limbs"]] in metrics
+    stays = page.locator("#metrics div", has_text="Stays up").locator("dd")
+    assert stays.inner_text().startswith("yes" if state["m"]["stays_up"] else "no, slid")
 
     page.wait_for_timeout(300)
     dressed = canvas_pixels(page)

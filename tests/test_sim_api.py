@@ -36,8 +36,10 @@ def test_tryon_answers_the_fitted_garment_and_metrics(client_and_id):
     assert f.min() >= 0 and f.max() < len(v)
     m = out["metrics"]
     for key in ("steps", "sim_seconds", "wall_seconds", "rest_reached", "penetrating_vertices",
-                "max_penetration_mm", "max_strain", "strain", "display_max_strain", "openings_on_limbs"):
+                "max_penetration_mm", "max_strain", "strain", "display_max_strain", "openings_on_limbs",
+                "slid_cm", "stays_up"):
         assert key in m
+    assert m["stays_up"] and m["slid_cm"] < 10.0  # settled about 6 cm down the hips
     assert sorted(o["opening"] for o in m["limb_openings"]) == ["left leg", "right leg"]
     assert m["pose"] == {"arm_angle": 30.0, "elbow_bend": 0.0, "leg_spread": 3.0}  # the default, as built
     assert 1 <= m["steps"] <= 60
@@ -46,6 +48,18 @@ def test_tryon_answers_the_fitted_garment_and_metrics(client_and_id):
     assert m["max_strain"] >= max(m["strain"]) - 1e-3
     # shorts sit around the hips and thighs of a 1.70 m body
     assert 0.3 < v[:, 1].min() and v[:, 1].max() < 1.15
+
+
+def test_shorts_wider_than_the_hips_are_reported_not_staying_up(client_and_id):
+    """Shorts M on a small body (hips 92 cm): they slide off the hips to the thighs. Every strain and
+    penetration target is met there; ``stays_up`` says the fit is wrong."""
+    client, gid = client_and_id
+    small = {"height": 158, "chest": 86, "waist": 72, "hips": 92}
+    r = client.post("/api/tryon", json={"garment_id": gid, "measurements": small})
+    assert r.status_code == 200, r.text
+    m = r.json()["metrics"]
+    assert m["penetrating_vertices"] == 0 and m["rest_reached"]
+    assert not m["stays_up"] and m["slid_cm"] > 20.0, m["slid_cm"]  # 28 cm
 
 
 def test_tryon_glb(client_and_id):

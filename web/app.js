@@ -279,6 +279,9 @@ function showMetrics(done) {
     ['Sleeves, legs', m.openings_on_limbs === undefined ? '—' : (m.openings_on_limbs === null ? 'none'
       : (m.openings_on_limbs ? 'around the limbs' : 'off at ' + (m.limb_openings || []).filter((o) => !o.ok)
         .map((o) => o.opening).join(', '))), m.openings_on_limbs === false ? 'warn' : 'good'],
+    ['Stays up', m.stays_up === undefined ? '—' : (m.stays_up
+      ? (m.slid_cm >= 1 ? `yes, slid ${Math.round(m.slid_cm)} cm` : 'yes')
+      : `no, slid ${Math.round(m.slid_cm)} cm down`), m.stays_up === false ? 'warn' : 'good'],
     ['Rest reached', m.rest_reached === undefined ? '—' : (m.rest_reached ? 'yes' : 'no'), m.rest_reached ? 'good' : 'warn'],
     ['Simulated', Number.isFinite(m.sim_seconds) ? `${m.sim_seconds.toFixed(2)} s` : '—'],
   ];

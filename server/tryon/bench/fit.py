@@ -42,23 +42,26 @@ def run(ctx: Context, sec: Section) -> None:
                  "over_on_body": sum(k.get("over_on_body", 0) for k in kinds), "max_strain": m["max_strain"],
                  "display_max_strain": m["display_max_strain"], "springs": len(model.springs),
                  "on_limbs": m["openings_on_limbs"],
-                 "off_limbs": [o["opening"] for o in m["limb_openings"] if not o["ok"]]}
+                 "off_limbs": [o["opening"] for o in m["limb_openings"] if not o["ok"]],
+                 "slid_cm": m["slid_cm"], "stays_up": m["stays_up"]}
             data.append(d)
             rows.append([body_name, entry["name"], d["steps"], fmt(d["rest"]), fmt(d["wall_s"]), d["penetrating"],
                          fmt(d["max_penetration_mm"]), d["over"], d["over_on_body"], fmt(d["max_strain"]),
-                         fmt(d["display_max_strain"]), _limbs(d)])
+                         fmt(d["display_max_strain"]), _limbs(d), _stays_up(d)])
             ctx.log(f"  fit {body_name} {entry['name']}: over {d['over']}, penetrating {d['penetrating']}")
     sec.data = {"bodies": BODIES, "drapes": data}
     sec.tables.append(Table(
         "Every garment on three bodies (default settings)",
         ["body", "garment", "steps", "at rest", "wall s", "penetrating", "deepest mm", "springs over",
-         "over on body", "max strain", "shown mesh max strain", "sleeves / legs"], rows,
+         "over on body", "max strain", "shown mesh max strain", "sleeves / legs", "stays up"], rows,
         note="springs over: beyond their type's limit by more than 1 % (0.2 mm for springs under 2 cm); "
              "over on body: of those, both ends touching the body (the garment is too small there); shown "
              "mesh: the full mesh's edges and quad diagonals (where a coarse triangle cuts across a thin "
              "part, a hand or a foot, the full mesh pushed out around it stretches); sleeves / legs: whether every "
              "sleeve, armhole and trouser leg ends around its own arm or leg (``sim/limbs.py``), else the ones "
-             "that do not, '-' for a garment with none"))
+             "that do not, '-' for a garment with none; stays up: whether its top ended within 10 cm of where "
+             "it was put on, with how far it slid (metrics ``stays_up``, ``slid_cm``: a waistband wider than "
+             "the hips slides off them, meeting every target where it lands)"))
     per_body = []
     for body_name in BODIES:
         ds = [d for d in data if d["body"] == body_name]
@@ -67,7 +70,13 @@ def run(ctx: Context, sec: Section) -> None:
     sec.headline.append(
         f"fit: {len(data)} drapes, penetrating vertices {sum(d['penetrating'] for d in data)}, at rest "
         f"{sum(d['rest'] for d in data)}/{len(data)}, sleeves and legs around their limbs "
-        f"{sum(d['on_limbs'] is not False for d in data)}/{len(data)}; meeting every target: " + ", ".join(per_body))
+        f"{sum(d['on_limbs'] is not False for d in data)}/{len(data)}, staying up {sum(d['stays_up'] for d in data)}/"
+        f"{len(data)}; meeting every target: " + ", ".join(per_body))
+
+
+def _stays_up(d: dict) -> str:
+    """The fit table's stays-up cell: 'yes' or 'no', and how far the garment slid (cm)."""
+    return f"{'yes' if d['stays_up'] else 'no'} ({d['slid_cm']:.0f} cm)"
 
 
 def _limbs(d: dict) -> str:

@@ -10,7 +10,7 @@ body's to about 13 degrees); the table gives the pose built. Quick mode: the mai
 from __future__ import annotations
 
 from tryon.bench.common import Context, Section, Table, fmt
-from tryon.bench.fit import BODIES, _limbs
+from tryon.bench.fit import BODIES, _limbs, _stays_up
 from tryon.bench.scenes import catalogue_entries, main_entry, prepared
 
 ARM_POSES = [{"arm_angle": a} for a in (0.0, 10.0, 20.0, 45.0, 70.0, 90.0)] + \
@@ -56,18 +56,18 @@ def run(ctx: Context, sec: Section) -> None:
              "display_max_strain": m["display_max_strain"], "on_limbs": m["openings_on_limbs"],
              "off_limbs": [o["opening"] for o in m["limb_openings"] if not o["ok"]],
              "arm_turn_deg": m["arm_turn_deg"], "elbow_turn_deg": m["elbow_turn_deg"],
-             "built_arm_angle": m["pose"]["arm_angle"]}
+             "built_arm_angle": m["pose"]["arm_angle"], "slid_cm": m["slid_cm"], "stays_up": m["stays_up"]}
         d["met"] = d["over"] == 0 and d["penetrating"] == 0 and d["rest"] and d["on_limbs"] is not False
         data.append(d)
         rows.append([entry["name"], _pose_name(pose, m["pose"]), d["steps"], fmt(d["rest"]),
                      d["penetrating"], d["over"], d["over_on_body"], fmt(d["display_max_strain"]), _limbs(d),
-                     fmt(d["met"])])
+                     _stays_up(d), fmt(d["met"])])
         ctx.log(f"  poses {entry['name']} {pose}: over {d['over']}, limbs {d['on_limbs']}")
     sec.data = {"body": BODIES["medium"], "drapes": data}
     sec.tables.append(Table(
         "Garments on the medium body in other poses (default settings)",
         ["garment", "pose (degrees)", "steps", "at rest", "penetrating", "springs over", "over on body",
-         "shown mesh max strain", "sleeves / legs", "meets every target"], rows,
+         "shown mesh max strain", "sleeves / legs", "stays up", "meets every target"], rows,
         note="the pose's other angles are the default (arms 30, elbows 0, legs 3 degrees); columns as in the "
              "fit section"))
     by_pose = {}
@@ -77,5 +77,6 @@ def run(ctx: Context, sec: Section) -> None:
         by_pose[name] = (met + d["met"], n + 1)
     sec.headline.append(
         f"poses: {len(data)} drapes on the medium body, meeting every target {sum(d['met'] for d in data)}, "
-        f"sleeves and legs around their limbs {sum(d['on_limbs'] is not False for d in data)}; by pose: "
+        f"sleeves and legs around their limbs {sum(d['on_limbs'] is not False for d in data)}, staying up "
+        f"{sum(d['stays_up'] for d in data)}; by pose: "
         + ", ".join(f"{k} {m}/{n}" for k, (m, n) in by_pose.items()))

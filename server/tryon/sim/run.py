@@ -84,7 +84,9 @@ from tryon.sim.constraints import (
     top_down_order,
 )
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
-from tryon.sim.metrics import allowed_length, penetration_metrics, strain_metrics, too_tight_places
+from tryon.sim.metrics import (
+    allowed_length, penetration_metrics, piece_tops, slid_metrics, strain_metrics, too_tight_places,
+)
 from tryon.sim.settings import SimSettings
 from tryon.sim.substeps import finish_relaxation_round, finish_step
 
@@ -215,6 +217,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     else:
         x = np.array(initial, dtype=np.float64)
         plan = ArmPlan(0.0, 0.0)
+    placed_tops = piece_tops(x, piece)  # to tell at the end how far the garment slid down
     # the sleeves' and trouser legs' openings, to tell at the end whether each is around its limb
     openings = limb_openings(x, model.coarse_faces, body, model.meta.category, model.coarse_loops)
     arms = ArmSchedule(body, collider, plan)
@@ -450,6 +453,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         "too_tight": too_tight,
         "limb_openings": on_limbs,
         "openings_on_limbs": all(o["ok"] for o in on_limbs) if on_limbs else None,
+        **slid_metrics(placed_tops, x, piece),
         "kinetic_energy_per_kg": float(energy),
         "grown": bool(grow_steps),
         "arm_turn_deg": [float(np.degrees(plan.left)), float(np.degrees(plan.right))],

@@ -63,6 +63,8 @@ def result_json(result: TryOnResult) -> dict:
         "too_tight": m.get("too_tight", {}),
         "openings_on_limbs": m.get("openings_on_limbs"),
         "limb_openings": m.get("limb_openings", []),
+        "slid_cm": round(float(m["slid_cm"]), 1),
+        "stays_up": bool(m["stays_up"]),
         "pose": m.get("pose", {}),
     }
     return {"garment": mesh_json(result.vertices, result.faces), "metrics": metrics}

@@ -88,6 +88,10 @@ class TryOnMetricsOut(BaseModel):
                                                              "its end); null for a garment with none")
     limb_openings: list[LimbOpeningOut] = Field(default_factory=list,
                                                 description="each such opening and where it ended")
+    slid_cm: float = Field(0.0, description="how far the garment slid down the body from where it was put on: "
+                                            "the largest drop of the highest point of any of its pieces, cm")
+    stays_up: bool = Field(True, description="whether it slid down no more than 10 cm (false: it does not stay "
+                                             "on the shoulders or hips, e.g. a waistband wider than the hips)")
     pose: dict[str, float] = Field(default_factory=dict,
                                    description="pose angles of the body draped on, degrees: as asked, except an arm "
                                                "angle too low for the arm to clear the torso, raised to where the "

@@ -9,6 +9,7 @@ from scipy.spatial import cKDTree
 
 from tryon.garment.model import SPRING_KINDS
 from tryon.sim.constraints import spring_strain
+from tryon.sim.pieces import piece_tops
 
 # m: a garment vertex deeper than this inside the un-offset body counts as penetrating (SPEC 7).
 PENETRATION_TOLERANCE = 0.002
@@ -101,13 +102,6 @@ def penetration_metrics(depth: np.ndarray) -> dict:
 # the real garments that stay up slid at most 6.4 cm; those that came down, 13 cm (XL trousers standing on
 # their hems on the large body) to 135 cm (a strap dress on the floor).
 SLID_LIMIT_CM = 10.0
-
-
-def piece_tops(x: np.ndarray, piece: np.ndarray) -> np.ndarray:
-    """(p,) m: the height of the highest of the points x (k, 3) of each piece (``piece`` (k,) labels 0..p-1)."""
-    top = np.full(int(piece.max()) + 1 if len(piece) else 0, -np.inf)
-    np.maximum.at(top, piece, x[:, 1])
-    return top
 
 
 def slid_metrics(placed_tops: np.ndarray, x: np.ndarray, piece: np.ndarray) -> dict:

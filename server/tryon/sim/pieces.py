@@ -39,6 +39,13 @@ def piece_labels(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return vertex_pieces(faces, n_vertices)[1]
 
 
+def piece_tops(x: np.ndarray, piece: np.ndarray) -> np.ndarray:
+    """(p,) m: the height of the highest of the points x (k, 3) of each piece (``piece`` (k,) labels 0..p-1)."""
+    top = np.full(int(piece.max()) + 1 if len(piece) else 0, -np.inf)
+    np.maximum.at(top, piece, x[:, 1])
+    return top
+
+
 def hanging_pieces(label: np.ndarray, held: np.ndarray) -> np.ndarray:
     """(k,) bool: which points are in a piece (``label`` (k,) int64, ``piece_labels``) of which some point
     is ``held`` (k,) bool (touching the body, or pinned): cloth that can hang. A piece held by nothing
@@ -58,11 +65,9 @@ def bottom_mask(points: np.ndarray, faces: np.ndarray, category: str) -> np.ndar
     count = int(label.max()) + 1 if k else 0
     if count < 2:
         return np.zeros(k, dtype=np.bool_)
-    y = points[:, 1]
-    top_y = np.full(count, -np.inf)
+    top_y = piece_tops(points, label)
     low_y = np.full(count, np.inf)
-    np.maximum.at(top_y, label, y)
-    np.minimum.at(low_y, label, y)
+    np.minimum.at(low_y, label, points[:, 1])
     highest = int(np.argmax(top_y))
     cut = low_y[highest] + BOTTOM_TOP_FRACTION * (top_y[highest] - low_y[highest])
     return (top_y < cut)[label]

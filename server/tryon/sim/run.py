@@ -78,14 +78,14 @@ from tryon.sim.bodystate import BodyCollider
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
 from tryon.sim.full_mesh import display_strain, follow_coarse
 from tryon.sim.limbs import limb_openings, openings_on_limbs
-from tryon.sim.pieces import hanging_pieces, piece_labels
+from tryon.sim.pieces import hanging_pieces, piece_labels, piece_tops
 from tryon.sim.constraints import (
     cap_stretch, contact_springs, pack_springs, pack_sweep, solve_listed, spring_lengths, sweep_springs,
     top_down_order,
 )
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.metrics import (
-    allowed_length, penetration_metrics, piece_tops, slid_metrics, strain_metrics, too_tight_places,
+    allowed_length, penetration_metrics, slid_metrics, strain_metrics, too_tight_places,
 )
 from tryon.sim.settings import SimSettings
 from tryon.sim.substeps import finish_relaxation_round, finish_step

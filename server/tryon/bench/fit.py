@@ -26,6 +26,7 @@ BODIES = {
 def run(ctx: Context, sec: Section) -> None:
     from tryon.body.build import build_body
     from tryon.body.params import Measurements, Pose
+    from tryon.sim.metrics import SLID_LIMIT_CM
     from tryon.sim.run import drape
 
     entries = [main_entry()] if ctx.quick else catalogue_entries()
@@ -59,9 +60,10 @@ def run(ctx: Context, sec: Section) -> None:
              "mesh: the full mesh's edges and quad diagonals (where a coarse triangle cuts across a thin "
              "part, a hand or a foot, the full mesh pushed out around it stretches); sleeves / legs: whether every "
              "sleeve, armhole and trouser leg ends around its own arm or leg (``sim/limbs.py``), else the ones "
-             "that do not, '-' for a garment with none; stays up: whether its top ended within 10 cm of where "
-             "it was put on, with how far it slid (metrics ``stays_up``, ``slid_cm``: a waistband wider than "
-             "the hips slides off them, meeting every target where it lands)"))
+             f"that do not, '-' for a garment with none; stays up: whether its top ended within "
+             f"{SLID_LIMIT_CM:g} cm of where it was put on, with how far it slid (metrics ``stays_up``, "
+             "``slid_cm``: a waistband wider than the hips slides off them, meeting every target where it "
+             "lands)"))
     per_body = []
     for body_name in BODIES:
         ds = [d for d in data if d["body"] == body_name]

@@ -11,6 +11,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from tryon.api.schemas.bodies import MeasurementsIn, PoseIn
+from tryon.sim.metrics import SLID_LIMIT_CM
 from tryon.sim.settings import SimSettings
 
 _DEFAULT = SimSettings()
@@ -90,8 +91,9 @@ class TryOnMetricsOut(BaseModel):
                                                 description="each such opening and where it ended")
     slid_cm: float = Field(0.0, description="how far the garment slid down the body from where it was put on: "
                                             "the largest drop of the highest point of any of its pieces, cm")
-    stays_up: bool = Field(True, description="whether it slid down no more than 10 cm (false: it does not stay "
-                                             "on the shoulders or hips, e.g. a waistband wider than the hips)")
+    stays_up: bool = Field(True, description=f"whether it slid down no more than {SLID_LIMIT_CM:g} cm (false: it "
+                                             "does not stay on the shoulders or hips, e.g. a waistband wider than "
+                                             "the hips)")
     pose: dict[str, float] = Field(default_factory=dict,
                                    description="pose angles of the body draped on, degrees: as asked, except an arm "
                                                "angle too low for the arm to clear the torso, raised to where the "

@@ -39,7 +39,7 @@ def test_tryon_answers_the_fitted_garment_and_metrics(client_and_id):
                 "max_penetration_mm", "max_strain", "strain", "display_max_strain", "openings_on_limbs",
                 "slid_cm", "stays_up"):
         assert key in m
-    assert m["stays_up"] and m["slid_cm"] < 10.0  # settled about 6 cm down the hips
+    assert m["stays_up"] and m["slid_cm"] < 10.0  # settled about 3 cm down the hips
     assert sorted(o["opening"] for o in m["limb_openings"]) == ["left leg", "right leg"]
     assert m["pose"] == {"arm_angle": 30.0, "elbow_bend": 0.0, "leg_spread": 3.0}  # the default, as built
     assert 1 <= m["steps"] <= 60
@@ -51,15 +51,16 @@ def test_tryon_answers_the_fitted_garment_and_metrics(client_and_id):
 
 
 def test_shorts_wider_than_the_hips_are_reported_not_staying_up(client_and_id):
-    """Shorts M on a small body (hips 92 cm): they slide off the hips to the thighs. Every strain and
-    penetration target is met there; ``stays_up`` says the fit is wrong."""
+    """Shorts M (an 86 cm band, 88 cm at its 2 % limit) on a slim body with 84 cm hips: they slide off the
+    hips to the thighs. Every strain and penetration target is met there; ``stays_up`` says the fit is
+    wrong."""
     client, gid = client_and_id
-    small = {"height": 158, "chest": 86, "waist": 72, "hips": 92}
+    small = {"height": 158, "chest": 86, "waist": 72, "hips": 84}
     r = client.post("/api/tryon", json={"garment_id": gid, "measurements": small})
     assert r.status_code == 200, r.text
     m = r.json()["metrics"]
     assert m["penetrating_vertices"] == 0 and m["rest_reached"]
-    assert not m["stays_up"] and m["slid_cm"] > 20.0, m["slid_cm"]  # 28 cm
+    assert not m["stays_up"] and m["slid_cm"] > 18.0, m["slid_cm"]  # 22 cm
 
 
 def test_tryon_glb(client_and_id):

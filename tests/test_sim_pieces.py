@@ -19,7 +19,7 @@ from tryon.sim.align import (
 )
 from tryon.sim.constraints import spring_strain
 from tryon.sim.bodystate import _rotation
-from tryon.sim.pieces import bottom_mask, hanging_pieces, piece_labels
+from tryon.sim.pieces import BAND_DEPTH, bottom_mask, hanging_pieces, piece_labels, waistband_mask
 from tryon.sim.run import drape
 from tryon.sim.settings import SimSettings
 
@@ -78,6 +78,35 @@ def test_the_piece_hanging_from_a_waist_is_the_bottom(outfit):
     remap = np.full(len(x), -1)
     remap[keep] = np.arange(len(keep))
     assert not bottom_mask(x[keep], remap[shirt_faces], "top").any()
+
+
+def test_the_waistband_is_the_bottom_pieces_points_near_their_waist_opening(outfit):
+    """An outfit's trousers have a band (their waist opening's points and those within BAND_DEPTH of it),
+    its shirt none; a skirt whose highest point bulges a little over its waist opening still has one."""
+    model, n_shirt = outfit
+    x = model.coarse_vertices
+    band = waistband_mask(x, model.coarse_faces, "dress", model.coarse_loops)
+    trousers = model.coarse_index >= n_shirt
+    assert band.any() and not (band & ~trousers).any()
+    top = x[trousers, 1].max()
+    waist = max((loop for loop in model.coarse_loops if trousers[loop[0]]), key=lambda loop: x[loop, 1].max())
+    assert band[waist].all()
+    assert x[band, 1].min() >= top - BAND_DEPTH - 1e-9  # the generated waist opening is level
+    assert band.sum() < 0.2 * trousers.sum()
+    # a single top has no band
+    shirt = garment_mesh("tshirt", "M")
+    shirt_faces = np.asarray(shirt.faces)
+    assert not waistband_mask(np.asarray(shirt.vertices), shirt_faces, "top",
+                              boundary_loops(shirt_faces, len(shirt.vertices))).any()
+    # a point of the skirt raised 1 mm over its waist opening: the opening is still within BAND_DEPTH
+    skirt = garment_mesh("skirt", "M")
+    v = np.array(skirt.vertices, dtype=np.float64)
+    faces = np.asarray(skirt.faces)
+    loops = boundary_loops(faces, len(v))
+    inner = np.setdiff1d(np.arange(len(v)), np.concatenate(loops))
+    v[inner[np.argmax(v[inner, 1])], 1] = v[:, 1].max() + 0.001
+    skirt_band = waistband_mask(v, faces, "bottom", loops)
+    assert skirt_band[max(loops, key=lambda loop: v[loop, 1].max())].all()
 
 
 def test_each_piece_is_aligned_by_its_kind_with_its_legs_over_the_legs(outfit, body):

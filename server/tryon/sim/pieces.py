@@ -31,6 +31,8 @@ BOTTOM_TOP_FRACTION = 0.5
 # trouser leg below the crotch: about half; the DiffCloth skirt's section meets small flaps, 4-6 edges of 95,
 # on either side of the centre line, and it was taken for shorts and lowered from the waist).
 LEG_SHARE = 0.25
+# m: how far from its waist opening a bottom's waistband reaches (a sewn band is 3-4 cm tall).
+BAND_DEPTH = 0.03
 
 
 def piece_labels(faces: np.ndarray, n_vertices: int) -> np.ndarray:
@@ -71,6 +73,32 @@ def bottom_mask(points: np.ndarray, faces: np.ndarray, category: str) -> np.ndar
     highest = int(np.argmax(top_y))
     cut = low_y[highest] + BOTTOM_TOP_FRACTION * (top_y[highest] - low_y[highest])
     return (top_y < cut)[label]
+
+
+def waistband_mask(points: np.ndarray, faces: np.ndarray, category: str, loops: list[np.ndarray],
+                   depth: float = BAND_DEPTH) -> np.ndarray:
+    """(k,) bool: which of the garment's points (k, 3), metres, y up, are in the waistband of a piece
+    aligned as a bottom (``bottom_mask``): within ``depth`` m of its waist opening, the highest of its
+    boundary loops (``loops``: int64 point ids each), if that reaches within ``depth`` of the piece's top.
+    ``faces`` (f, 3) index ``points``."""
+    band = np.zeros(len(points), dtype=np.bool_)
+    bottom = bottom_mask(points, faces, category)
+    if not bottom.any():
+        return band
+    piece = piece_labels(faces, len(points))
+    top = piece_tops(points, piece)
+    waist = {}  # piece -> its highest opening
+    for loop in loops:  # a garment has a handful of openings
+        own = int(piece[loop[0]])
+        if bottom[loop[0]] and (own not in waist or points[loop, 1].max() > points[waist[own], 1].max()):
+            waist[own] = loop
+    for own, loop in waist.items():
+        if points[loop, 1].max() < top[own] - depth:
+            continue
+        mine = np.flatnonzero(piece == own)
+        gap = points[mine, None, :] - points[None, loop, :]
+        band[mine[np.einsum("ijk,ijk->ij", gap, gap).min(axis=1) <= depth * depth]] = True
+    return band
 
 
 @njit(cache=True, nogil=True)

@@ -71,14 +71,14 @@ from typing import Callable
 import numpy as np
 
 from tryon.body.types import Body
-from tryon.garment.model import GarmentModel
+from tryon.garment.model import STRUCTURAL, GarmentModel
 from tryon.sim.align import ArmPlan, align_garment, plan_arms
 from tryon.sim.arms import ArmSchedule
 from tryon.sim.bodystate import BodyCollider
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
 from tryon.sim.full_mesh import display_strain, follow_coarse
 from tryon.sim.limbs import limb_openings, openings_on_limbs
-from tryon.sim.pieces import hanging_pieces, piece_labels, piece_tops
+from tryon.sim.pieces import hanging_pieces, piece_labels, piece_tops, waistband_mask
 from tryon.sim.constraints import (
     cap_stretch, contact_springs, pack_springs, pack_sweep, solve_listed, spring_lengths, sweep_springs,
     top_down_order,
@@ -208,6 +208,12 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     mass = np.ascontiguousarray(model.mass, dtype=np.float64)
     inv_mass = np.where(mass > 0, 1.0 / np.where(mass > 0, mass, 1.0), 0.0)
     ends, table = pack_springs(springs, rest, kind, limits, compression)
+    # a bottom's waistband stretches less than its cloth (``band_limit``; its structural springs: the
+    # band's hoop and height). Only the solver holds it so: the metrics judge each spring by its type's
+    # limit, so a band too small for its waist shows springs over where it is stretched past the cloth's.
+    band = waistband_mask(model.coarse_vertices, model.coarse_faces, model.meta.category, model.coarse_loops)
+    band_springs = (kind == STRUCTURAL) & band[springs[:, 0]] & band[springs[:, 1]]
+    table[band_springs, 0] = rest[band_springs] * (1.0 + settings.band_limit)
     piece = piece_labels(model.coarse_faces, len(mass))  # a file's separate garments (an outfit's)
 
     collider = BodyCollider(body, settings.collision_margin)

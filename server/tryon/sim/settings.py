@@ -45,6 +45,9 @@ class SimSettings:
     strain_limit: maximum strain (l / l0 - 1) per spring type (structural, shear, bending), after Provot:
         woven cloth stretches ~10 % along the threads, more on the bias (shear), bending springs span two
         edges and only keep a fold from collapsing.
+    band_limit: maximum strain of a bottom's waistband (``pieces.waistband_mask``): a sewn band is
+        interfaced and stretches ~2 %. With the structural 10 % a band 4 cm over its waist stretched
+        freely over hips 10 % wider and the skirt slid down to the thighs.
     compression: fraction of a spring's compression (l < l0) corrected per pass, per type. Structural and
         shear springs go back to their natural length (paper eq. 2-3); bending springs only a little, so
         the cloth can still buckle and fold (a hard compression limit on them makes cloth a plate).
@@ -70,6 +73,7 @@ class SimSettings:
     grow_steps: int = 20
     grow_from: float = 0.5
     strain_limit: tuple[float, float, float] = (0.10, 0.15, 0.30)
+    band_limit: float = 0.02
     compression: tuple[float, float, float] = (1.0, 1.0, 0.1)
     max_speed: float = 10.0
     seed: int = 0

@@ -85,7 +85,8 @@ def test_the_waistband_is_the_bottom_pieces_points_near_their_waist_opening(outf
     its shirt none; a skirt whose highest point bulges a little over its waist opening still has one."""
     model, n_shirt = outfit
     x = model.coarse_vertices
-    band = waistband_mask(x, model.coarse_faces, "dress", model.coarse_loops)
+    band = waistband_mask(x, model.coarse_faces, "dress", model.coarse_loops,
+                          piece_labels(model.coarse_faces, len(x)))
     trousers = model.coarse_index >= n_shirt
     assert band.any() and not (band & ~trousers).any()
     top = x[trousers, 1].max()
@@ -97,7 +98,8 @@ def test_the_waistband_is_the_bottom_pieces_points_near_their_waist_opening(outf
     shirt = garment_mesh("tshirt", "M")
     shirt_faces = np.asarray(shirt.faces)
     assert not waistband_mask(np.asarray(shirt.vertices), shirt_faces, "top",
-                              boundary_loops(shirt_faces, len(shirt.vertices))).any()
+                              boundary_loops(shirt_faces, len(shirt.vertices)),
+                              piece_labels(shirt_faces, len(shirt.vertices))).any()
     # a point of the skirt raised 1 mm over its waist opening: the opening is still within BAND_DEPTH
     skirt = garment_mesh("skirt", "M")
     v = np.array(skirt.vertices, dtype=np.float64)
@@ -105,7 +107,7 @@ def test_the_waistband_is_the_bottom_pieces_points_near_their_waist_opening(outf
     loops = boundary_loops(faces, len(v))
     inner = np.setdiff1d(np.arange(len(v)), np.concatenate(loops))
     v[inner[np.argmax(v[inner, 1])], 1] = v[:, 1].max() + 0.001
-    skirt_band = waistband_mask(v, faces, "bottom", loops)
+    skirt_band = waistband_mask(v, faces, "bottom", loops, piece_labels(faces, len(v)))
     assert skirt_band[max(loops, key=lambda loop: v[loop, 1].max())].all()
 
 

@@ -57,13 +57,16 @@ def hanging_pieces(label: np.ndarray, held: np.ndarray) -> np.ndarray:
     return held_piece[label]
 
 
-def bottom_mask(points: np.ndarray, faces: np.ndarray, category: str) -> np.ndarray:
+def bottom_mask(points: np.ndarray, faces: np.ndarray, category: str,
+                label: np.ndarray | None = None) -> np.ndarray:
     """(k,) bool: which of the garment's points (k, 3), metres, y up, belong to a piece aligned as a bottom
-    (see the module doc). ``faces`` (f, 3) index ``points``; ``category`` is top | bottom | dress."""
+    (see the module doc). ``faces`` (f, 3) index ``points``; ``category`` is top | bottom | dress; ``label``
+    (k,) their ``piece_labels`` if the caller has them."""
     k = len(points)
     if category == "bottom":
         return np.ones(k, dtype=np.bool_)
-    label = piece_labels(faces, k)
+    if label is None:
+        label = piece_labels(faces, k)
     count = int(label.max()) + 1 if k else 0
     if count < 2:
         return np.zeros(k, dtype=np.bool_)
@@ -76,16 +79,15 @@ def bottom_mask(points: np.ndarray, faces: np.ndarray, category: str) -> np.ndar
 
 
 def waistband_mask(points: np.ndarray, faces: np.ndarray, category: str, loops: list[np.ndarray],
-                   depth: float = BAND_DEPTH) -> np.ndarray:
+                   piece: np.ndarray, depth: float = BAND_DEPTH) -> np.ndarray:
     """(k,) bool: which of the garment's points (k, 3), metres, y up, are in the waistband of a piece
     aligned as a bottom (``bottom_mask``): within ``depth`` m of its waist opening, the highest of its
     boundary loops (``loops``: int64 point ids each), if that reaches within ``depth`` of the piece's top.
-    ``faces`` (f, 3) index ``points``."""
+    ``faces`` (f, 3) index ``points``; ``piece`` (k,) their ``piece_labels``."""
     band = np.zeros(len(points), dtype=np.bool_)
-    bottom = bottom_mask(points, faces, category)
+    bottom = bottom_mask(points, faces, category, piece)
     if not bottom.any():
         return band
-    piece = piece_labels(faces, len(points))
     top = piece_tops(points, piece)
     waist = {}  # piece -> its highest opening
     for loop in loops:  # a garment has a handful of openings

@@ -211,10 +211,11 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     # a bottom's waistband stretches less than its cloth (``band_limit``; its structural springs: the
     # band's hoop and height). Only the solver holds it so: the metrics judge each spring by its type's
     # limit, so a band too small for its waist shows springs over where it is stretched past the cloth's.
-    band = waistband_mask(model.coarse_vertices, model.coarse_faces, model.meta.category, model.coarse_loops)
+    piece = piece_labels(model.coarse_faces, len(mass))  # a file's separate garments (an outfit's)
+    band = waistband_mask(model.coarse_vertices, model.coarse_faces, model.meta.category, model.coarse_loops,
+                          piece)
     band_springs = (kind == STRUCTURAL) & band[springs[:, 0]] & band[springs[:, 1]]
     table[band_springs, 0] = rest[band_springs] * (1.0 + settings.band_limit)
-    piece = piece_labels(model.coarse_faces, len(mass))  # a file's separate garments (an outfit's)
 
     collider = BodyCollider(body, settings.collision_margin)
     if initial is None:

@@ -328,6 +328,45 @@ def test_a_top_far_too_small_stays_on_the_shoulders(body):
     assert result.vertices[:, 1].min() < lm.chest_y  # its hem still below the chest
 
 
+def test_a_guessed_units_dress_is_sized_to_the_body_springs_and_all(body):
+    """A dress at 0.7 of its girth, its units guessed: alignment scales it to the body's chest, and its
+    springs' natural lengths are scaled with it. Before, they pulled it back to the file's size in the
+    first steps (the DiffAvatar strap dress, scaled 1.49 x to the large body, fell through the growing
+    body to the floor). The answer says it was sized; the same file in known units is far too small."""
+    from scipy.spatial import ConvexHull
+
+    from tryon.garment.generate import garment_mesh
+    from tryon.garment.ingest import CleanMesh
+    from tryon.garment.prepare import prepare
+    from tryon.sim.align import GUESSED_UNITS_EASE, body_landmarks, torso_points
+
+    g = garment_mesh("dress", "S")
+    v = np.array(g.vertices, dtype=np.float64)
+    centre = v.mean(axis=0)
+    v[:, [0, 2]] = centre[[0, 2]] + 0.7 * (v[:, [0, 2]] - centre[[0, 2]])
+    faces = np.asarray(g.faces, dtype=np.int32)
+    result = {}
+    for guessed in (False, True):
+        mesh = CleanMesh(vertices=v, faces=faces, units="m", units_guessed=guessed)
+        model = prepare(mesh, id="small", name="small", category="dress", size="S", source_sha256="0",
+                        source_name="small.obj")
+        result[guessed] = drape(body, model, SimSettings())
+    sized, as_made = result[True].metrics, result[False].metrics
+    assert sized["sized_to_body"] and not as_made["sized_to_body"]
+    assert sum(k["over"] for k in as_made["strain_by_kind"].values()) > 1000  # measured: 4,435
+    assert sum(k["over"] for k in sized["strain_by_kind"].values()) == 0
+    assert sized["penetrating_vertices"] == 0 and sized["stays_up"] and sized["openings_on_limbs"]
+    lm = body_landmarks(body)
+
+    def chest_girth(points):  # m, round the points within 2 cm of the chest line and the shoulder joints
+        near = points[(np.abs(points[:, 1] - lm.chest_y) < 0.02)
+                      & (np.abs(points[:, 0] - lm.center_x) < lm.shoulder_half)]
+        return ConvexHull(near[:, [0, 2]]).area
+
+    ease = chest_girth(result[True].coarse) / chest_girth(torso_points(body))
+    assert 1.0 < ease < GUESSED_UNITS_EASE + 0.05, ease  # round the chest with some ease, not back at 0.7
+
+
 def test_shorts_far_too_small_are_stretched_no_further_than_the_tear_guard(catalogue):
     """Shorts S (waist 72 cm) on a 100 cm waist: collision wins over the springs during the drape, and the
     tear guard keeps every spring under TEAR_GUARD x its natural length, also after the last collision

@@ -424,8 +424,25 @@ def test_a_guessed_units_top_is_scaled_around_the_bodice_its_sleeves_moved_out_u
     model = _prepared(np.array(dress.vertices, dtype=np.float64), np.asarray(dress.faces), "dress")
     x = align_garment(body, model)
     anchor = np.array([lm.center_x, lm.shoulder_y, x[:, 2].mean()])
-    y = scale_girth_keep_sleeves(x, anchor, scale, lm)
-    assert np.allclose(y[:, [0, 2]], anchor[[0, 2]] + scale * (x[:, [0, 2]] - anchor[[0, 2]]))
+    _assert_scaled_without_sleeves(x, scale_girth_keep_sleeves(x, anchor, scale, lm), anchor, scale, lm)
+
+
+def _assert_scaled_without_sleeves(x, y, anchor, scale, lm):
+    """``y`` is the top ``x`` (k, 3) scaled by ``scale`` about ``anchor`` in x and z as a top without sleeves
+    is: its girth plainly up to the chest line, its width at the shoulder line 1 + (scale - 1) x
+    SHOULDER_GRADE (the straps of a strap dress stay on the shoulders)."""
+    from tryon.sim.align import SHOULDER_GRADE
+
+    assert np.array_equal(y[:, 1], x[:, 1])
+    assert np.allclose(y[:, 2], anchor[2] + scale * (x[:, 2] - anchor[2]))
+    below = x[:, 1] <= lm.chest_y
+    assert below.sum() > 10 and np.allclose(y[below, 0], anchor[0] + scale * (x[below, 0] - anchor[0]))
+    above = x[:, 1] >= lm.shoulder_y
+    shoulder = 1.0 + (scale - 1.0) * SHOULDER_GRADE
+    assert above.sum() > 3 and np.allclose(y[above, 0], anchor[0] + shoulder * (x[above, 0] - anchor[0]))
+    between = ~below & ~above & (np.abs(x[:, 0] - anchor[0]) > 1e-6)
+    grown = (y[between, 0] - anchor[0]) / (x[between, 0] - anchor[0])
+    assert np.all((grown >= min(scale, shoulder) - 1e-9) & (grown <= max(scale, shoulder) + 1e-9))
 
 
 def _cape(radius_top: float, radius_hem: float, length: float, rings: int = 8, around: int = 48):
@@ -460,8 +477,9 @@ def test_a_guessed_units_cape_is_scaled_plainly(body):
         plain[:, [0, 2]] = anchor[[0, 2]] + scale * (x[:, [0, 2]] - anchor[[0, 2]])
         assert has_sleeves(x if scale > 1 else plain, lm)  # by reach alone it looks sleeved
         assert not any(sleeve_openings(x if scale < 1 else plain, lm, sign, loops) for sign in (1.0, -1.0))
-        assert np.allclose(scale_girth_keep_sleeves(x, anchor, scale, lm, loops), plain)
-        assert not np.allclose(scale_girth_keep_sleeves(x, anchor, scale, lm), plain)  # judged by reach alone
+        scaled = scale_girth_keep_sleeves(x, anchor, scale, lm, loops)
+        _assert_scaled_without_sleeves(x, scaled, anchor, scale, lm)
+        assert not np.allclose(scale_girth_keep_sleeves(x, anchor, scale, lm), scaled)  # judged by reach alone
 
 
 def test_a_bodice_wider_than_the_shoulders_is_not_a_sleeve():

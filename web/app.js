@@ -282,6 +282,8 @@ function showMetrics(done) {
     ['Stays up', m.stays_up === undefined ? '—' : (m.stays_up
       ? (m.slid_cm >= 1 ? `yes, slid ${Math.round(m.slid_cm)} cm` : 'yes')
       : `no, slid ${Math.round(m.slid_cm)} cm down`), m.stays_up === false ? 'warn' : 'good'],
+    ['Size', m.sized_to_body === undefined ? '—' : (m.sized_to_body ? 'sized to this body (units unknown)'
+      : 'as made')],
     ['Rest reached', m.rest_reached === undefined ? '—' : (m.rest_reached ? 'yes' : 'no'), m.rest_reached ? 'good' : 'warn'],
     ['Simulated', Number.isFinite(m.sim_seconds) ? `${m.sim_seconds.toFixed(2)} s` : '—'],
   ];

@@ -8,7 +8,7 @@ barycentric re-attachment of the full mesh to the coarse one.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -110,6 +110,20 @@ class GarmentModel:
         length = np.linalg.norm(nrm, axis=1, keepdims=True)
         nrm /= np.where(length > 0, length, 1.0)
         return p + nrm * self.attach_offset[:, None]
+
+    def resized(self, coarse_shape: np.ndarray) -> "GarmentModel":
+        """This garment with ``coarse_shape`` (k, 3) m as its coarse mesh's natural shape: each spring's
+        natural length scaled by its length there over its length at rest, the full mesh following the
+        coarse one (its displacement through the re-attachment, ``expand``). For a garment sized to a body
+        (guessed units); masses, topology and re-attachment are kept."""
+        shape = np.asarray(coarse_shape, dtype=np.float64)
+        before, after = self.coarse_vertices, shape
+        a, b = self.springs[:, 0], self.springs[:, 1]
+        ratio = np.linalg.norm(after[a] - after[b], axis=1) / np.maximum(
+            np.linalg.norm(before[a] - before[b], axis=1), 1e-12)
+        vertices = self.vertices + (self.expand(shape) - self.expand(before))
+        vertices[self.coarse_index] = shape
+        return replace(self, vertices=vertices, rest=self.rest * ratio)
 
     def save(self, directory: Path) -> None:
         """Write ``model.npz``, ``meta.json`` and ``prepared.json`` (the preparation version) into

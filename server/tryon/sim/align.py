@@ -3,9 +3,11 @@
 1. Global alignment: centre the garment on the torso in x and z, and translate it vertically so that a
    top's (or dress's) shoulder line sits on the body's shoulders, or a bottom's waistband at the body's
    waist level. A garment whose units were guessed at ingestion is also scaled so that its girth at the
-   chest (hips for bottoms) is about 1.15 x the body's (a garment in the right units is never rescaled:
+   chest is about 1.15 x the body's, a bottom's waistband the body's girth just under its waist (if they are
+   not within 0.95-1.6 x already; a garment in the right units is never rescaled:
    its size is the point of trying it on); a top's sleeves move out with its shoulders, unscaled, and a
-   bottom's legs keep their own girth (but no less than the body's legs).
+   bottom's legs keep their own girth (but no less than the body's legs). Its springs' natural lengths
+   are then those of the scaled shape (``align_sized``): it is shown at the size this body would wear.
 2. Local alignment (the paper's construction): a = the garment's rear-most point (smallest z) on the
    torso, b = the body point nearest to a, c = the garment's highest point near the centre line (the
    collar for a top, the waistband for a bottom); the garment turns about the X axis through c by the
@@ -42,6 +44,12 @@ GUESSED_UNITS_BOTTOM_EASE = 1.0
 # m: a bottom's waistband girth is measured in a band this far below the body's waist line, and as deep
 # (the top 4 cm of a bottom placed with its top at the waist).
 BAND_BELOW_WAIST = 0.02
+# How fast a guessed-units top without sleeves widens at the shoulders, relative to its girth scale (x scale
+# 1 + (scale - 1) x this at the shoulder line, blending in from the chest line): the bodies' shoulder joints
+# are 1.12 x as far apart on the large body as on the medium, their chests 1.17 x as big (0.7 as fast). Scaled
+# 1.49 x plainly to the large body's chest, the DiffAvatar strap dress's straps started beyond its
+# shoulders and one slid down the arm; at 0.7 they end on the shoulders' edge, at 0.5 on the shoulders.
+SHOULDER_GRADE = 0.5
 # m: beyond a guessed-units top's bodice its depth scale fades to none over this distance (the armhole;
 # see ``scale_girth_keep_sleeves``): over 5 cm an edge across it was stretched up to 1.7 x the scale
 # (3.1 x on the MakeHuman blouse at scale 1.8), over 15 cm 1.0-1.05 x.
@@ -237,7 +245,19 @@ def torso_points(body: Body) -> np.ndarray:
 
 
 def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = None) -> np.ndarray:
-    """Aligned copy (k, 3) of ``points`` (default: the garment's coarse rest positions), see module doc.
+    """Aligned copy (k, 3) of ``points`` (default: the garment's coarse rest positions), see module doc
+    and ``align_sized``."""
+    return align_sized(body, model, points)[0]
+
+
+def align_sized(body: Body, model: GarmentModel,
+                points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """Aligned copy (k, 3) of ``points`` (default: the garment's coarse rest positions), see module doc,
+    and the garment's natural shape on this body (k, 3), or None if it is its own: a garment whose units
+    were guessed is sized to the body, and its springs' natural lengths are those of this shape (the
+    points after the girth scale and, for trousers, their legs' girth; ``GarmentModel.resized``), else the
+    springs pull it back to the file's size in the first steps: by 49 % round the DiffAvatar strap dress
+    scaled to the large body, which then fell through the growing body to the floor.
 
     Each piece of a garment file is aligned by its own kind (``pieces.bottom_mask``): the pieces over the
     shoulders as the garment's category says, the pieces hanging from a waist as a bottom (each fitted by
@@ -248,6 +268,8 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
     for the coarse one, since the full mesh follows the coarse one through the re-attachment.
     """
     x = np.array(model.coarse_vertices if points is None else points, dtype=np.float64)
+    shape = x.copy()
+    sized = False
     lm = body_landmarks(body)
     torso = torso_points(body)
     guessed = bool(getattr(model.meta, "units_guessed", False))
@@ -261,9 +283,12 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
             index = np.cumsum(sel) - 1  # a point's index among the selected ones
             openings = [index[loop] for loop in loops if sel[loop].all()]
             faces = index[model.coarse_faces[sel[model.coarse_faces].all(axis=1)]]
-            x[sel], _ = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs, feet, openings, faces,
-                                     leg_surface)
-    return x
+            x[sel], _, shaped = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs, feet, openings,
+                                             faces, leg_surface)
+            if shaped is not None:  # no spring joins two pieces: each piece's shape stands alone
+                shape[sel] = shaped
+                sized = True
+    return x, (shape if sized else None)
 
 
 def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool, guessed: bool,
@@ -277,9 +302,10 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
     leg's hem is put; ``openings``: the pieces' boundary loops (index arrays into x), which tell a
     sleeve from a wide bodice or a cape (``sleeve_openings``); ``faces`` (f, 3) its triangles, in which a
     bottom's crotch is found; ``leg_surface``: the body's leg points (``leg_points``), the least girth a
-    guessed-units bottom's legs keep. Returns the aligned copy and the scale used (None if not
-    guessed)."""
+    guessed-units bottom's legs keep. Returns the aligned copy, the scale used (None if not guessed) and,
+    if it was rescaled, its natural shape (k, 3) on this body (``align_sized``), else None."""
     x = x.copy()
+    shaped = None
     level = lm.chest_y if top else lm.hips_y
 
     # --- global: centre x, place vertically, centre z
@@ -316,6 +342,8 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
             # checks it), and a garment modelled on a slimmer or broader body differs in girth; scaling the
             # length too made a MakeHuman outfit's trousers 1.4-1.9 x too long on medium and large bodies
             x[:, [0, 2]] = anchor[[0, 2]] + (x[:, [0, 2]] - anchor[[0, 2]]) * scale
+        if scale != 1.0:
+            shaped = x.copy()  # its springs' natural lengths (what follows moves it rigidly, but the legs)
 
     g_band = _band(x, level, lm.center_x, 0.8 * lm.shoulder_half)
     if len(g_band) and len(body_band):
@@ -334,10 +362,13 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
             # the girth scale is for the waistband, what holds the bottom up: the legs keep their own
             # girth (scaled, they start stretched by the scale all round and shrink back in the first
             # steps, unevenly: the MakeHuman trousers' hems slid off the large body's shins)
-            x = fit_legs(x, lm, legs, crotch, 1.0 / scale if scale else 1.0, leg_surface)
+            if scale not in (None, 1.0):
+                x = leg_girth(x, lm, legs, crotch, 1.0 / scale, leg_surface)
+            shaped = x.copy() if shaped is not None else None
+            x = fit_legs(x, lm, legs, crotch)
         if crotch is not None and foot_y is not None:
             x = clear_feet(x, crotch, foot_y)
-    return x, scale
+    return x, scale, shaped
 
 
 def bodice_centre_x(x: np.ndarray, lm: BodyLandmarks) -> float:
@@ -368,16 +399,21 @@ def scale_girth_keep_sleeves(x: np.ndarray, anchor: np.ndarray, scale: float, lm
     if its boundary loops ``openings`` (index arrays into x) are given, ``sleeve_openings``) is scaled
     plainly: beyond its bodice there is only a flared skirt (the DiffAvatar strap dress, kept at its
     bodice's size, flew off the large body in front), or a cape, or the side of a bodice wider than the
-    body's shoulders."""
+    body's shoulders; but its width above the chest line grows only ``SHOULDER_GRADE`` as fast as its
+    girth, reaching that at the shoulders (a size up is graded so, and so are bodies)."""
     plain = x.copy()
     plain[:, [0, 2]] = anchor[[0, 2]] + (x[:, [0, 2]] - anchor[[0, 2]]) * scale
+    # without sleeves, the width above the chest line (straps, shoulders) grows SHOULDER_GRADE as fast
+    t = np.clip((x[:, 1] - lm.chest_y) / max(lm.shoulder_y - lm.chest_y, 1e-6), 0.0, 1.0)
+    graded = plain.copy()
+    graded[:, 0] = anchor[0] + (x[:, 0] - anchor[0]) * (scale + t * (scale - 1.0) * (SHOULDER_GRADE - 1.0))
     # the sleeve points are looked for at the smaller size (a bodice scaled up reaches past SLEEVE_REACH like
     # a sleeve), their openings at the larger (a short sleeve's cuff hangs partly inside the reach at the
     # smaller size: the MakeHuman T-shirt and the DiffAvatar polo on the large body)
     small, large = (x, plain) if scale > 1.0 else (plain, x)
     if not has_sleeves(small, lm) or (
             openings is not None and not all(sleeve_openings(large, lm, sign, openings) for sign in (1.0, -1.0))):
-        return plain
+        return graded
     out = x.copy()
     dx = x[:, 0] - anchor[0]
     inner = lm.shoulder_half / scale
@@ -526,8 +562,71 @@ def axis_at(axis: np.ndarray, heights: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(heights, ay, axis[::-1, c]) for c in (0, 2)], axis=1)
 
 
-def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], crotch: float,
-             girth: float = 1.0, leg_surface: dict[float, np.ndarray] | None = None) -> np.ndarray:
+def _leg_bands(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], crotch: float):
+    """The height bands (``LEG_BIN``) of a bottom's points (k, 3) below ``crotch`` and each trouser leg in
+    them: (edges (n_bins + 1,), centres (n_bins,), {side sign: (leg mask (k,), its centre in each band
+    (n_bins, 2) x, z, the body leg's axis there (n_bins, 2))}), or None when a leg has a band without
+    points (shorts too short for the bands, a skirt)."""
+    y = x[:, 1]
+    low = float(y.min())
+    n_bins = max(2, int(np.ceil((crotch - low) / LEG_BIN)))
+    edges = np.linspace(low, crotch, n_bins + 1)
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    found = {}
+    for sign, axis in legs.items():
+        leg = (sign * (x[:, 0] - lm.center_x) > 0) & (y < crotch)
+        if leg.sum() < 3 * n_bins:
+            return None
+        centre = _leg_centres(x, leg, edges)
+        if centre is None:
+            return None
+        found[sign] = (leg, centre, axis_at(axis, centres))
+    return edges, centres, found
+
+
+def _band_of(heights: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """The band (index) each height (m) falls in, bands bounded by ``edges`` (n_bins + 1,)."""
+    return np.clip(np.searchsorted(edges, heights) - 1, 0, len(edges) - 2)
+
+
+def _band_mean(band: np.ndarray, values: np.ndarray, n_bins: int) -> np.ndarray:
+    """(n_bins,) mean of the values in each band (every band must hold one)."""
+    return np.bincount(band, weights=values, minlength=n_bins) / np.bincount(band, minlength=n_bins)
+
+
+def _leg_centres(x: np.ndarray, leg: np.ndarray, edges: np.ndarray) -> np.ndarray | None:
+    """(n_bins, 2) x, z of the leg's (mask ``leg``) centre in each band, or None if a band is empty."""
+    n_bins = len(edges) - 1
+    b = _band_of(x[leg, 1], edges)
+    if (np.bincount(b, minlength=n_bins) == 0).any():
+        return None
+    return np.stack([_band_mean(b, x[leg, c], n_bins) for c in (0, 2)], axis=1)
+
+
+def leg_girth(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], crotch: float, girth: float,
+              leg_surface: dict[float, np.ndarray] | None = None) -> np.ndarray:
+    """A bottom's points (k, 3) with each trouser leg scaled by ``girth`` about its centres, around the leg
+    (x, z), blending in over ``LEG_BLEND`` below the crotch (undoing a guessed-units girth scale,
+    ``_align_piece``), but not to less than ``LEG_EASE`` x the body's leg (``leg_surface``: its points by
+    side, ``leg_points``): a hem too narrow for the calf would start inside it. ``crotch``: the garment's
+    (``garment_crotch``); ``legs``: the body's leg axes (``leg_axes``). Unchanged without two legs."""
+    bands = _leg_bands(x, lm, legs, crotch)
+    if bands is None or girth == 1.0:
+        return x
+    edges, centres, found = bands
+    x = x.copy()
+    for sign, (leg, centre, _) in found.items():
+        blend = np.clip((crotch - x[leg, 1]) / LEG_BLEND, 0.0, 1.0)[:, None]
+        mids = np.stack([np.interp(x[leg, 1], centres, centre[:, j]) for j in range(2)], axis=1)
+        rel = x[leg][:, [0, 2]] - mids
+        radius = _band_mean(_band_of(x[leg, 1], edges), np.linalg.norm(rel, axis=1), len(centres))
+        skin = leg_radii(leg_surface[sign], legs[sign], centres) if leg_surface is not None else 0.0
+        factor = np.interp(x[leg, 1], centres, np.clip(LEG_EASE * skin / radius, girth, 1.0))
+        x[np.flatnonzero(leg)[:, None], [0, 2]] = mids + rel * (1.0 + blend * (factor[:, None] - 1.0))
+    return x
+
+
+def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], crotch: float) -> np.ndarray:
     """Move each trouser leg of the bottom points (k, 3) over the body's leg. First the leg is turned,
     rigidly, from its own direction (a line through its centres, the mean of its points in bands) onto the
     body leg's, about its centre at the crotch; then its centre at each height is moved onto the body's leg
@@ -536,55 +635,16 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], cr
     legs spread 20 degrees) otherwise starts with the body's shins outside its legs, and the collision pulls
     the legs across (twisted or splayed legs). Moving the centres alone shears a leg: on legs spread 20
     degrees the trousers M started with 816 springs over their limits, strained up to 69 %. ``crotch``: its
-    height (``garment_crotch``). Nothing moves when no leg is off by ``MIN_LEG_SHIFT``. ``girth``: each leg is
-    also scaled by this about its centres, around the leg (x, z), blending in as above (undoing a guessed-units
-    girth scale, ``_align_piece``), but not to less than ``LEG_EASE`` x the body's leg (``leg_surface``: its
-    points by side, ``leg_points``)."""
-    cx = lm.center_x
-    y = x[:, 1]
-    low = float(y.min())
-    n_bins = max(2, int(np.ceil((crotch - low) / LEG_BIN)))
-    edges = np.linspace(low, crotch, n_bins + 1)
-    centres = 0.5 * (edges[:-1] + edges[1:])
-
-    def band_of(heights):  # the band each height (m) falls in
-        return np.clip(np.searchsorted(edges, heights) - 1, 0, n_bins - 1)
-
-    def band_mean(band, values):  # (n_bins,) mean of the values in each band (every band must have one)
-        return np.bincount(band, weights=values, minlength=n_bins) / np.bincount(band, minlength=n_bins)
-
-    def leg_centres(x, leg):  # (n_bins, 2) x, z of the leg's centre in each band, or None if one is empty
-        b = band_of(x[leg, 1])
-        if (np.bincount(b, minlength=n_bins) == 0).any():
-            return None
-        return np.stack([band_mean(b, x[leg, c]) for c in (0, 2)], axis=1)
-
-    found = {}
-    for sign, axis in legs.items():
-        leg = (sign * (x[:, 0] - cx) > 0) & (y < crotch)
-        if leg.sum() < 3 * n_bins:
-            return x
-        centre = leg_centres(x, leg)
-        if centre is None:
-            return x
-        found[sign] = (leg, centre, axis_at(axis, centres))
-    shift = max(np.abs(target - centre).max() for _, centre, target in found.values()) >= MIN_LEG_SHIFT
-    if not shift and girth == 1.0:
+    height (``garment_crotch``). Nothing moves when no leg is off by ``MIN_LEG_SHIFT``."""
+    bands = _leg_bands(x, lm, legs, crotch)
+    if bands is None:
+        return x
+    edges, centres, found = bands
+    if max(np.abs(target - centre).max() for _, centre, target in found.values()) < MIN_LEG_SHIFT:
         return x
     x = x.copy()
     for sign, (leg, centre, target) in found.items():
-        blend = np.clip((crotch - y[leg]) / LEG_BLEND, 0.0, 1.0)[:, None]
-        if girth != 1.0:
-            mids = np.stack([np.interp(x[leg, 1], centres, centre[:, j]) for j in range(2)], axis=1)
-            rel = x[leg][:, [0, 2]] - mids
-            radius = band_mean(band_of(x[leg, 1]), np.linalg.norm(rel, axis=1))
-            # a band keeps its own girth, but no less than the body's leg there (with LEG_EASE): a hem too
-            # narrow for the calf would start inside it, and the growing calf pushes it aside
-            skin = leg_radii(leg_surface[sign], legs[sign], centres) if leg_surface is not None else 0.0
-            factor = np.interp(x[leg, 1], centres, np.clip(LEG_EASE * skin / radius, girth, 1.0))
-            x[np.flatnonzero(leg)[:, None], [0, 2]] = mids + rel * (1.0 + blend * (factor[:, None] - 1.0))
-        if not shift:
-            continue
+        blend = np.clip((crotch - x[leg, 1]) / LEG_BLEND, 0.0, 1.0)[:, None]
         # the leg's direction: a line x, z = a + b y through the centres of the bands below the blend
         below = centres < crotch - LEG_BLEND
         if below.sum() >= 2:
@@ -600,7 +660,7 @@ def fit_legs(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], cr
                 top = np.array([np.interp(crotch, centres, centre[:, 0]), crotch,
                                 np.interp(crotch, centres, centre[:, 1])])
                 x[leg] += blend * ((x[leg] - top) @ turn.T + top - x[leg])
-                centre = leg_centres(x, leg)
+                centre = _leg_centres(x, leg, edges)
         d = target - centre
         for j, c in enumerate((0, 2)):
             x[leg, c] += blend[:, 0] * np.interp(x[leg, 1], centres, d[:, j])

@@ -72,7 +72,7 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.model import STRUCTURAL, GarmentModel
-from tryon.sim.align import ArmPlan, align_garment, plan_arms
+from tryon.sim.align import ArmPlan, align_sized, plan_arms
 from tryon.sim.arms import ArmSchedule
 from tryon.sim.bodystate import BodyCollider
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
@@ -199,6 +199,16 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     """Drape ``model`` on ``body``; see the module doc. ``initial`` (k, 3) replaces the alignment
     (tests and stress scenes start from given positions)."""
     t_start = time.perf_counter()
+    sized = False
+    if initial is None:
+        x, shape = align_sized(body, model)
+        sized = shape is not None
+        if shape is not None:  # sized to this body (guessed units): its springs' natural lengths change too
+            model = model.resized(shape)
+        plan = plan_arms(body, x, model.meta.category, model.coarse_faces, model.coarse_loops)
+    else:
+        x = np.array(initial, dtype=np.float64)
+        plan = ArmPlan(0.0, 0.0)
     dt = float(settings.time_step)
     limits = settings.limits_array()
     compression = settings.compression_array()
@@ -218,12 +228,6 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     table[band_springs, 0] = rest[band_springs] * (1.0 + settings.band_limit)
 
     collider = BodyCollider(body, settings.collision_margin)
-    if initial is None:
-        x = align_garment(body, model)
-        plan = plan_arms(body, x, model.meta.category, model.coarse_faces, model.coarse_loops)
-    else:
-        x = np.array(initial, dtype=np.float64)
-        plan = ArmPlan(0.0, 0.0)
     placed_tops = piece_tops(x, piece)  # to tell at the end how far the garment slid down
     # the sleeves' and trouser legs' openings, to tell at the end whether each is around its limb
     openings = limb_openings(x, model.coarse_faces, body, model.meta.category, model.coarse_loops)
@@ -461,6 +465,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         "limb_openings": on_limbs,
         "openings_on_limbs": all(o["ok"] for o in on_limbs) if on_limbs else None,
         **slid_metrics(placed_tops, x, piece),
+        "sized_to_body": sized,
         "kinetic_energy_per_kg": float(energy),
         "grown": bool(grow_steps),
         "arm_turn_deg": [float(np.degrees(plan.left)), float(np.degrees(plan.right))],

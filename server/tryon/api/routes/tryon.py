@@ -65,6 +65,7 @@ def result_json(result: TryOnResult) -> dict:
         "limb_openings": m.get("limb_openings", []),
         "slid_cm": round(float(m["slid_cm"]), 1),
         "stays_up": bool(m["stays_up"]),
+        "sized_to_body": bool(m.get("sized_to_body", False)),
         "pose": m.get("pose", {}),
     }
     return {"garment": mesh_json(result.vertices, result.faces), "metrics": metrics}

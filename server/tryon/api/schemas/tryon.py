@@ -94,6 +94,10 @@ class TryOnMetricsOut(BaseModel):
     stays_up: bool = Field(True, description=f"whether it slid down no more than {SLID_LIMIT_CM:g} cm (false: it "
                                              "does not stay on the shoulders or hips, e.g. a waistband wider than "
                                              "the hips)")
+    sized_to_body: bool = Field(False, description="true if the garment's units were guessed and it was sized to "
+                                                   "this body (its chest girth 1.15 x the body's, a bottom's "
+                                                   "waistband the body's waist): its fit then says nothing of "
+                                                   "the size it was made in")
     pose: dict[str, float] = Field(default_factory=dict,
                                    description="pose angles of the body draped on, degrees: as asked, except an arm "
                                                "angle too low for the arm to clear the torso, raised to where the "

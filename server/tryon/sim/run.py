@@ -203,7 +203,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     if initial is None:
         x, shape = align_sized(body, model)
         sized = shape is not None
-        if shape is not None:  # sized to this body (guessed units): its springs' natural lengths change too
+        if sized:  # sized to this body (guessed units): its springs' natural lengths change too
             model = model.resized(shape)
         plan = plan_arms(body, x, model.meta.category, model.coarse_faces, model.coarse_loops)
     else:

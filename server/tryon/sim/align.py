@@ -250,14 +250,15 @@ def align_garment(body: Body, model: GarmentModel, points: np.ndarray | None = N
     return align_sized(body, model, points)[0]
 
 
-def align_sized(body: Body, model: GarmentModel,
-                points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+def align_sized(body: Body, model: GarmentModel, points: np.ndarray | None = None,
+                piece: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """Aligned copy (k, 3) of ``points`` (default: the garment's coarse rest positions), see module doc,
     and the garment's natural shape on this body (k, 3), or None if it is its own: a garment whose units
     were guessed is sized to the body, and its springs' natural lengths are those of this shape (the
     points after the girth scale and, for trousers, their legs' girth; ``GarmentModel.resized``), else the
     springs pull it back to the file's size in the first steps: by 49 % round the DiffAvatar strap dress
-    scaled to the large body, which then fell through the growing body to the floor.
+    scaled to the large body, which then fell through the growing body to the floor. ``piece``: the coarse
+    points' ``pieces.piece_labels`` if the caller has them.
 
     Each piece of a garment file is aligned by its own kind (``pieces.bottom_mask``): the pieces over the
     shoulders as the garment's category says, the pieces hanging from a waist as a bottom (each fitted by
@@ -273,7 +274,7 @@ def align_sized(body: Body, model: GarmentModel,
     lm = body_landmarks(body)
     torso = torso_points(body)
     guessed = bool(getattr(model.meta, "units_guessed", False))
-    bottom = bottom_mask(x, model.coarse_faces, model.meta.category)
+    bottom = bottom_mask(x, model.coarse_faces, model.meta.category, piece)
     legs = leg_axes(body)
     leg_surface = leg_points(body) if legs is not None and guessed else None  # only guessed units use it
     feet = foot_top(body)

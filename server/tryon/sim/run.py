@@ -200,8 +200,9 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     (tests and stress scenes start from given positions)."""
     t_start = time.perf_counter()
     sized = False
+    piece = piece_labels(model.coarse_faces, len(model.mass))  # a file's separate garments (an outfit's)
     if initial is None:
-        x, shape = align_sized(body, model)
+        x, shape = align_sized(body, model, piece=piece)
         sized = shape is not None
         if sized:  # sized to this body (guessed units): its springs' natural lengths change too
             model = model.resized(shape)
@@ -221,7 +222,6 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     # a bottom's waistband stretches less than its cloth (``band_limit``; its structural springs: the
     # band's hoop and height). Only the solver holds it so: the metrics judge each spring by its type's
     # limit, so a band too small for its waist shows springs over where it is stretched past the cloth's.
-    piece = piece_labels(model.coarse_faces, len(mass))  # a file's separate garments (an outfit's)
     band = waistband_mask(model.coarse_vertices, model.coarse_faces, model.meta.category, model.coarse_loops,
                           piece)
     band_springs = (kind == STRUCTURAL) & band[springs[:, 0]] & band[springs[:, 1]]

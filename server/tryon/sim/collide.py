@@ -31,6 +31,7 @@ import math
 import numpy as np
 from numba import njit
 
+from tryon.sim.friction import coulomb_cut
 from tryon.sim.inside import inside_triangle_xyz
 
 # Below this cosine between the ray and the hit triangle's normal, the radial push is replaced by the
@@ -572,18 +573,8 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
             py = p[1] - x0[1]
             pz = p[2] - x0[2]
             press = math.sqrt(px * px + py * py + pz * pz)
-            mx = x0[0] - x_prev[i, 0]
-            my = x0[1] - x_prev[i, 1]
-            mz = x0[2] - x_prev[i, 2]
-            mn = mx * normal[0] + my * normal[1] + mz * normal[2]
-            tx = mx - mn * normal[0]
-            ty = my - mn * normal[1]
-            tz = mz - mn * normal[2]
-            tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-            if tl <= mu_static * press:
-                cut = 1.0
-            else:
-                cut = min(mu_kinetic * press / tl, 1.0)
+            cut, tx, ty, tz, _ = coulomb_cut(x0[0] - x_prev[i, 0], x0[1] - x_prev[i, 1], x0[2] - x_prev[i, 2],
+                                             normal[0], normal[1], normal[2], press, mu_static, mu_kinetic)
             p[0] -= cut * tx
             p[1] -= cut * ty
             p[2] -= cut * tz
@@ -666,15 +657,8 @@ def reuse_planes(x, x_prev, has_plane, plane_point, plane_normal, reuse, mu_stat
         x[i, 0] -= d * nx
         x[i, 1] -= d * ny
         x[i, 2] -= d * nz
-        mx = x[i, 0] - x_prev[i, 0]
-        my = x[i, 1] - x_prev[i, 1]
-        mz = x[i, 2] - x_prev[i, 2]
-        mn = mx * nx + my * ny + mz * nz
-        tx = mx - mn * nx
-        ty = my - mn * ny
-        tz = mz - mn * nz
-        tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-        cut = 1.0 if tl <= -mu_static * d else min(-mu_kinetic * d / max(tl, 1e-15), 1.0)
+        cut, tx, ty, tz, _ = coulomb_cut(x[i, 0] - x_prev[i, 0], x[i, 1] - x_prev[i, 1], x[i, 2] - x_prev[i, 2],
+                                         nx, ny, nz, -d, mu_static, mu_kinetic)
         # friction on the tangential motion, and no velocity along the normal (inelastic)
         x[i, 0] -= cut * tx
         x[i, 1] -= cut * ty

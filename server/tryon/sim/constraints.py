@@ -7,6 +7,8 @@ import math
 import numpy as np
 from numba import njit
 
+from tryon.sim.friction import coulomb_cut
+
 
 @njit(cache=True, nogil=True, fastmath=True)
 def project_listed(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_kinetic, push=None):
@@ -43,13 +45,7 @@ def project_listed(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_k
         x_prev[i, 2] += mn * nz
         if mu_static <= 0.0:
             continue
-        tx = mx - mn * nx
-        ty = my - mn * ny
-        tz = mz - mn * nz
-        tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-        if tl <= 1e-15:
-            continue
-        cut = 1.0 if tl <= -mu_static * d else min(-mu_kinetic * d / tl, 1.0)
+        cut, tx, ty, tz, _ = coulomb_cut(mx, my, mz, nx, ny, nz, -d, mu_static, mu_kinetic)
         x[i, 0] -= cut * tx
         x[i, 1] -= cut * ty
         x[i, 2] -= cut * tz
@@ -78,20 +74,9 @@ def apply_friction(x, x_prev, listed, plane_normal, push, mu_static, mu_kinetic)
         push[i] = 0.0
         if p <= 0.0:
             continue
-        nx = plane_normal[i, 0]
-        ny = plane_normal[i, 1]
-        nz = plane_normal[i, 2]
-        mx = x[i, 0] - x_prev[i, 0]
-        my = x[i, 1] - x_prev[i, 1]
-        mz = x[i, 2] - x_prev[i, 2]
-        mn = mx * nx + my * ny + mz * nz
-        tx = mx - mn * nx
-        ty = my - mn * ny
-        tz = mz - mn * nz
-        tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-        if tl <= 1e-15:
-            continue
-        cut = 1.0 if tl <= mu_static * p else min(mu_kinetic * p / tl, 1.0)
+        cut, tx, ty, tz, _ = coulomb_cut(x[i, 0] - x_prev[i, 0], x[i, 1] - x_prev[i, 1], x[i, 2] - x_prev[i, 2],
+                                         plane_normal[i, 0], plane_normal[i, 1], plane_normal[i, 2], p, mu_static,
+                                         mu_kinetic)
         x[i, 0] -= cut * tx
         x[i, 1] -= cut * ty
         x[i, 2] -= cut * tz

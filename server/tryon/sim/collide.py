@@ -573,8 +573,8 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
             py = p[1] - x0[1]
             pz = p[2] - x0[2]
             press = math.sqrt(px * px + py * py + pz * pz)
-            cut, tx, ty, tz, _ = coulomb_cut(x0[0] - x_prev[i, 0], x0[1] - x_prev[i, 1], x0[2] - x_prev[i, 2],
-                                             normal[0], normal[1], normal[2], press, mu_static, mu_kinetic)
+            cut, tx, ty, tz = coulomb_cut(x0[0] - x_prev[i, 0], x0[1] - x_prev[i, 1], x0[2] - x_prev[i, 2],
+                                          normal[0], normal[1], normal[2], press, mu_static, mu_kinetic)
             p[0] -= cut * tx
             p[1] -= cut * ty
             p[2] -= cut * tz
@@ -657,8 +657,8 @@ def reuse_planes(x, x_prev, has_plane, plane_point, plane_normal, reuse, mu_stat
         x[i, 0] -= d * nx
         x[i, 1] -= d * ny
         x[i, 2] -= d * nz
-        cut, tx, ty, tz, _ = coulomb_cut(x[i, 0] - x_prev[i, 0], x[i, 1] - x_prev[i, 1], x[i, 2] - x_prev[i, 2],
-                                         nx, ny, nz, -d, mu_static, mu_kinetic)
+        cut, tx, ty, tz = coulomb_cut(x[i, 0] - x_prev[i, 0], x[i, 1] - x_prev[i, 1], x[i, 2] - x_prev[i, 2],
+                                      nx, ny, nz, -d, mu_static, mu_kinetic)
         # friction on the tangential motion, and no velocity along the normal (inelastic)
         x[i, 0] -= cut * tx
         x[i, 1] -= cut * ty

@@ -45,7 +45,7 @@ def project_listed(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_k
         x_prev[i, 2] += mn * nz
         if mu_static <= 0.0:
             continue
-        cut, tx, ty, tz, _ = coulomb_cut(mx, my, mz, nx, ny, nz, -d, mu_static, mu_kinetic)
+        cut, tx, ty, tz = coulomb_cut(mx, my, mz, nx, ny, nz, -d, mu_static, mu_kinetic)
         x[i, 0] -= cut * tx
         x[i, 1] -= cut * ty
         x[i, 2] -= cut * tz
@@ -74,9 +74,9 @@ def apply_friction(x, x_prev, listed, plane_normal, push, mu_static, mu_kinetic)
         push[i] = 0.0
         if p <= 0.0:
             continue
-        cut, tx, ty, tz, _ = coulomb_cut(x[i, 0] - x_prev[i, 0], x[i, 1] - x_prev[i, 1], x[i, 2] - x_prev[i, 2],
-                                         plane_normal[i, 0], plane_normal[i, 1], plane_normal[i, 2], p, mu_static,
-                                         mu_kinetic)
+        cut, tx, ty, tz = coulomb_cut(x[i, 0] - x_prev[i, 0], x[i, 1] - x_prev[i, 1], x[i, 2] - x_prev[i, 2],
+                                      plane_normal[i, 0], plane_normal[i, 1], plane_normal[i, 2], p, mu_static,
+                                      mu_kinetic)
         x[i, 0] -= cut * tx
         x[i, 1] -= cut * ty
         x[i, 2] -= cut * tz

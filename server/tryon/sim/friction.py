@@ -15,13 +15,12 @@ def coulomb_cut(mx, my, mz, nx, ny, nz, press, mu_static, mu_kinetic):
     (mx, my, mz) m: the point's motion over the substep (x - x_prev); (nx, ny, nz): the contact's unit
     normal; press m: how far the body pushed the point out (>= 0). The tangential part t of the motion is
     cancelled if |t| <= mu_static x press (the point sticks), else shortened by mu_kinetic x press (it
-    slides). Returns (cut, tx, ty, tz, mn): the fraction of t to take away (0..1), t (m) and the motion
-    along the normal mn (m)."""
+    slides). Returns (cut, tx, ty, tz): the fraction of t to take away (0..1) and t (m)."""
     mn = mx * nx + my * ny + mz * nz
     tx = mx - mn * nx
     ty = my - mn * ny
     tz = mz - mn * nz
     tl = math.sqrt(tx * tx + ty * ty + tz * tz)
     if tl <= mu_static * press:
-        return 1.0, tx, ty, tz, mn
-    return min(mu_kinetic * press / max(tl, 1e-15), 1.0), tx, ty, tz, mn
+        return 1.0, tx, ty, tz
+    return min(mu_kinetic * press / max(tl, 1e-15), 1.0), tx, ty, tz

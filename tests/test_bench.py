@@ -148,3 +148,17 @@ def test_bad_out_or_section_is_refused_before_running(tmp_path, capsys):
     assert main(["bench", "--quick", "--only", "tabel1", "--out", str(tmp_path / "out")]) == 2
     assert "unknown section 'tabel1'" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_fit_with_fewer_substeps_says_so(tmp_path, capsys):
+    assert main(["bench", "--quick", "--only", "fit", "--substeps", "0", "--out", str(tmp_path / "bad")]) == 2
+    assert "--substeps must be 1 to 16, got 0" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+    out = tmp_path / "out"
+    assert main(["bench", "--quick", "--only", "fit", "--substeps", "8", "--out", str(out)]) == 0
+    report = json.loads((out / "bench.json").read_text())
+    fit = _section(report, "fit")
+    assert (fit["data"]["substeps"], fit["data"]["passes"]) == (8, 8)
+    assert fit["headline"][0].startswith("fit, 8 substeps: 3 drapes")
+    assert "8 substeps of one pass a step" in (out / "bench.md").read_text()
+    assert report["command"].endswith("--substeps 8")

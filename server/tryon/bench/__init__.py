@@ -37,12 +37,13 @@ def sections():
 
 
 def run_bench(out_dir: Path | str = "bench-results", quick: bool = False, stress: bool = False,
-              only: list[str] | None = None, log=print) -> tuple[dict, int]:
+              only: list[str] | None = None, log=print, substeps: int | None = None) -> tuple[dict, int]:
     """Run the benchmark into ``out_dir``; returns (report dict, exit code). The exit code is 1 when a
-    section failed (our code raised), 0 otherwise (skipped optional peers are not failures)."""
+    section failed (our code raised), 0 otherwise (skipped optional peers are not failures). ``substeps``:
+    the fit section's substeps per step (one spring pass each) instead of the default settings."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    ctx = Context(out_dir=out, quick=quick, stress=stress, log=log)
+    ctx = Context(out_dir=out, quick=quick, stress=stress, log=log, substeps=substeps)
     started = now()
     info = machine()
     t0 = time.perf_counter()
@@ -54,7 +55,8 @@ def run_bench(out_dir: Path | str = "bench-results", quick: bool = False, stress
     mode = "quick" if quick else "full"
     if stress:
         mode += " + stress"
-    cmd = "tryon bench" + (" --quick" if quick else "") + (" --stress" if stress else "")
+    cmd = ("tryon bench" + (" --quick" if quick else "") + (" --stress" if stress else "")
+           + (f" --substeps {substeps}" if substeps is not None else ""))
     report = write_report(out, done, {
         "started": started, "mode": mode, "command": cmd, "seconds": time.perf_counter() - t0,
         "machine": info, "argv": sys.argv,

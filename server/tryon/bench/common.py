@@ -62,13 +62,15 @@ class SkipSection(Exception):
 @dataclass
 class Context:
     """What every section gets: the output directory, the run mode, and a cache shared between sections
-    (bodies, prepared garments) so that nothing is built twice in one run."""
+    (bodies, prepared garments) so that nothing is built twice in one run. ``substeps``: the fit section's
+    substeps per step (one spring pass each), None for the default settings."""
 
     out_dir: Path
     quick: bool
     stress: bool
     cache: dict = field(default_factory=dict)
     log: Callable[[str], None] = print
+    substeps: int | None = None
 
     def cached(self, key, make):
         if key not in self.cache:

@@ -79,7 +79,7 @@ async def upload_garment(
     existing one if the same file was already ingested with the same parameters."""
     name, size = name.strip(), (size or "").strip() or None
     if not name:
-        raise HTTPException(status.HTTP_422_UNPROCESSABLE_ENTITY, "name: must not be blank")
+        raise HTTPException(422, "name: must not be blank")
     filename = file.filename or ""
     try:
         file_extension(filename)

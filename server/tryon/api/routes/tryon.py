@@ -106,7 +106,7 @@ async def tryon(
     except KeyError:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"no garment with id {body.garment_id!r}") from None
     except ValueError as exc:
-        raise HTTPException(status.HTTP_422_UNPROCESSABLE_ENTITY, f"cannot run this try-on: {exc}") from None
+        raise HTTPException(422, f"cannot run this try-on: {exc}") from None
     if hit is None and guard.stopped_by is None:  # cut-short runs are not kept
         cache.put(key, CachedTryOn(result=result))
     out = result_json(result)

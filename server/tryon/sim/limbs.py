@@ -41,19 +41,21 @@ END_FRACTION = 0.9
 
 
 def limb_openings(x: np.ndarray, faces: np.ndarray, body: Body, category: str,
-                  loops: list[np.ndarray] | None = None) -> list[tuple[str, str, np.ndarray]]:
+                  loops: list[np.ndarray] | None = None,
+                  piece: np.ndarray | None = None) -> list[tuple[str, str, np.ndarray]]:
     """The openings of the aligned garment (coarse points x (k, 3) m, faces (f, 3), ``category`` top |
     bottom | dress) that should end around a limb: (side "left" | "right", limb "arm" | "leg", point ids
     (q,) int64 in order round it) for every opening on one side of the body's centre line that a limb fits
     through (``align.side_opening``): sleeve cuffs and armholes of the pieces over the
     shoulders, leg hems of the pieces hanging from the waist if there is one on each side (trousers, shorts;
     not a skirt's slit). A neck, waist or hem opening runs round the centre line and is none of them.
-    ``loops``: the mesh's boundary loops if known (``GarmentModel.coarse_loops``)."""
+    ``loops``: the mesh's boundary loops if known (``GarmentModel.coarse_loops``); ``piece`` (k,) the points'
+    ``pieces.piece_labels`` if known."""
     if "torso" not in body.parts or not any(f"{p}_{c}" in body.parts for ps in LIMB_PARTS.values() for p in ps
                                             for _, c, _ in SIDES):
         return []  # a scene's ball or table: no limbs
     lm = body_landmarks(body)
-    bottom = bottom_mask(x, faces, category)
+    bottom = bottom_mask(x, faces, category, piece)
     out = []
     for loop in boundary_loops(faces, len(x)) if loops is None else loops:
         loop = loop[ring_order(x[loop])]

@@ -230,7 +230,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     collider = BodyCollider(body, settings.collision_margin)
     placed_tops = piece_tops(x, piece)  # to tell at the end how far the garment slid down
     # the sleeves' and trouser legs' openings, to tell at the end whether each is around its limb
-    openings = limb_openings(x, model.coarse_faces, body, model.meta.category, model.coarse_loops)
+    openings = limb_openings(x, model.coarse_faces, body, model.meta.category, model.coarse_loops, piece)
     arms = ArmSchedule(body, collider, plan)
     lo, hi = x.min(axis=0), x.max(axis=0)
     parts = relevant_parts(body.maps, lo, hi, PART_REACH)

@@ -367,6 +367,35 @@ def test_a_guessed_units_dress_is_sized_to_the_body_springs_and_all(body):
     assert 1.0 < ease < GUESSED_UNITS_EASE + 0.05, ease  # round the chest with some ease, not back at 0.7
 
 
+def _shrunk(kind: str, girth: float, guessed: bool, category: str = "top"):
+    """The generated garment ``kind`` in size S at ``girth`` x its girth (x and z about its centre),
+    prepared with its units guessed or not."""
+    from tryon.garment.generate import garment_mesh
+    from tryon.garment.ingest import CleanMesh
+    from tryon.garment.prepare import prepare
+
+    g = garment_mesh(kind, "S")
+    v = np.array(g.vertices, dtype=np.float64)
+    centre = v.mean(axis=0)
+    v[:, [0, 2]] = centre[[0, 2]] + girth * (v[:, [0, 2]] - centre[[0, 2]])
+    mesh = CleanMesh(vertices=v, faces=np.asarray(g.faces, dtype=np.int32), units="m", units_guessed=guessed)
+    return prepare(mesh, id="shrunk", name="shrunk", category=category, size="S", source_sha256="0",
+                   source_name="shrunk.obj")
+
+
+@pytest.mark.parametrize("kind, girth", [("tshirt", 0.7), ("longsleeve", 0.65)])
+def test_a_guessed_units_top_with_sleeves_is_sized_whole_at_the_chest(body, kind, girth):
+    """A T-shirt at 0.7 of its girth and a long-sleeve at 0.65, their units guessed: the bodice is scaled
+    whole, under the armpits too, its girth measured without the sleeves hanging beside it, and the sleeves
+    move with the armholes. Before, the sleeves' girth counted in the bodice's (0.98 of the body's chest
+    for the T-shirt, 0.82 without them) and the sized tops kept 314 and 1,172 springs over, nearly all at
+    the chest; now none."""
+    m = drape(body, _shrunk(kind, girth, True), SimSettings()).metrics
+    assert m["sized_to_body"]
+    assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, m["too_tight"]
+    assert m["penetrating_vertices"] == 0 and m["stays_up"] and m["openings_on_limbs"]
+
+
 def test_shorts_far_too_small_are_stretched_no_further_than_the_tear_guard(catalogue):
     """Shorts S (waist 72 cm) on a 100 cm waist: collision wins over the springs during the drape, and the
     tear guard keeps every spring under TEAR_GUARD x its natural length, also after the last collision

@@ -482,6 +482,103 @@ def test_a_guessed_units_cape_is_scaled_plainly(body):
         assert not np.allclose(scale_girth_keep_sleeves(x, anchor, scale, lm), scaled)  # judged by reach alone
 
 
+def _shrunk_top(kind: str, size: str, girth: float, guessed: bool):
+    """The generated top ``kind`` at ``girth`` x its girth (x and z about its centre), units guessed or not."""
+    g = garment_mesh(kind, size)
+    v = np.array(g.vertices, dtype=np.float64)
+    centre = v.mean(axis=0)
+    v[:, [0, 2]] = centre[[0, 2]] + girth * (v[:, [0, 2]] - centre[[0, 2]])
+    mesh = CleanMesh(vertices=v, faces=np.asarray(g.faces, dtype=np.int32), units="m", units_guessed=guessed)
+    category = "dress" if kind == "dress" else "top"
+    return prepare(mesh, id="t", name="t", category=category, size=size, source_sha256="0", source_name="t.obj")
+
+
+def test_sleeves_are_found_over_the_cloth_from_cuff_to_armpit(body):
+    """Each sleeve is found by its cuff hanging from an armpit (``find_sleeves``), not by its reach: a
+    T-shirt at 0.7 of its girth has sleeves within SLEEVE_REACH (by reach it has none). Its armpit lies a
+    short sleeve's underside from the cuff, a long sleeve's ~45 cm; a sleeveless dress and a cape have no
+    sleeve (their armholes and hem are joined to the bodice below them)."""
+    from tryon.sim.align import find_sleeves, has_sleeves
+
+    lm = body_landmarks(body)
+    for kind, girth, lo, hi in (("tshirt", 1.0, 0.04, 0.12), ("tshirt", 0.7, 0.04, 0.12),
+                                ("longsleeve", 1.0, 0.35, 0.55), ("dress", 1.0, None, None)):
+        model = _shrunk_top(kind, "S", girth, False)
+        x = align_garment(body, model)
+        sleeves = find_sleeves(x, model.coarse_faces, model.coarse_loops, lm)
+        if lo is None:
+            assert sleeves == {}
+            continue
+        assert sorted(sleeves) == [-1.0, 1.0], kind
+        assert all(lo < s.armpit < hi for s in sleeves.values()), (kind, [s.armpit for s in sleeves.values()])
+        if girth < 1.0:
+            assert not has_sleeves(x, lm)
+    vertices, faces = _cape(0.09, 0.5, 0.3)
+    cape = _prepared(vertices, faces, "top")
+    x = align_garment(body, cape)
+    assert find_sleeves(x, cape.coarse_faces, cape.coarse_loops, lm) == {}
+
+
+def test_a_sized_tops_bodice_is_scaled_whole_and_its_sleeves_moved_out_round_the_arms(body):
+    """``size_top``: the bodice of a long-sleeve, sleeves excepted, is scaled whole by the girth scale below
+    the chest line, its sides under the armpits too (only the half-width that lands on the shoulder joints
+    was, ``scale_girth_keep_sleeves``); down a sleeve, past SLEEVE_BLEND from the armpit, every point moves
+    by one shift (the armhole's) and, with the arms given, each ring round the sleeve is at least LEG_EASE x
+    the arm's girth there (the sleeves of a top at 0.65 of its girth are narrower than the arms)."""
+    from tryon.sim.align import (
+        SLEEVE_BLEND, arm_radii, arm_surfaces, find_sleeves, size_top, sleeve_points, sleeve_rings,
+    )
+
+    lm = body_landmarks(body)
+    model = _shrunk_top("longsleeve", "S", 0.65, False)
+    x = align_garment(body, model)
+    sleeves = find_sleeves(x, model.coarse_faces, model.coarse_loops, lm)
+    anchor = np.array([lm.center_x, lm.shoulder_y, x[:, 2].mean()])
+    scale = 1.6
+    plain = x.copy()
+    plain[:, [0, 2]] = anchor[[0, 2]] + scale * (x[:, [0, 2]] - anchor[[0, 2]])
+    arms = arm_surfaces(body)
+    kept, fitted = size_top(x, anchor, scale, lm, sleeves, None), size_top(x, anchor, scale, lm, sleeves, arms)
+    bodice = ~sleeve_points(len(x), sleeves) & (x[:, 1] <= lm.chest_y)
+    sides = bodice & (np.abs(x[:, 0] - lm.center_x) > lm.shoulder_half / scale)
+    assert sides.sum() > 20
+    for y in (kept, fitted):
+        assert np.allclose(y[bodice], plain[bodice])
+    for sign, sleeve in sleeves.items():
+        far = sleeve.distance < sleeve.armpit - SLEEVE_BLEND
+        assert far.sum() > 30
+        shift = kept[far] - x[far]
+        assert np.allclose(shift, shift[0]) and sign * shift[0, 0] > 0.02  # out with the armhole, unscaled
+        joint = lm.shoulder_l if sign > 0 else lm.shoulder_r
+        ids, _, _, radii, along = sleeve_rings(fitted, sleeve, joint)
+        ring_far = ids * (sleeve.armpit / ids.max()) < sleeve.armpit - SLEEVE_BLEND
+        skin = arm_radii(arms[sign][1], arms[sign][0], along)
+        assert (radii[ring_far] >= 0.95 * LEG_EASE * skin[ring_far]).all()
+        before = sleeve_rings(x, sleeve, joint)[3]
+        assert (before[ring_far] < LEG_EASE * skin[ring_far]).any()  # some were narrower
+
+
+def test_a_guessed_units_tops_sleeves_are_widened_only_when_its_units_were_guessed(body):
+    """``align_sized``: a long-sleeve at 0.65 of its girth, its units guessed, is sized with sleeves of at
+    least LEG_EASE x the arms' girth and returns its sized shape (its springs' natural lengths); in known
+    units it is left as it is (no shape) and its sleeves stay narrow."""
+    from tryon.sim.align import SLEEVE_BLEND, align_sized, arm_radii, arm_surfaces, find_sleeves, sleeve_rings
+
+    lm = body_landmarks(body)
+    arms = arm_surfaces(body)
+    for guessed in (False, True):
+        model = _shrunk_top("longsleeve", "S", 0.65, guessed)
+        x, shape = align_sized(body, model)
+        assert (shape is not None) == guessed
+        sleeves = find_sleeves(align_garment(body, _shrunk_top("longsleeve", "S", 0.65, False)),
+                               model.coarse_faces, model.coarse_loops, lm)
+        for sign, sleeve in sleeves.items():
+            ids, _, _, radii, along = sleeve_rings(x, sleeve, lm.shoulder_l if sign > 0 else lm.shoulder_r)
+            wide = radii >= 0.95 * LEG_EASE * arm_radii(arms[sign][1], arms[sign][0], along)
+            far = ids * (sleeve.armpit / ids.max()) < sleeve.armpit - SLEEVE_BLEND  # past the armhole's blend
+            assert wide[far].all() if guessed else not wide[far].all()
+
+
 def test_a_bodice_wider_than_the_shoulders_is_not_a_sleeve():
     """A sleeveless dress two sizes too big (XXL on a size S body): its bodice reaches past the small
     body's shoulders like a sleeve would, but it has no opening out there, so the arms are not turned

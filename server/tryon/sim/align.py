@@ -5,9 +5,11 @@
    waist level. A garment whose units were guessed at ingestion is also scaled so that its girth at the
    chest is about 1.15 x the body's, a bottom's waistband the body's girth just under its waist (if they are
    not within 0.95-1.6 x already; a garment in the right units is never rescaled:
-   its size is the point of trying it on); a top's sleeves move out with its shoulders, unscaled, and a
-   bottom's legs keep their own girth (but no less than the body's legs). Its springs' natural lengths
-   are then those of the scaled shape (``align_sized``): it is shown at the size this body would wear.
+   its size is the point of trying it on). A top's bodice is measured and scaled without its sleeves,
+   which move out with their armholes, unscaled (found over the cloth from cuff to armpit,
+   ``find_sleeves``), and a bottom's legs keep their own girth; but no sleeve or leg is left narrower
+   than ``LEG_EASE`` x the body's arm or leg. Its springs' natural lengths are then those of the sized
+   shape (``align_sized``): it is shown at the size this body would wear.
 2. Local alignment (the paper's construction): a = the garment's rear-most point (smallest z) on the
    torso, b = the body point nearest to a, c = the garment's highest point near the centre line (the
    collar for a top, the waistband for a bottom); the garment turns about the X axis through c by the
@@ -22,16 +24,18 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 from scipy.spatial import ConvexHull, QhullError
 
 from tryon.body.params import POSE_RANGES
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
-from tryon.garment.topology import boundary_loops, face_edge_ids
+from tryon.garment.topology import boundary_loops, cloth_distance, face_edge_ids
 from tryon.sim.bodystate import _rotation
-from tryon.sim.pieces import bottom_mask, section_sides
+from tryon.sim.pieces import _root, bottom_mask, section_sides
 
 # m: the garment's shoulder line is placed this far above the body's (a few mm of air, so the first
 # step does not start in contact; gravity closes the gap at once).
@@ -54,6 +58,13 @@ SHOULDER_GRADE = 0.5
 # see ``scale_girth_keep_sleeves``): over 5 cm an edge across it was stretched up to 1.7 x the scale
 # (3.1 x on the MakeHuman blouse at scale 1.8), over 15 cm 1.0-1.05 x.
 SLEEVE_BLEND = 0.15
+# m: a guessed-units top's sleeve is measured in rings about this far apart over the cloth from its cuff
+# (``sleeve_rings``), each of MIN_RING_POINTS points or more (the coarse MakeHuman blouse's sleeves have
+# rings of one point: no girth to speak of). A sleeve is widened to at most MAX_SLEEVE_EASE x its girth (the
+# MakeHuman blouse on the large body: 1.9 x at the cuff, made for a slimmer arm).
+SLEEVE_RING = 0.04
+MIN_RING_POINTS = 4
+MAX_SLEEVE_EASE = 2.0
 # Height bands between the body's waist and chest lines in which a top's centre line is found
 # (``bodice_centre_x``).
 CENTRE_BANDS = 5
@@ -277,6 +288,7 @@ def align_sized(body: Body, model: GarmentModel, points: np.ndarray | None = Non
     bottom = bottom_mask(x, model.coarse_faces, model.meta.category, piece)
     legs = leg_axes(body)
     leg_surface = leg_points(body) if legs is not None and guessed else None  # only guessed units use it
+    arm_surface = arm_surfaces(body) if guessed else None
     feet = foot_top(body)
     loops = model.coarse_loops
     for is_top, sel in ((True, ~bottom), (False, bottom)):
@@ -285,7 +297,7 @@ def align_sized(body: Body, model: GarmentModel, points: np.ndarray | None = Non
             openings = [index[loop] for loop in loops if sel[loop].all()]
             faces = index[model.coarse_faces[sel[model.coarse_faces].all(axis=1)]]
             x[sel], _, shaped = _align_piece(x[sel], lm, torso, is_top, guessed, None, legs, feet, openings,
-                                             faces, leg_surface)
+                                             faces, leg_surface, arm_surface)
             if shaped is not None:  # no spring joins two pieces: each piece's shape stands alone
                 shape[sel] = shaped
                 sized = True
@@ -295,7 +307,9 @@ def align_sized(body: Body, model: GarmentModel, points: np.ndarray | None = Non
 def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool, guessed: bool,
                  scale: float | None, legs: dict[float, np.ndarray] | None, foot_y: float | None,
                  openings: list[np.ndarray], faces: np.ndarray,
-                 leg_surface: dict[float, np.ndarray] | None = None) -> tuple[np.ndarray, float | None]:
+                 leg_surface: dict[float, np.ndarray] | None = None,
+                 arm_surface: dict[float, tuple[np.ndarray, np.ndarray]] | None = None
+                 ) -> tuple[np.ndarray, float | None]:
     """Global then local alignment of the points (k, 3) of one kind of piece (``top``: hung from the
     shoulders, else from the waist). ``scale``: the factor a guessed-units garment was already scaled by
     (None: decide it here from the girth); ``legs``: the body's leg axes (``leg_axes``), over which a
@@ -303,7 +317,9 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
     leg's hem is put; ``openings``: the pieces' boundary loops (index arrays into x), which tell a
     sleeve from a wide bodice or a cape (``sleeve_openings``); ``faces`` (f, 3) its triangles, in which a
     bottom's crotch is found; ``leg_surface``: the body's leg points (``leg_points``), the least girth a
-    guessed-units bottom's legs keep. Returns the aligned copy, the scale used (None if not guessed) and,
+    guessed-units bottom's legs keep; ``arm_surface``: the body's arms (``arm_surfaces``), the least girth a
+    guessed-units top's sleeves get (``size_top``). Returns the aligned copy, the scale used (None if not
+    guessed) and,
     if it was rescaled, its natural shape (k, 3) on this body (``align_sized``), else None."""
     x = x.copy()
     shaped = None
@@ -326,24 +342,33 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
     body_band = _band(torso, level, lm.center_x, 2.0 * lm.shoulder_half)
     if guessed:
         anchor = np.array([lm.center_x, lm.shoulder_y if top else lm.waist_y, x[:, 2].mean()])
+        sleeves = find_sleeves(x, faces, openings, lm) if top else {}
         if scale is None:
             scale = 1.0
             # a bottom is fitted by its waistband (what holds it up), just under the body's waist line
             fit_y, dy = (level, 0.04) if top else (lm.waist_y - BAND_BELOW_WAIST, BAND_BELOW_WAIST)
-            g_band = _band(x, fit_y, lm.center_x, 1.2 * lm.shoulder_half, dy)
+            # a top's girth is its bodice's: its sleeves hang beside the chest (a T-shirt at 0.7 of its
+            # girth measured 0.98 of the body's chest round its sleeves, 0.82 without)
+            bodice = ~sleeve_points(len(x), sleeves)
+            g_band = _band(x[bodice], fit_y, lm.center_x, 1.2 * lm.shoulder_half, dy)
             gg, bg = _girth(g_band), _girth(_band(torso, fit_y, lm.center_x, 2.0 * lm.shoulder_half, dy))
             if gg > 0 and bg > 0:
                 ratio = gg / bg
                 if not 0.95 <= ratio <= 1.6:
                     scale = (GUESSED_UNITS_EASE if top else GUESSED_UNITS_BOTTOM_EASE) / ratio
-        if scale != 1.0 and top:
+        if top and sleeves:
+            # sleeves narrower than the arms are widened even when the bodice fits
+            sized = size_top(x, anchor, scale, lm, sleeves, arm_surface)
+            if scale != 1.0 or not np.array_equal(sized, x):
+                x, shaped = sized, sized.copy()
+        elif scale != 1.0 and top:
             x = scale_girth_keep_sleeves(x, anchor, scale, lm, openings)
         elif scale != 1.0:
             # around the body only (x, z): the guessed unit already gives a wearable length (ingestion
             # checks it), and a garment modelled on a slimmer or broader body differs in girth; scaling the
             # length too made a MakeHuman outfit's trousers 1.4-1.9 x too long on medium and large bodies
             x[:, [0, 2]] = anchor[[0, 2]] + (x[:, [0, 2]] - anchor[[0, 2]]) * scale
-        if scale != 1.0:
+        if scale != 1.0 and shaped is None:
             shaped = x.copy()  # its springs' natural lengths (what follows moves it rigidly, but the legs)
 
     g_band = _band(x, level, lm.center_x, 0.8 * lm.shoulder_half)
@@ -391,30 +416,27 @@ def bodice_centre_x(x: np.ndarray, lm: BodyLandmarks) -> float:
 def scale_girth_keep_sleeves(x: np.ndarray, anchor: np.ndarray, scale: float, lm: BodyLandmarks,
                              openings: list[np.ndarray] | None = None) -> np.ndarray:
     """A guessed-units top's points (k, 3) scaled around the body by ``scale`` (x and z about ``anchor``
-    (3,)), its sleeves excepted: only the bodice's half-width that lands on the body's shoulder joints
-    (``shoulder_half / scale`` before scaling) is scaled, and what lies beyond it (the sleeves) moves out
-    with the shoulder, unscaled, its depth (z) scale fading from ``scale`` to 1 over ``SLEEVE_BLEND``.
-    Scaling a sleeve that hangs at 30-50 degrees in x and z only stretched it along its length and
-    flattened its section (a MakeHuman blouse at 1.8 on the large body: sleeves 1.8 x as wide as deep,
-    well past the wrists), which the arms then cut through. A top without sleeves (``has_sleeves`` and,
-    if its boundary loops ``openings`` (index arrays into x) are given, ``sleeve_openings``) is scaled
-    plainly: beyond its bodice there is only a flared skirt (the DiffAvatar strap dress, kept at its
-    bodice's size, flew off the large body in front), or a cape, or the side of a bodice wider than the
-    body's shoulders; but its width above the chest line grows only ``SHOULDER_GRADE`` as fast as its
-    girth, reaching that at the shoulders (a size up is graded so, and so are bodies)."""
+    (3,)), its sleeves excepted, for a top whose sleeves are not found over the cloth (``find_sleeves``: a
+    sleeve held out level; else ``size_top``): only the bodice's half-width that lands on the body's
+    shoulder joints (``shoulder_half / scale`` before scaling) is scaled, and what lies beyond it (the
+    sleeves) moves out with the shoulder, unscaled, its depth (z) scale fading from ``scale`` to 1 over
+    ``SLEEVE_BLEND``. Scaling a sleeve that hangs at 30-50 degrees in x and z only stretched it along its
+    length and flattened its section (a MakeHuman blouse at 1.8 on the large body: sleeves 1.8 x as wide
+    as deep, well past the wrists), which the arms then cut through. A top without sleeves
+    (``has_sleeves`` and, if its boundary loops ``openings`` (index arrays into x) are given,
+    ``sleeve_openings``) is scaled plainly: beyond its bodice there is only a flared skirt (the DiffAvatar
+    strap dress, kept at its bodice's size, flew off the large body in front), or a cape, or the side of a
+    bodice wider than the body's shoulders; but its width above the chest line grows only
+    ``SHOULDER_GRADE`` as fast as its girth (``graded_scale``)."""
     plain = x.copy()
     plain[:, [0, 2]] = anchor[[0, 2]] + (x[:, [0, 2]] - anchor[[0, 2]]) * scale
-    # without sleeves, the width above the chest line (straps, shoulders) grows SHOULDER_GRADE as fast
-    t = np.clip((x[:, 1] - lm.chest_y) / max(lm.shoulder_y - lm.chest_y, 1e-6), 0.0, 1.0)
-    graded = plain.copy()
-    graded[:, 0] = anchor[0] + (x[:, 0] - anchor[0]) * (scale + t * (scale - 1.0) * (SHOULDER_GRADE - 1.0))
     # the sleeve points are looked for at the smaller size (a bodice scaled up reaches past SLEEVE_REACH like
     # a sleeve), their openings at the larger (a short sleeve's cuff hangs partly inside the reach at the
     # smaller size: the MakeHuman T-shirt and the DiffAvatar polo on the large body)
     small, large = (x, plain) if scale > 1.0 else (plain, x)
     if not has_sleeves(small, lm) or (
             openings is not None and not all(sleeve_openings(large, lm, sign, openings) for sign in (1.0, -1.0))):
-        return graded
+        return graded_scale(x, anchor, scale, lm)
     out = x.copy()
     dx = x[:, 0] - anchor[0]
     inner = lm.shoulder_half / scale
@@ -422,6 +444,219 @@ def scale_girth_keep_sleeves(x: np.ndarray, anchor: np.ndarray, scale: float, lm
     out[:, 0] = anchor[0] + np.sign(dx) * (np.minimum(np.abs(dx), inner) * scale + beyond)
     z_scale = scale + (1.0 - scale) * np.clip(beyond / SLEEVE_BLEND, 0.0, 1.0)
     out[:, 2] = anchor[2] + (x[:, 2] - anchor[2]) * z_scale
+    return out
+
+
+def graded_scale(x: np.ndarray, anchor: np.ndarray, scale: float, lm: BodyLandmarks) -> np.ndarray:
+    """The points (k, 3) scaled by ``scale`` about ``anchor`` (3,) in x and z, their width above the body's
+    chest line growing only ``SHOULDER_GRADE`` as fast, reaching that at the shoulder line (a size up is
+    graded so, and so are bodies: the straps of a strap dress stay on the shoulders)."""
+    t = np.clip((x[:, 1] - lm.chest_y) / max(lm.shoulder_y - lm.chest_y, 1e-6), 0.0, 1.0)
+    out = x.copy()
+    out[:, 2] = anchor[2] + (x[:, 2] - anchor[2]) * scale
+    out[:, 0] = anchor[0] + (x[:, 0] - anchor[0]) * (scale + t * (scale - 1.0) * (SHOULDER_GRADE - 1.0))
+    return out
+
+
+class Sleeve(NamedTuple):
+    """A top's sleeve found over the cloth (``find_sleeves``): every point's cloth distance (k,) m from its
+    cuff, and the armpit's (m); the sleeve is the points nearer the cuff than the armpit."""
+
+    distance: np.ndarray
+    armpit: float
+
+
+def size_top(x: np.ndarray, anchor: np.ndarray, scale: float, lm: BodyLandmarks, sleeves: dict[float, Sleeve],
+             arms: dict[float, tuple[np.ndarray, np.ndarray]] | None) -> np.ndarray:
+    """A guessed-units top's points (k, 3) with ``sleeves`` (``find_sleeves``) sized to the body: the bodice
+    scaled whole by ``scale`` about ``anchor`` (3,) (``graded_scale``), all round, under the armpits too,
+    and each sleeve moved with its armhole, keeping its own girth but no less than ``LEG_EASE`` x the arm's
+    (``arms``: ``arm_surfaces``; ``fit_sleeve``). Only the half-width that lands on the shoulder joints
+    used to be scaled (``scale_girth_keep_sleeves``), the bodice's sides under the armpits not: a T-shirt
+    at 0.7 of its girth kept 314 springs over at the chest, a long-sleeve at 0.6 999."""
+    bodice = x.copy() if scale == 1.0 else graded_scale(x, anchor, scale, lm)
+    out = bodice
+    for sign, sleeve in sleeves.items():
+        joint = lm.shoulder_l if sign > 0 else lm.shoulder_r
+        out = fit_sleeve(out, x, bodice, sleeve, joint, arms.get(sign) if arms is not None else None)
+    return out
+
+
+def find_sleeves(x: np.ndarray, faces: np.ndarray, openings: list[np.ndarray], lm: BodyLandmarks
+                 ) -> dict[float, Sleeve]:
+    """Each side's sleeve of a top (points x (k, 3), faces (f, 3), boundary loops ``openings``), keyed by
+    side (+1.0: the body's left): the opening on that side (``side_opening``) farthest from the shoulder
+    joint is its cuff if it hangs from an armpit (``armpit_distance``). By the cloth, not by reach: a
+    T-shirt at 0.7 of its girth has its sleeves within ``SLEEVE_REACH`` (it was scaled as if it had none,
+    its girth measured round its sleeves), a sleeveless armhole or a cape's hem has no armpit."""
+    out = {}
+    for sign, joint in ((1.0, lm.shoulder_l), (-1.0, lm.shoulder_r)):
+        ends = [loop for loop in openings if side_opening(x[loop], lm, sign)]
+        found = armpit_distance(x, faces, far_opening(x, ends, joint), lm) if ends else None
+        if found is not None:
+            out[sign] = found
+    return out
+
+
+def sleeve_points(n: int, sleeves: dict[float, Sleeve]) -> np.ndarray:
+    """(n,) bool: the points of the ``sleeves`` (``find_sleeves``), from the armpit down."""
+    out = np.zeros(n, dtype=np.bool_)
+    for sleeve in sleeves.values():
+        out |= sleeve.distance < sleeve.armpit
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _joining_face(faces, a, b, n):
+    """Joining the corners of the triangles ``faces`` (f, 3) in their order: the index of the face that
+    first joins the points a and b, and (n,) bool: the points joined to b before it; (-1, none, 0) if
+    none does. Also how many points were joined to a before it."""
+    parent = np.arange(n)
+    size = np.ones(n, dtype=np.int64)
+    for i in range(faces.shape[0]):
+        ra, rb = _root(parent, a), _root(parent, b)
+        r0, r1, r2 = _root(parent, faces[i, 0]), _root(parent, faces[i, 1]), _root(parent, faces[i, 2])
+        if ra != rb and (ra == r0 or ra == r1 or ra == r2) and (rb == r0 or rb == r1 or rb == r2):
+            joined = np.empty(n, dtype=np.bool_)
+            for v in range(n):
+                joined[v] = _root(parent, v) == rb
+            return i, joined, size[ra]
+        for c in range(1, 3):
+            r0, rc = _root(parent, faces[i, 0]), _root(parent, faces[i, c])
+            if r0 != rc:
+                parent[rc] = r0
+                size[r0] += size[rc]
+    return -1, np.zeros(n, dtype=np.bool_), 0
+
+
+def armpit_distance(x: np.ndarray, faces: np.ndarray, cuff: np.ndarray, lm: BodyLandmarks) -> Sleeve | None:
+    """The sleeve of a top (points x (k, 3), faces (f, 3)) whose cuff is the opening ``cuff`` (point ids),
+    if it hangs from an armpit, else None. Faces added from the lowest up (by their highest corner), the
+    armpit is where the part of the top below first joins the cuff's lowest point to the hem (the lowest
+    point near the centre line): just before, the part joined to the hem is the bodice below the armpit,
+    reached from the cuff over the cloth through the armpit, so the least cloth distance of its points is
+    the armpit's. A sleeveless armhole's lowest point joins the bodice with its first face, a sleeve's cuff
+    only after ``MIN_SLEEVE_POINTS`` of the sleeve have joined it; a sleeve held out level has none."""
+    y = x[:, 1]
+    near = np.abs(x[:, 0] - lm.center_x) < 0.5 * lm.shoulder_half
+    if not near.any():
+        return None
+    hem = int(np.flatnonzero(near)[np.argmin(y[near])])
+    low = int(cuff[np.argmin(y[cuff])])
+    order = np.argsort(y[faces].max(axis=1), kind="stable")
+    face, bodice, sleeve_size = _joining_face(np.ascontiguousarray(faces[order], dtype=np.int64), low, hem, len(x))
+    if face < 0 or sleeve_size < MIN_SLEEVE_POINTS:
+        return None
+    d = cloth_distance(x, faces, cuff)
+    return Sleeve(d, float(d[bodice].min()))
+
+
+def ring_index(d: np.ndarray, armpit: float) -> tuple[np.ndarray, float]:
+    """The ring round a sleeve each point lies in (k,) int (-1: beyond the armpit's ring), by its cloth
+    distance ``d`` (k,) m from the cuff, the rings ``SLEEVE_RING`` or so apart from the cuff (ring 0) to
+    the armpit (the last); and their spacing, m."""
+    count = max(1, int(round(armpit / SLEEVE_RING)))
+    spacing = armpit / count
+    inside = d <= armpit + 0.5 * spacing
+    return np.where(inside, np.rint(np.where(inside, d, 0.0) / spacing), -1).astype(np.int64), spacing
+
+
+def sleeve_rings(x: np.ndarray, sleeve: Sleeve, joint: np.ndarray):
+    """The rings round a sleeve (``ring_index``) of ``MIN_RING_POINTS`` points or more: (their ids (n,),
+    centres (n, 3), unit tangents (n, 3) towards the armpit, radii (n,) m: the mean distance of a ring's
+    points from its centre across the sleeve, and their places along the arm (n,) m from the shoulder
+    ``joint`` (3,): the armpit ring centre's distance from it, then on down the ring centres). None with
+    fewer than two rings."""
+    ring, _ = ring_index(sleeve.distance, sleeve.armpit)
+    inside = ring >= 0
+    ring = ring[inside]
+    counts = np.bincount(ring)
+    ids = np.flatnonzero(counts >= MIN_RING_POINTS)
+    if len(ids) < 2:
+        return None
+    sums = np.stack([np.bincount(ring, weights=x[inside, j]) for j in range(3)], axis=1)
+    centres = sums[ids] / counts[ids, None]
+    tangents = np.gradient(centres, ids, axis=0)
+    tangents /= np.maximum(np.linalg.norm(tangents, axis=1, keepdims=True), 1e-12)
+    kept = np.full(len(counts), -1)
+    kept[ids] = np.arange(len(ids))
+    k = kept[ring]
+    mine = k >= 0
+    rel = x[inside][mine] - centres[k[mine]]
+    across = rel - np.einsum("ij,ij->i", rel, tangents[k[mine]])[:, None] * tangents[k[mine]]
+    radii = np.bincount(k[mine], weights=np.linalg.norm(across, axis=1), minlength=len(ids)) / counts[ids]
+    steps = np.linalg.norm(np.diff(centres, axis=0), axis=1)
+    along = float(np.linalg.norm(centres[-1] - joint)) + np.concatenate([np.cumsum(steps[::-1])[::-1], [0.0]])
+    return ids, centres, tangents, radii, along
+
+
+def fit_sleeve(out: np.ndarray, x: np.ndarray, bodice: np.ndarray, sleeve: Sleeve, joint: np.ndarray,
+               arm: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
+    """``out`` (k, 3) with one sleeve of the top's points x (k, 3) moved with its armhole: by the move of
+    its armpit ring's points from x to ``bodice`` (k, 3: the bodice's scale of every point), and widened
+    about its rings' centres (``sleeve_rings``) to no less than ``LEG_EASE`` x the arm's girth along it
+    (``arm``: the arm's joints and surface, ``arm_surfaces``; at most ``MAX_SLEEVE_EASE``), blending in
+    from the bodice's scale at the armpit over ``SLEEVE_BLEND`` down the sleeve (or its whole length, if
+    shorter). Unchanged if its rings are not found."""
+    rings = sleeve_rings(x, sleeve, joint)
+    if rings is None:
+        return out
+    ids, centres, tangents, radii, along = rings
+    ring, spacing = ring_index(sleeve.distance, sleeve.armpit)
+    armhole = ring == ids[-1]
+    shift = (bodice[armhole] - x[armhole]).mean(axis=0)
+    factor = np.ones(len(ids))
+    if arm is not None:
+        skin = arm_radii(arm[1], arm[0], along)
+        factor = np.where(skin > 0, np.clip(LEG_EASE * skin / np.maximum(radii, 1e-9), 1.0, MAX_SLEEVE_EASE), 1.0)
+    d = sleeve.distance
+    weight = np.clip((sleeve.armpit - d) / min(SLEEVE_BLEND, sleeve.armpit), 0.0, 1.0)
+    sel = weight > 0
+    r = ids * spacing
+    ds = d[sel]
+    centre = np.stack([np.interp(ds, r, centres[:, j]) for j in range(3)], axis=1)
+    tangent = np.stack([np.interp(ds, r, tangents[:, j]) for j in range(3)], axis=1)
+    tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-12)
+    rel = x[sel] - centre
+    across = rel - np.einsum("ij,ij->i", rel, tangent)[:, None] * tangent
+    moved = x[sel] + shift + (np.interp(ds, r, factor) - 1.0)[:, None] * across
+    out = out.copy()
+    out[sel] = bodice[sel] + weight[sel, None] * (moved - bodice[sel])
+    return out
+
+
+def arm_surfaces(body: Body) -> dict[float, tuple[np.ndarray, np.ndarray]] | None:
+    """Each arm's joints (3, 3) (shoulder, elbow, wrist end: ``arm_joints``) and its surface points (m, 3),
+    upper arm and forearm, keyed by side (+1.0: the left arm, towards +x; -1.0: the right); None if the
+    body has no forearms."""
+    out = {}
+    for sign, side in ((1.0, "l"), (-1.0, "r")):
+        ku, kf = _part(body, f"upper_arm_{side}"), _part(body, f"forearm_{side}")
+        if ku is None or kf is None:
+            return None
+        out[sign] = (np.array(arm_joints(body, side)), np.concatenate([part_points(body, ku), part_points(body, kf)]))
+    return out
+
+
+def arm_radii(points: np.ndarray, joints: np.ndarray, along: np.ndarray) -> np.ndarray:
+    """Median distance (m) of an arm's surface points (m, 3) from its axis (the polyline ``joints`` (3, 3):
+    shoulder, elbow, wrist end) in bands ``LEG_BIN`` long about the lengths ``along`` (h,) m down the axis
+    from the shoulder joint; 0 where a band has none (past the wrist)."""
+    place, dist, start = [], [], 0.0
+    for a, b in zip(joints[:-1], joints[1:]):
+        length = float(np.linalg.norm(b - a))
+        u = np.clip((points - a) @ (b - a) / length ** 2, 0.0, 1.0)
+        dist.append(np.linalg.norm(points - a - u[:, None] * (b - a), axis=1))
+        place.append(start + u * length)
+        start += length
+    nearer = np.argmin(np.stack(dist), axis=0)  # a point belongs to the nearer of the two segments
+    place, dist = np.choose(nearer, place), np.choose(nearer, dist)
+    on_axis = (place > 0.0) & (place < start)
+    out = np.zeros(len(along))
+    for k, t in enumerate(along):
+        near = on_axis & (np.abs(place - t) < 0.5 * LEG_BIN)
+        if near.any():
+            out[k] = float(np.median(dist[near]))
     return out
 
 

@@ -35,7 +35,7 @@ from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.garment.topology import boundary_loops, cloth_distance, face_edge_ids
 from tryon.sim.bodystate import _rotation
-from tryon.sim.pieces import _root, bottom_mask, section_sides
+from tryon.sim.pieces import bottom_mask, section_sides, union_root
 
 # m: the garment's shoulder line is placed this far above the body's (a few mm of air, so the first
 # step does not start in contact; gravity closes the gap at once).
@@ -373,7 +373,8 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
 
     g_band = _band(x, level, lm.center_x, 0.8 * lm.shoulder_half)
     if len(g_band) and len(body_band):
-        x[:, 2] += 0.5 * (body_band[:, 2].min() + body_band[:, 2].max()) - 0.5 * (g_band[:, 2].min() + g_band[:, 2].max())
+        x[:, 2] += (0.5 * (body_band[:, 2].min() + body_band[:, 2].max())
+                    - 0.5 * (g_band[:, 2].min() + g_band[:, 2].max()))
 
     # --- local: turn about X through the collar / waistband centre (paper 3.1)
     x = local_alignment(x, torso, lm, top)
@@ -514,15 +515,16 @@ def _joining_face(faces, a, b, n):
     parent = np.arange(n)
     size = np.ones(n, dtype=np.int64)
     for i in range(faces.shape[0]):
-        ra, rb = _root(parent, a), _root(parent, b)
-        r0, r1, r2 = _root(parent, faces[i, 0]), _root(parent, faces[i, 1]), _root(parent, faces[i, 2])
+        ra, rb = union_root(parent, a), union_root(parent, b)
+        r0, r1, r2 = (union_root(parent, faces[i, 0]), union_root(parent, faces[i, 1]),
+                      union_root(parent, faces[i, 2]))
         if ra != rb and (ra == r0 or ra == r1 or ra == r2) and (rb == r0 or rb == r1 or rb == r2):
             joined = np.empty(n, dtype=np.bool_)
             for v in range(n):
-                joined[v] = _root(parent, v) == rb
+                joined[v] = union_root(parent, v) == rb
             return i, joined, size[ra]
         for c in range(1, 3):
-            r0, rc = _root(parent, faces[i, 0]), _root(parent, faces[i, c])
+            r0, rc = union_root(parent, faces[i, 0]), union_root(parent, faces[i, c])
             if r0 != rc:
                 parent[rc] = r0
                 size[r0] += size[rc]

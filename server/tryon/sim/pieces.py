@@ -104,7 +104,8 @@ def waistband_mask(points: np.ndarray, faces: np.ndarray, category: str, loops: 
 
 
 @njit(cache=True, nogil=True)
-def _root(parent, e):
+def union_root(parent, e):
+    """The root of element ``e`` in the union-find forest ``parent`` (n,) int64, halving its path."""
     while parent[e] != e:
         parent[e] = parent[parent[e]]  # path halving
         e = parent[e]
@@ -132,13 +133,13 @@ def section_sides(x, faces, face_edges, edges, y, cx, min_edges):
                 if first < 0:
                     first = e
                 else:  # a face crossed by the plane joins its two crossed edges
-                    parent[_root(parent, e)] = _root(parent, first)
+                    parent[union_root(parent, e)] = union_root(parent, first)
     count = np.zeros(n_e)
     sum_x = np.zeros(n_e)
     total = 0.0
     for e in range(n_e):
         if crossed[e]:
-            r = _root(parent, e)
+            r = union_root(parent, e)
             count[r] += 1.0
             total += 1.0
             sum_x[r] += 0.5 * (x[edges[e, 0], 0] + x[edges[e, 1], 0])

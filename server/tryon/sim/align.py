@@ -309,7 +309,7 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
                  openings: list[np.ndarray], faces: np.ndarray,
                  leg_surface: dict[float, np.ndarray] | None = None,
                  arm_surface: dict[float, tuple[np.ndarray, np.ndarray]] | None = None
-                 ) -> tuple[np.ndarray, float | None]:
+                 ) -> tuple[np.ndarray, float | None, np.ndarray | None]:
     """Global then local alignment of the points (k, 3) of one kind of piece (``top``: hung from the
     shoulders, else from the waist). ``scale``: the factor a guessed-units garment was already scaled by
     (None: decide it here from the girth); ``legs``: the body's leg axes (``leg_axes``), over which a
@@ -319,8 +319,7 @@ def _align_piece(x: np.ndarray, lm: BodyLandmarks, torso: np.ndarray, top: bool,
     bottom's crotch is found; ``leg_surface``: the body's leg points (``leg_points``), the least girth a
     guessed-units bottom's legs keep; ``arm_surface``: the body's arms (``arm_surfaces``), the least girth a
     guessed-units top's sleeves get (``size_top``). Returns the aligned copy, the scale used (None if not
-    guessed) and,
-    if it was rescaled, its natural shape (k, 3) on this body (``align_sized``), else None."""
+    guessed) and, if it was rescaled, its natural shape (k, 3) on this body (``align_sized``), else None."""
     x = x.copy()
     shaped = None
     level = lm.chest_y if top else lm.hips_y
@@ -998,7 +997,7 @@ def arm_angle(body: Body, side: str) -> float:
 
 
 def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None = None,
-              loops: list[np.ndarray] | None = None) -> ArmPlan:
+              loops: list[np.ndarray] | None = None, piece: np.ndarray | None = None) -> ArmPlan:
     """Turns that put each arm along its sleeve, measured from the aligned garment points (k, 3).
 
     Sleeve points: points of the pieces over the shoulders (``faces`` (f, 3), if given, tells the pieces
@@ -1012,7 +1011,8 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
 
     A sleeve only a few degrees off the arm (under ``MIN_ARM_TURN``) is still turned if the arm would miss
     its cuff (``CUFF_MISS``): then the arm is aimed through the cuff's centre. ``loops``: the boundary loops
-    of ``faces`` if known (``GarmentModel.coarse_loops``).
+    of ``faces`` if known (``GarmentModel.coarse_loops``); ``piece`` (k,): the points'
+    ``pieces.piece_labels`` if known.
 
     A long sleeve bent at the elbow (``bent_sleeve_turns``) is followed in two turns instead: the upper
     arm onto the sleeve's upper part, then the forearm about the elbow onto the sleeve's far opening; a
@@ -1025,7 +1025,7 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
     if category == "bottom":
         return ArmPlan(0.0, 0.0)
     lm = body_landmarks(body)
-    upper = np.ones(len(x), dtype=np.bool_) if faces is None else ~bottom_mask(x, faces, category)
+    upper = np.ones(len(x), dtype=np.bool_) if faces is None else ~bottom_mask(x, faces, category, piece)
     if loops is None:
         loops = boundary_loops(faces, len(x)) if faces is not None else []
     out, cuffs = {}, {}

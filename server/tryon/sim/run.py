@@ -206,7 +206,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         sized = shape is not None
         if sized:  # sized to this body (guessed units): its springs' natural lengths change too
             model = model.resized(shape)
-        plan = plan_arms(body, x, model.meta.category, model.coarse_faces, model.coarse_loops)
+        plan = plan_arms(body, x, model.meta.category, model.coarse_faces, model.coarse_loops, piece)
     else:
         x = np.array(initial, dtype=np.float64)
         plan = ArmPlan(0.0, 0.0)

@@ -19,7 +19,7 @@ COPY server ./server
 RUN pip install --no-cache-dir .
 
 COPY web/package.json web/package-lock.json ./web/
-RUN cd web && npm ci --no-audit --no-fund --loglevel=error
+RUN cd web && npm ci --no-audit --no-fund --no-update-notifier --loglevel=error
 COPY web ./web
 COPY garments ./garments
 

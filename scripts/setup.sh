@@ -27,7 +27,7 @@ fi
 key="$(sha256sum web/package.json web/package-lock.json | sha256sum | cut -c1-16)"
 if ! stamp_ok web/node_modules/.setup-stamp "$key"; then
   echo "setup: installing npm packages for the page"
-  (cd web && npm ci --no-audit --no-fund --loglevel=error)
+  (cd web && npm ci --no-audit --no-fund --no-update-notifier --loglevel=error)
   echo "$key" > web/node_modules/.setup-stamp
 fi
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import base64
 import io
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,6 +52,12 @@ def shop(tmp_path_factory) -> Shop:
         ids[kind] = catalogue.ingest(path, name=name, category=category, size=size, units="m").id
     with serve_process(root / "data", env={"TRYON_SIM_WORKERS": "1", "TRYON_SIM_QUEUE": "0"}) as url:
         yield Shop(url, ids["skirt"])
+
+
+def percent(ratio: float) -> str:
+    """A strain ratio as the page writes it: one decimal below 10 %, whole per cents above."""
+    p = ratio * 100
+    return f"{p:.1f} %" if abs(p) < 10 else f"{math.floor(p + 0.5)} %"
 
 
 def canvas_pixels(page) -> np.ndarray:
@@ -106,9 +113,24 @@ def test_try_on_in_the_browser(page):
     assert state["f"] >= 2  # live frames, then the final one
     assert state["m"]["steps"] > 0
     metrics = page.locator("#metrics").inner_text()
-    for words in ("Time", "Steps", "Penetration", "Max strain", "Too tight at", "Rest reached"):
+    for words in ("Time", "Steps", "Cloth in body", "Body through cloth", "Max strain", "Too tight at",
+                  "Rest reached"):
         assert words in metrics
     assert str(state["m"]["steps"]) in metrics
+    # the strain of the mesh shown (not of the simulated one), in words, green only well within the limit
+    shown, limit = state["m"]["display_max_strain"], page.evaluate("window.tryon.init.strain_limit")
+    strain = page.locator("#metrics div", has_text="Max strain").locator("dd")
+    assert strain.inner_text().startswith(percent(shown) + ": ")
+    assert (strain.get_attribute("class") == "good") == (shown < 0.6 * limit)
+    assert (strain.get_attribute("class") in ("warn", "bad")) == (shown > limit)
+    # both directions of penetration; '—' (never green) from a server without the body-through metric
+    through = page.locator("#metrics div", has_text="Body through cloth").locator("dd")
+    if "body_through_vertices" in state["m"]:
+        assert through.inner_text() == ("none" if state["m"]["body_through_vertices"] == 0
+                                        else f"{state['m']['body_through_vertices']} points, "
+                                             f"{state['m']['max_body_through_mm']:.1f} mm deep")
+    else:
+        assert through.inner_text() == "—" and through.get_attribute("class") != "good"
     tight = list(state["m"]["too_tight"])  # where the garment is too small, largest count first
     if tight:
         first = tight[0].removeprefix("torso ")

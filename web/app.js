@@ -6,6 +6,7 @@ import { Stage } from './scene.js';
 import { ApiError, flatMesh, getJSON, liveTryOn, postJSON, saveBlob } from './api.js';
 import { MeasurementForm, normaliseRanges } from './controls.js';
 import { smoothStrain, strainScale } from './fitmap.js';
+import { DEFAULT_STRAIN_LIMIT, metricRows } from './metrics.js';
 
 const $ = (id) => document.getElementById(id);
 const BODY_PREVIEW_DELAY_MS = 350;  // debounce: rebuild the body when the sliders rest this long
@@ -37,6 +38,7 @@ function showError(error) {
   $('notice').classList.remove('info');
   $('notice-text').textContent = message;
   $('notice').hidden = false;
+  $('notice').scrollIntoView({ block: 'nearest' });  // the controls may be scrolled past it
 }
 function clearNotice() { $('notice').hidden = true; }
 $('notice-close').addEventListener('click', clearNotice);
@@ -84,13 +86,15 @@ function renderGarments(list) {
     swatch.style.background = `${color}22`;
     swatch.innerHTML = `<svg viewBox="0 0 24 24" fill="${color}" aria-hidden="true">${CATEGORY_ICONS[group.category] || CATEGORY_ICONS.top}</svg>`;
     const text = document.createElement('span');
-    const name = document.createElement('div');
+    text.className = 'text';
+    const name = document.createElement('span');
     name.className = 'name';
-    name.textContent = group.name;
-    const sub = document.createElement('div');
+    // non-breaking hyphens: "T-shirt" wraps as a whole, never as "T-" / "shirt"
+    name.textContent = group.name.replace(/-/g, '\u2011');
+    const sub = document.createElement('span');
     sub.className = 'sub';
     sub.textContent = group.category;
-    text.append(name, sub);
+    text.append(name, ' ', sub);
     const sizes = document.createElement('span');
     sizes.className = 'sizes';
     for (const g of group.entries) {
@@ -234,11 +238,13 @@ async function tryOn() {
       stage.setStrain(strain, top);
       $('legend-max').textContent = `${(top * 100).toFixed(0)}%+`;
       $('legend-mid').textContent = `${(top * 50).toFixed(0)}%`;
+      showLimitOnLegend(state.init?.strain_limit ?? DEFAULT_STRAIN_LIMIT, top);
     }
     showMetrics(done);
     setProgress(1, done.cached ? 'Done (from the fitting-room memory).' : 'Done.');
     setTimeout(() => { if (state.state === 'done') $('progress').hidden = true; }, 1500);
     $('result').hidden = false;
+    if (NARROW.matches) $('result').scrollIntoView({ block: 'start' });
     $('legend').hidden = !$('fitmap-toggle').checked;
     state.state = 'done';
   } catch (error) {
@@ -258,40 +264,27 @@ async function tryOn() {
   }
 }
 
-// 'upper_arm_l' -> 'left upper arm', 'torso chest' -> 'chest' (the places of metrics.too_tight)
-function placeName(place) {
-  const side = place.endsWith('_l') ? 'left ' : (place.endsWith('_r') ? 'right ' : '');
-  return side + place.replace(/^torso /, '').replace(/_[lr]$/, '').replace(/_/g, ' ');
+/** The fit map's scale is this garment's own (fitmap.strainScale): mark the cloth's limit on it. */
+function showLimitOnLegend(limit, top) {
+  const mark = $('legend-limit');
+  const limitText = `${Number((limit * 100).toFixed(1))} %`;
+  mark.hidden = !(limit < top);
+  if (limit < top) {
+    mark.style.left = `${(100 * limit) / top}%`;
+    $('legend-note').textContent = `▏ the cloth's stretch limit, ${limitText}`;
+  } else {
+    $('legend-note').textContent = `All within the cloth's ${limitText} stretch limit`;
+  }
 }
 
-function showMetrics(done) {
-  const m = done.metrics || {};
-  const tight = m.too_tight ? Object.keys(m.too_tight) : null;  // largest count first
-  const rows = [
-    ['Time', Number.isFinite(m.wall_seconds) ? `${m.wall_seconds.toFixed(2)} s` : '—'],
-    ['Steps', Number.isFinite(m.steps) ? `${m.steps}` : '—'],
-    ['Penetration', !Number.isFinite(m.penetrating_vertices) ? '—' : (m.penetrating_vertices === 0 ? 'none'
-      : `${m.penetrating_vertices} pts, ${Number(m.max_penetration_mm ?? 0).toFixed(1)} mm`),
-      m.penetrating_vertices === 0 ? 'good' : 'warn'],
-    ['Max strain', Number.isFinite(m.max_strain) ? `${(m.max_strain * 100).toFixed(1)} %` : '—'],
-    ['Too tight at', tight === null ? '—' : (tight.length ? tight.slice(0, 3).map(placeName).join(', ') : 'nowhere'),
-      tight && tight.length ? 'warn' : 'good'],
-    ['Sleeves, legs', m.openings_on_limbs === undefined ? '—' : (m.openings_on_limbs === null ? 'none'
-      : (m.openings_on_limbs ? 'around the limbs' : 'off at ' + (m.limb_openings || []).filter((o) => !o.ok)
-        .map((o) => o.opening).join(', '))), m.openings_on_limbs === false ? 'warn' : 'good'],
-    ['Stays up', m.stays_up === undefined ? '—' : (m.stays_up
-      ? (m.slid_cm >= 1 ? `yes, slid ${Math.round(m.slid_cm)} cm` : 'yes')
-      : `no, slid ${Math.round(m.slid_cm)} cm down`), m.stays_up === false ? 'warn' : 'good'],
-    ['Size', m.sized_to_body === undefined ? '—' : (m.sized_to_body ? 'sized to this body (units unknown)'
-      : 'as made')],
-    ['Rest reached', m.rest_reached === undefined ? '—' : (m.rest_reached ? 'yes' : 'no'), m.rest_reached ? 'good' : 'warn'],
-    ['Simulated', Number.isFinite(m.sim_seconds) ? `${m.sim_seconds.toFixed(2)} s` : '—'],
-  ];
-  if (done.stopped_by === 'wall_limit') rows.push(['Stopped', 'time limit', 'warn']);
+/** Fill the fit summary from a done message (`strainLimit`: the init message's, else the default). */
+function showMetrics(done, strainLimit = state.init?.strain_limit ?? DEFAULT_STRAIN_LIMIT) {
+  const rows = metricRows(done.metrics || {}, { strainLimit, stoppedBy: done.stopped_by });
   const dl = $('metrics');
   dl.replaceChildren();
-  for (const [name, value, tone] of rows) {
+  for (const { name, value, tone, wide } of rows) {
     const div = document.createElement('div');
+    if (wide) div.className = 'wide';
     const dt = document.createElement('dt');
     dt.textContent = name;
     const dd = document.createElement('dd');
@@ -303,6 +296,20 @@ function showMetrics(done) {
   const g = done.garment || state.init?.garment || {};
   $('result-garment').textContent = [g.name, g.size ? `size ${g.size}` : null].filter(Boolean).join(' · ');
 }
+
+state.showMetrics = showMetrics;  // for tests: render a given done message
+
+// ---- layout -------------------------------------------------------------------------------------
+// On a narrow screen (the breakpoint of style.css) the fit summary is the first card of the controls,
+// under the 3D view, rather than a card over the figure it describes.
+const NARROW = matchMedia('(max-width: 820px)');
+function placeResult() {
+  const result = $('result');
+  if (NARROW.matches) $('notice').after(result);
+  else $('legend').before(result);
+}
+NARROW.addEventListener('change', placeResult);
+placeResult();
 
 $('tryon-button').addEventListener('click', tryOn);
 $('fitmap-toggle').addEventListener('change', (e) => {

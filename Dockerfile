@@ -23,10 +23,11 @@ RUN cd web && npm ci --no-audit --no-fund --no-update-notifier --loglevel=error
 COPY web ./web
 COPY garments ./garments
 
-# Ingest the catalogue once, at build time, so the first try-on only simulates. The numba cache
-# directory is writable by the service user.
+# Ingest the catalogue and compile the kernels once, at build time, so the container is ready a second or
+# two after it starts and the first try-on only simulates. The numba cache is writable by the service user.
 RUN mkdir -p /app/data /app/.numba-cache \
  && tryon ingest --catalogue garments/ \
+ && tryon warmup \
  && chown -R tryon:tryon /app/data /app/.numba-cache
 
 ENV TRYON_WEB_DIR=/app/web

@@ -13,6 +13,7 @@ from pathlib import Path
 import httpx
 import pytest
 
+from tryon.api.warmup import warm_up
 from tryon.config import Settings
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,14 +26,22 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+@pytest.fixture(scope="session", autouse=True)
+def warm_kernels() -> None:
+    """Compile (or load from the disk cache) every kernel once for the whole session, as the service does
+    at start-up: apps made in this process are ready at once, and served processes load a warm cache."""
+    warm_up()
+
+
 @pytest.fixture
 def settings(tmp_path: Path) -> Settings:
     return Settings(data_dir=tmp_path / "data", admin_token=ADMIN_TOKEN)
 
 
 @contextlib.contextmanager
-def serve_process(data_dir: Path, env: dict | None = None, timeout_s: float = 60.0):
-    """Run ``tryon serve`` on a free port; yield its base URL; stop it afterwards."""
+def serve_process(data_dir: Path, env: dict | None = None, timeout_s: float = 120.0):
+    """Run ``tryon serve`` on a free port; yield its base URL once ``/api/health`` says ok (its kernels warm:
+    loaded from the disk cache that ``warm_kernels`` filled); stop it afterwards."""
     port = free_port()
     full_env = {**os.environ, "TRYON_DATA_DIR": str(data_dir), "TRYON_ADMIN_TOKEN": ADMIN_TOKEN, **(env or {})}
     proc = subprocess.Popen(

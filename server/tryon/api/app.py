@@ -2,21 +2,33 @@
 
 from __future__ import annotations
 
+from contextlib import asynccontextmanager
+
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
 from tryon import __version__
 from tryon.api import errors
 from tryon.api.routes import bodies, garments, health, tryon, ws
+from tryon.api.warmup import WarmUp
 from tryon.config import Settings, get_settings
+
+
+@asynccontextmanager
+async def _lifespan(app: FastAPI):
+    """Start the kernels' warm-up in the background; ``/api/health`` says "starting" (503) until it is done."""
+    app.state.warmup.start()
+    yield
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the app with ``settings`` (default: from the environment)."""
     settings = settings or get_settings()
     settings.ensure_dirs()
-    app = FastAPI(title="tryon", version=__version__, docs_url="/api/docs", openapi_url="/api/openapi.json")
+    app = FastAPI(title="tryon", version=__version__, docs_url="/api/docs", openapi_url="/api/openapi.json",
+                  lifespan=_lifespan)
     app.state.settings = settings
+    app.state.warmup = WarmUp()
     errors.install(app)
 
     for module in (health, bodies, garments, tryon):

@@ -213,14 +213,21 @@ def tryon_key(request: Any) -> str:
 
 @dataclass
 class CachedTryOn:
-    """One finished try-on, as kept in memory.
+    """One finished try-on, as kept in memory: one entry whichever way it was asked for (``POST /api/tryon``
+    or ``WS /ws/tryon``), so either answers the other's request.
 
-    result: the simulation's ``TryOnResult`` (final full-mesh vertices (n, 3), faces, strain (n,),
-    metrics), what ``POST /api/tryon`` answers from; extra: what a writer wants to replay, e.g. the
-    WebSocket's init message (JSON text) and done message.
+    result: the simulation's ``TryOnResult`` (final full-mesh vertices (n, 3), faces, strain (n,), metrics).
+    body: the body it was draped on, as the WebSocket's init message shows it: ``{"vertices": (b, 3) m,
+        "faces": (g, 3) int32, "achieved": {measurement: cm}}``; None only in tests of the cache itself.
+    settings: the ``SimSettings`` it ran with.
+    extra: what a writer derived from it and keeps to replay it faster (the WebSocket's serialised init
+        message, ``init_base``, and the body's bounding box (2, 3), ``body_box``).
+    created: ``time.time()`` when it finished.
     """
 
     result: Any
+    body: dict | None = None
+    settings: Any = None
     extra: dict = field(default_factory=dict)
     created: float = field(default_factory=time.time)
 

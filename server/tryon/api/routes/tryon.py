@@ -9,6 +9,7 @@ never on the event loop.
 from __future__ import annotations
 
 import json
+import time
 
 import numpy as np
 from fastapi import APIRouter, HTTPException, Query, Request, status
@@ -42,17 +43,32 @@ def prepare_tryon(catalogue: Catalogue, request: TryOnRequest) -> tuple[Body, Ga
 
 def run_tryon(catalogue: Catalogue, request: TryOnRequest, on_frame: FrameCallback | None = None) -> TryOnResult:
     """Prepare and drape one try-on (blocking: call it from a worker thread)."""
+    return simulate(catalogue, request, on_frame).result
+
+
+def body_mesh(body: Body) -> dict:
+    """What a cached try-on keeps of its body (``CachedTryOn.body``): mesh and achieved measurements."""
+    return {"vertices": body.vertices, "faces": body.faces, "achieved": body.achieved}
+
+
+def simulate(catalogue: Catalogue, request: TryOnRequest, on_frame: FrameCallback | None = None) -> CachedTryOn:
+    """Prepare and drape one try-on (blocking), kept as the result cache keeps it."""
     body, model, settings = prepare_tryon(catalogue, request)
-    return drape(body, model, settings, on_frame)
+    return CachedTryOn(result=drape(body, model, settings, on_frame), body=body_mesh(body), settings=settings)
 
 
-def result_json(result: TryOnResult) -> dict:
-    """The JSON answer (``TryOnOut``): the fitted garment and the metrics with the per-vertex strain."""
+def result_json(result: TryOnResult, cached_answer_s: float | None = None) -> dict:
+    """The JSON answer (``TryOnOut``): the fitted garment and the metrics with the per-vertex strain.
+
+    cached_answer_s: for a result served from the cache, the seconds this answer took: it becomes
+    ``wall_seconds`` (with ``cached: true``), and the run's own time ``simulation_wall_seconds``."""
     m = result.metrics
     metrics = {
         "steps": int(m["steps"]),
         "sim_seconds": float(m["sim_seconds"]),
-        "wall_seconds": float(m["wall_seconds"]),
+        "wall_seconds": float(m["wall_seconds"]) if cached_answer_s is None else round(cached_answer_s, 4),
+        "simulation_wall_seconds": float(m["wall_seconds"]),
+        "cached": cached_answer_s is not None,
         "rest_reached": bool(m["rest_reached"]),
         "penetrating_vertices": int(m["penetrating_vertices"]),
         "max_penetration_mm": round(float(m["max_penetration_mm"]), 3),
@@ -92,7 +108,9 @@ async def tryon(
     format: MeshFormatTryOn = Query("json", description="json (mesh + metrics) or glb (the fitted garment, "
                                                          "vertex colours by strain; metrics in X-Tryon-Metrics)"),
 ):
-    """Drape the garment on the body; answer the fitted garment and the fit metrics."""
+    """Drape the garment on the body; answer the fitted garment and the fit metrics. A request equal to an
+    earlier one (REST or WebSocket) is answered from the result cache, saying ``cached: true``."""
+    started = time.perf_counter()
     if catalogue.get(body.garment_id) is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"no garment with id {body.garment_id!r}")
     pool = get_pool(request.app)
@@ -100,7 +118,7 @@ async def tryon(
     cache, key = get_result_cache(request.app), tryon_key(body)
     hit = cache.get(key)  # the same request again: the stored final state (shared with WS /ws/tryon)
     try:
-        result = hit.result if hit is not None else await pool.run(run_tryon, catalogue, body, guard)
+        run = hit if hit is not None else await pool.run(simulate, catalogue, body, guard)
     except PoolFull as exc:
         raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE, str(exc), headers=busy_response_headers(exc))
     except KeyError:
@@ -108,8 +126,9 @@ async def tryon(
     except ValueError as exc:
         raise HTTPException(422, f"cannot run this try-on: {exc}") from None
     if hit is None and guard.stopped_by is None:  # cut-short runs are not kept
-        cache.put(key, CachedTryOn(result=result))
-    out = result_json(result)
+        cache.put(key, run)
+    result = run.result
+    out = result_json(result, None if hit is None else time.perf_counter() - started)
     if guard.stopped_by == "wall_limit":
         out["metrics"]["timed_out"] = True
     if format == "glb":

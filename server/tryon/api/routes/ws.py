@@ -27,9 +27,9 @@ client gets fewer frames instead of a queue (intermediate frames are dropped, th
 out), and no two frames leave less than 1 / fps apart. When the client goes away the run stops at its
 next step; a job still waiting for a worker is skipped.
 
-A request equal to an earlier finished one (garment, measurements, pose, settings; see
-``tryon.api.pool.request_key``) is served from the result cache: init, the final frame, done with
-``"cached": true``.
+A request equal to an earlier finished one, over this socket or ``POST /api/tryon`` (garment, measurements,
+pose, settings; see ``tryon.api.pool.request_key``), is served from the one result cache: init, the final
+frame, done with ``"cached": true`` (and ``metrics.wall_seconds`` the time of this answer).
 """
 
 from __future__ import annotations
@@ -53,9 +53,8 @@ from starlette.websockets import WebSocketState
 from tryon.api.deps import get_catalogue
 from tryon.api.export import json_bytes, mesh_arrays
 from tryon.api.pool import CachedTryOn, PoolFull, RunCancelled, RunGuard, get_pool, get_result_cache, tryon_key
-from tryon.api.routes.tryon import prepare_tryon, result_json
+from tryon.api.routes.tryon import body_mesh, prepare_tryon, result_json
 from tryon.api.schemas.tryon import TryOnRequest
-from tryon.body.types import Body
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
 from tryon.sim.run import TryOnResult, drape
@@ -174,16 +173,16 @@ class LiveTryOnRequest(TryOnRequest):
                                "body (half the bytes, ~0.04 mm steps)")
 
 
-def init_message(body: Body, model: GarmentModel, sim_settings: SimSettings) -> dict:
-    """The init message without its ``encoding`` (see :func:`with_encoding`): topology, the body, the
-    garment's catalogue facts, the run's settings."""
+def init_message(body: dict, model: GarmentModel, sim_settings: SimSettings) -> dict:
+    """The init message without its ``encoding`` (see :func:`with_encoding`): topology, the body (its
+    ``routes.tryon.body_mesh``), the garment's catalogue facts, the run's settings."""
     meta = model.meta
     return {
         "type": "init",
         "vertex_count": int(len(model.vertices)),
         "face_count": int(len(model.faces)),
         "faces": np.ascontiguousarray(model.faces, dtype=np.int32),
-        "body": {**mesh_arrays(body.vertices, body.faces), "achieved": body.achieved},
+        "body": {**mesh_arrays(body["vertices"], body["faces"]), "achieved": body["achieved"]},
         "garment": {"id": meta.id, "name": meta.name, "category": meta.category, "size": meta.size,
                     "vertices": meta.vertices, "faces": meta.faces, "coarse_vertices": meta.coarse_vertices},
         "max_steps": int(sim_settings.max_steps),
@@ -198,30 +197,43 @@ def with_encoding(init_text: str, codec: FrameCodec, vertex_count: int) -> str:
     return init_text[:-1] + ',"encoding":' + json.dumps(codec.describe(vertex_count), separators=(",", ":")) + "}"
 
 
-def done_message(result: TryOnResult, guard: RunGuard) -> dict:
-    """The done message: the same metrics as ``POST /api/tryon``, the per-vertex strain beside them."""
-    metrics = result_json(result)["metrics"]
+def done_message(result: TryOnResult, stopped_by: str | None, cached_answer_s: float | None = None) -> dict:
+    """The done message: the same metrics as ``POST /api/tryon``, the per-vertex strain beside them.
+    ``stopped_by``: the run's ``RunGuard.stopped_by``; ``cached_answer_s``: see ``result_json``."""
+    metrics = result_json(result, cached_answer_s)["metrics"]
     strain = metrics.pop("strain")
-    if guard.stopped_by == "wall_limit":
+    if stopped_by == "wall_limit":
         metrics["timed_out"] = True
-    return {"type": "done", "metrics": metrics, "strain": strain, "stopped_by": guard.stopped_by,
-            "timed_out": guard.stopped_by == "wall_limit"}
+    return {"type": "done", "metrics": metrics, "strain": strain, "stopped_by": stopped_by,
+            "timed_out": stopped_by == "wall_limit", "cached": cached_answer_s is not None}
 
 
-def run_live(catalogue: Catalogue, request: LiveTryOnRequest, session: LiveSession, guard: RunGuard):
-    """On a worker: build the body, load the garment, hand over init, drape. Returns (result, done
-    message), or None when the client left before a worker was free."""
+def replay_parts(run: CachedTryOn, model: GarmentModel) -> tuple[str, np.ndarray]:
+    """The init message's text without its encoding and the body's bounding box (2, 3) m of a try-on
+    (``model``: its garment), made once and kept with it in ``run.extra``: ~0.5 MB of JSON, made on a
+    worker, never on the event loop. A try-on first asked for over REST gets them when a stream replays it."""
+    if "init_base" not in run.extra:
+        vertices = run.body["vertices"]
+        run.extra["body_box"] = np.stack([vertices.min(axis=0), vertices.max(axis=0)])
+        run.extra["init_base"] = json_bytes(init_message(run.body, model, run.settings)).decode()
+    return run.extra["init_base"], run.extra["body_box"]
+
+
+def run_live(catalogue: Catalogue, request: LiveTryOnRequest, session: LiveSession,
+             guard: RunGuard) -> tuple[CachedTryOn, dict] | None:
+    """On a worker: build the body, load the garment, hand over init, drape. Returns (the run as the
+    result cache keeps it, the done message), or None when the client left before a worker was free."""
     guard.start()
     if guard.cancelled.is_set():
         return None
     body, model, sim_settings = prepare_tryon(catalogue, request)
+    run = CachedTryOn(result=None, body=body_mesh(body), settings=sim_settings)
     # serialised here, on the worker: the init message carries two meshes (~0.5 MB of JSON), too much
     # work for the event loop
-    box = np.stack([body.vertices.min(axis=0), body.vertices.max(axis=0)])
-    session.offer_init(json_bytes(init_message(body, model, sim_settings)).decode(), model,
-                       FrameCodec.around(request.encoding, box), box)
-    result = drape(body, model, sim_settings, guard)
-    return result, done_message(result, guard)
+    init_base, box = replay_parts(run, model)
+    session.offer_init(init_base, model, FrameCodec.around(request.encoding, box))
+    run.result = drape(body, model, sim_settings, guard)
+    return run, done_message(run.result, guard.stopped_by)
 
 
 def failure_reason(error: BaseException, request: TryOnRequest) -> str:
@@ -260,16 +272,11 @@ class LiveSession:
         self._next_offer_at = 0.0
         self._model: Any = None
         self.codec = FLOAT32  # set with the init message, before any frame
-        self.init_base: str | None = None
-        self.body_box: np.ndarray | None = None
 
     # -- called on the simulation thread ---------------------------------------------------------
-    def offer_init(self, init_base: str, model: Any, codec: FrameCodec, body_box: np.ndarray) -> None:
-        """The init message (JSON text without ``encoding``), the model whose frames follow, their codec,
-        and the body's bounding box (2, 3) (kept with a cached result, for other codecs)."""
+    def offer_init(self, init_base: str, model: Any, codec: FrameCodec) -> None:
+        """The init message (JSON text without ``encoding``), the model whose frames follow, their codec."""
         self.codec = codec
-        self.init_base = init_base
-        self.body_box = body_box
         self._model = model
         self.loop.call_soon_threadsafe(self._set_init, with_encoding(init_base, codec, len(model.vertices)))
 
@@ -386,15 +393,18 @@ async def _close(ws: WebSocket) -> None:
             pass
 
 
-async def _replay(ws: WebSocket, cached: CachedTryOn, encoding_type: str) -> None:
-    """Serve a cached try-on in the requested encoding: init, the final frame, done with ``cached: true``."""
-    n = len(cached.result.vertices)
-    codec = FrameCodec.around(encoding_type, cached.extra["body_box"])
-    await ws.send_text(with_encoding(cached.extra["init_base"], codec, n))
-    frame = encode_frame(0, cached.result.metrics.get("steps", 0), cached.result.vertices, codec=codec)
+async def _replay(ws: WebSocket, cached: CachedTryOn, request: LiveTryOnRequest, catalogue: Catalogue) -> None:
+    """Serve a cached try-on (asked for before over REST or this socket) in the requested encoding: init,
+    the final frame, done with ``cached: true``."""
+    started = time.perf_counter()
+    result = cached.result
+    init_base, box = await asyncio.to_thread(
+        lambda: replay_parts(cached, catalogue.model(request.garment_id, cached.settings.simplification)))
+    codec = FrameCodec.around(request.encoding, box)
+    await ws.send_text(with_encoding(init_base, codec, len(result.vertices)))
+    frame = encode_frame(0, result.metrics.get("steps", 0), result.vertices, codec=codec)
     await ws.send_bytes(frame)
-    done = {**cached.extra["done"], "cached": True, "frames_sent": 1, "bytes_sent": len(frame)}
-    done.pop("time_to_first_frame_s", None)
+    done = {**done_message(result, None, time.perf_counter() - started), "frames_sent": 1, "bytes_sent": len(frame)}
     await ws.send_text(json.dumps(done, separators=(",", ":")))
     await ws.close(code=CLOSE_NORMAL)
 
@@ -453,9 +463,9 @@ async def _serve(ws: WebSocket) -> None:
     cache = get_result_cache(app)
     key = tryon_key(request)
     cached = cache.get(key)
-    if cached is not None and "init_base" in cached.extra:  # (REST keeps no init: simulate again)
+    if cached is not None:
         try:
-            await _replay(ws, cached, request.encoding)
+            await _replay(ws, cached, request, get_catalogue(ws))
         except (WebSocketDisconnect, RuntimeError, OSError):
             pass
         return
@@ -487,17 +497,16 @@ async def _serve(ws: WebSocket) -> None:
             return
         if session.cancelled.is_set():
             return  # client gone: nothing to send, nothing to cache (the run was cut short)
-        result, done = outcome
-        session.finish(done["metrics"].get("steps", 0), result.vertices)
+        run, done = outcome
+        session.finish(done["metrics"].get("steps", 0), run.result.vertices)
         await sender
         if session.cancelled.is_set():
             return
-        done = {**done, "cached": False, "frames_sent": session.frames_sent,
+        done = {**done, "frames_sent": session.frames_sent,
                 "time_to_first_frame_s": round((session.first_frame_at or time.monotonic()) - session.started_at, 4),
                 "bytes_sent": session.bytes_sent}
         if guard.stopped_by is None:
-            cache.put(key, CachedTryOn(result=result, extra={"init_base": session.init_base, "done": done,
-                                                             "body_box": session.body_box}))
+            cache.put(key, run)
         try:
             await ws.send_text(json.dumps(done, separators=(",", ":")))
         except (WebSocketDisconnect, RuntimeError, OSError):

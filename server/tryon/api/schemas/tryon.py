@@ -69,7 +69,12 @@ class LimbOpeningOut(BaseModel):
 class TryOnMetricsOut(BaseModel):
     steps: int = Field(description="time steps simulated")
     sim_seconds: float = Field(description="simulated time, s")
-    wall_seconds: float = Field(description="wall-clock time of the simulation, s")
+    wall_seconds: float = Field(description="wall-clock time of this answer, s: the simulation's, or for an "
+                                            "answer from the result cache (cached: true) the look-up's")
+    simulation_wall_seconds: float = Field(0.0, description="wall-clock time of the simulation that made this "
+                                                            "result, s (the first time it was asked for)")
+    cached: bool = Field(False, description="true if this answer is an earlier identical request's result (REST "
+                                            "or WebSocket), served from the result cache without simulating")
     rest_reached: bool = Field(description="whether the garment came to rest before the step limit")
     penetrating_vertices: int = Field(description="garment vertices inside the body by more than 2 mm")
     max_penetration_mm: float = Field(description="deepest garment vertex inside the body, mm")

@@ -58,7 +58,6 @@ class BodyCollider:
         cell_max_radius(self.cyl_origin, self.cyl_axes, self.cyl_shape, self.cell_base, self.cell_start,
                         self.cell_faces, self.faces, self.rest_vertices, self.rest_rmax)
         self.vertices = self.rest_vertices.copy()
-        self.normals = self.rest_normals.copy()
         self.offset = np.empty_like(self.vertices)
         self.offset_normals = np.empty((len(self.faces), 3))
         self.face_part = np.ascontiguousarray(body.face_part, dtype=np.int64)
@@ -74,6 +73,11 @@ class BodyCollider:
         self._pose_vertices = self.rest_vertices
         self._pose_normals = self.rest_normals
         self.update()
+
+    @property
+    def vertex_normals(self) -> np.ndarray:
+        """(n, 3) unit outward vertex normals of the current pose (growth does not turn them)."""
+        return self._pose_normals
 
     # ------------------------------------------------------------------ shape changes
 

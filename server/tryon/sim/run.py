@@ -77,6 +77,7 @@ from tryon.sim.arms import ArmSchedule
 from tryon.sim.bodystate import BodyCollider
 from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
 from tryon.sim.full_mesh import display_strain, follow_coarse
+from tryon.sim.show_through import show_through_depth, show_through_metrics
 from tryon.sim.limbs import limb_openings, openings_on_limbs
 from tryon.sim.pieces import hanging_pieces, piece_labels, piece_tops, waistband_mask
 from tryon.sim.constraints import (
@@ -458,6 +459,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         "rest_reached": bool(rest_reached),
         "stopped": bool(stopped),
         **penetration_metrics(depth),
+        **show_through_metrics(show_through_depth(collider, full_parts, full, model.faces)),
         "max_strain": float(spring_strain_.max()) if len(spring_strain_) else 0.0,
         "display_max_strain": display_strain(full, model),
         "strain_by_kind": by_kind,

@@ -72,6 +72,8 @@ def result_json(result: TryOnResult, cached_answer_s: float | None = None) -> di
         "rest_reached": bool(m["rest_reached"]),
         "penetrating_vertices": int(m["penetrating_vertices"]),
         "max_penetration_mm": round(float(m["max_penetration_mm"]), 3),
+        "body_through_vertices": int(m["body_through_vertices"]),
+        "max_body_through_mm": round(float(m["max_body_through_mm"]), 3),
         "max_strain": round(float(m["max_strain"]), 5),
         "strain": np.round(result.strain, 4).tolist(),
         "display_max_strain": round(float(m["display_max_strain"]), 5),

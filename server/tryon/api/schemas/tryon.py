@@ -78,6 +78,12 @@ class TryOnMetricsOut(BaseModel):
     rest_reached: bool = Field(description="whether the garment came to rest before the step limit")
     penetrating_vertices: int = Field(description="garment vertices inside the body by more than 2 mm")
     max_penetration_mm: float = Field(description="deepest garment vertex inside the body, mm")
+    body_through_vertices: int = Field(0, description="the opposite fault, on the shown mesh: body vertices that "
+                                                      "poke out through the garment by more than 2 mm where it "
+                                                      "covers them (the outermost cloth along the skin's normal "
+                                                      "lies under the skin: skin shows through)")
+    max_body_through_mm: float = Field(0.0, description="how far the deepest of those pokes out, mm (measured up "
+                                                        "to 20 mm)")
     max_strain: float = Field(description="largest spring strain (length / natural length - 1)")
     strain: list[float] = Field(description="per garment vertex: largest strain of its springs")
     display_max_strain: float = Field(0.0, description="largest strain of the fitted (displayed) mesh's own "

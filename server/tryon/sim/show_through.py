@@ -1,0 +1,166 @@
+"""Body through cloth: body points that poke out through the shown garment where it covers them.
+
+The penetration metric (SPEC 7) counts garment vertices inside the body. It cannot see the opposite
+fault: every vertex of a garment outside the body while a triangle between them cuts under the skin (a
+coarse triangle across a shoulder, a sleeve pulled tight over an elbow), so that skin shows through the
+cloth on the page. This module measures that on the mesh the shopper sees.
+
+For each body vertex p with outward normal n (of the body's current shape) near the garment, the line
+p + t n, t in [-PROBE_IN, +PROBE_OUT], is cut with the shown garment's triangles. The cloth covers p when
+the line meets it; the outermost crossing t_max is the cloth layer the eye sees there. When t_max <
+-tolerance, that outermost layer lies under the skin: the body shows through by -t_max. Body vertices
+inside another body part (an arm's root inside the torso) are hidden skin and not counted.
+
+The crossings come from a uniform grid over the garment's triangles (each triangle listed in every cell
+its bounding box touches), so a body vertex tests the few triangles of the cells its short probe crosses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from tryon.sim.bodystate import BodyCollider
+from tryon.sim.metrics import PENETRATION_TOLERANCE
+
+# m: how deep under the skin the probe looks for the cloth. The thinnest parts the garments cover (a
+# forearm, 5 cm across) are more than twice this, so the probe never reaches the cloth on the far side of
+# the limb; a body poking through deeper than this reports this depth.
+PROBE_IN = 0.02
+# m: how far out from the skin the probe looks for a covering layer: cloth rests within a few mm of the
+# skin where it touches; 2 cm keeps a sleeve hanging beside the torso from counting as the torso's cover.
+PROBE_OUT = 0.02
+# m: the grid's cell: about twice the shown meshes' edges (1-2 cm), so a triangle touches few cells.
+GRID_CELL = 0.02
+
+
+@njit(cache=True, nogil=True)
+def triangle_grid(vertices, faces, lo, cell, shape):
+    """CSR lists of the triangles (f, 3) int over ``vertices`` (n, 3) m touching each cell of a grid with
+    corner ``lo`` (3,) m, cell size ``cell`` m and ``shape`` (3,) int64 cells: (cell_start (C+1,) int64,
+    cell_tris (K,) int64), cell id ``(ix * shape[1] + iy) * shape[2] + iz``; a triangle is listed in every
+    cell its bounding box touches."""
+    n_cells = shape[0] * shape[1] * shape[2]
+    count = np.zeros(n_cells + 1, dtype=np.int64)
+    ranges = np.empty((faces.shape[0], 6), dtype=np.int64)
+    for f in range(faces.shape[0]):
+        for a in range(3):
+            x0 = min(vertices[faces[f, 0], a], vertices[faces[f, 1], a], vertices[faces[f, 2], a])
+            x1 = max(vertices[faces[f, 0], a], vertices[faces[f, 1], a], vertices[faces[f, 2], a])
+            ranges[f, a] = min(max(int((x0 - lo[a]) / cell), 0), shape[a] - 1)
+            ranges[f, 3 + a] = min(max(int((x1 - lo[a]) / cell), 0), shape[a] - 1)
+        for ix in range(ranges[f, 0], ranges[f, 3] + 1):
+            for iy in range(ranges[f, 1], ranges[f, 4] + 1):
+                for iz in range(ranges[f, 2], ranges[f, 5] + 1):
+                    count[(ix * shape[1] + iy) * shape[2] + iz + 1] += 1
+    cell_start = np.cumsum(count)
+    fill = cell_start[:-1].copy()
+    cell_tris = np.empty(cell_start[-1], dtype=np.int64)
+    for f in range(faces.shape[0]):
+        for ix in range(ranges[f, 0], ranges[f, 3] + 1):
+            for iy in range(ranges[f, 1], ranges[f, 4] + 1):
+                for iz in range(ranges[f, 2], ranges[f, 5] + 1):
+                    c = (ix * shape[1] + iy) * shape[2] + iz
+                    cell_tris[fill[c]] = f
+                    fill[c] += 1
+    return cell_start, cell_tris
+
+
+@njit(cache=True, nogil=True)
+def outermost_crossing(points, normals, t_in, t_out, vertices, faces, lo, cell, shape, cell_start, cell_tris):
+    """For each point p (m, 3) m with unit normal n (m, 3): the largest t in [-t_in, t_out] m where the line
+    p + t n crosses a triangle of the mesh (``vertices`` (n, 3) m, ``faces`` (f, 3)) listed in the grid
+    (``triangle_grid``); NaN where it crosses none. (m,) float64. Möller-Trumbore, both faces of a triangle."""
+    out = np.full(points.shape[0], np.nan)
+    for i in range(points.shape[0]):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        dx, dy, dz = normals[i, 0], normals[i, 1], normals[i, 2]
+        lo_c = np.empty(3, dtype=np.int64)
+        hi_c = np.empty(3, dtype=np.int64)
+        for a in range(3):
+            s0 = points[i, a] - t_in * normals[i, a]
+            s1 = points[i, a] + t_out * normals[i, a]
+            lo_c[a] = max(int((min(s0, s1) - lo[a]) / cell), 0)
+            hi_c[a] = min(int((max(s0, s1) - lo[a]) / cell), shape[a] - 1)
+        best = -np.inf
+        for ix in range(lo_c[0], hi_c[0] + 1):
+            for iy in range(lo_c[1], hi_c[1] + 1):
+                for iz in range(lo_c[2], hi_c[2] + 1):
+                    c = (ix * shape[1] + iy) * shape[2] + iz
+                    for j in range(cell_start[c], cell_start[c + 1]):
+                        f = cell_tris[j]
+                        a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
+                        e1x = vertices[a1, 0] - vertices[a0, 0]
+                        e1y = vertices[a1, 1] - vertices[a0, 1]
+                        e1z = vertices[a1, 2] - vertices[a0, 2]
+                        e2x = vertices[a2, 0] - vertices[a0, 0]
+                        e2y = vertices[a2, 1] - vertices[a0, 1]
+                        e2z = vertices[a2, 2] - vertices[a0, 2]
+                        qx = dy * e2z - dz * e2y
+                        qy = dz * e2x - dx * e2z
+                        qz = dx * e2y - dy * e2x
+                        det = e1x * qx + e1y * qy + e1z * qz
+                        if abs(det) < 1e-14:
+                            continue  # the line runs along the triangle's plane
+                        inv = 1.0 / det
+                        sx = px - vertices[a0, 0]
+                        sy = py - vertices[a0, 1]
+                        sz = pz - vertices[a0, 2]
+                        u = (sx * qx + sy * qy + sz * qz) * inv
+                        if u < 0.0 or u > 1.0:
+                            continue
+                        rx = sy * e1z - sz * e1y
+                        ry = sz * e1x - sx * e1z
+                        rz = sx * e1y - sy * e1x
+                        v = (dx * rx + dy * ry + dz * rz) * inv
+                        if v < 0.0 or u + v > 1.0:
+                            continue
+                        t = (e2x * rx + e2y * ry + e2z * rz) * inv
+                        if -t_in <= t <= t_out and t > best:
+                            best = t
+        if best > -np.inf:
+            out[i] = best
+    return out
+
+
+def show_through_depth(collider: BodyCollider, parts: np.ndarray, garment: np.ndarray,
+                       faces: np.ndarray) -> np.ndarray:
+    """(b,) m: for each vertex of the collider's current body, how far it pokes out through the shown
+    garment (``garment`` (n, 3) m, ``faces`` (f, 3)) where the garment covers it (0 elsewhere, and for body
+    vertices hidden inside another part); ``parts``: the body parts the garment was collided with (int64
+    indices), the only ones it can cover. Measured up to PROBE_IN deep (see the module docstring)."""
+    body = collider.vertices
+    depth = np.zeros(len(body))
+    if len(faces) == 0:
+        return depth
+    reach = PROBE_IN + PROBE_OUT
+    lo = garment.min(axis=0) - reach
+    hi = garment.max(axis=0) + reach
+    near = np.flatnonzero(np.all((body >= lo) & (body <= hi), axis=1)
+                          & np.isin(collider.vertex_part, parts))
+    if len(near) == 0:
+        return depth
+    shape = np.maximum(np.ceil((hi - lo) / GRID_CELL).astype(np.int64), 1)
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    garment = np.ascontiguousarray(garment, dtype=np.float64)
+    cell_start, cell_tris = triangle_grid(garment, faces, lo, GRID_CELL, shape)
+    points = np.ascontiguousarray(body[near])
+    t = outermost_crossing(points, np.ascontiguousarray(collider.vertex_normals[near]), PROBE_IN, PROBE_OUT,
+                           garment, faces, lo, GRID_CELL, shape, cell_start, cell_tris)
+    under = np.flatnonzero(t < -PENETRATION_TOLERANCE)  # NaN (uncovered) compares False
+    if len(under) == 0:
+        return depth
+    # hidden skin: a body vertex inside another part (its own part puts it at ~0 depth)
+    hidden = collider.depth(points[under], parts, offset=False) > PENETRATION_TOLERANCE
+    keep = under[~hidden]
+    depth[near[keep]] = -t[keep]
+    return depth
+
+
+def show_through_metrics(depth: np.ndarray) -> dict:
+    """``body_through_vertices``: body vertices poking out through the cloth by more than 2 mm (the
+    penetration tolerance, SPEC 7); ``max_body_through_mm``: the deepest, mm (at most PROBE_IN)."""
+    return {
+        "body_through_vertices": int((depth > PENETRATION_TOLERANCE).sum()),
+        "max_body_through_mm": float(depth.max() * 1000.0) if len(depth) else 0.0,
+    }

@@ -12,14 +12,14 @@ from tryon.garment.generate import garment_mesh, obj_text
 def test_ingest_files_and_a_refused_one(tmp_path, capsys):
     good = tmp_path / "skirt-s.obj"
     good.write_text(obj_text(garment_mesh("skirt", "S"), "skirt"))
-    bad = tmp_path / "broken.obj"
+    bad = tmp_path / "broken-top.obj"
     bad.write_bytes(b"v 0 0 0\nv 1 0 0\n")
     data = tmp_path / "data"
     code = main(["ingest", str(good), str(bad), "--units", "m", "--size", "S", "--data-dir", str(data)])
     out = capsys.readouterr().out
     assert code == 1
     assert "[1/2] skirt-s.obj:" in out and "bottom S" in out and "-> " in out and " ms" in out
-    assert "[2/2] broken.obj: REFUSED: the file is a point cloud" in out
+    assert "[2/2] broken-top.obj: REFUSED: the file is a point cloud" in out
     assert "1 of 2 garments" in out and "1 refused" in out
     entries = Catalogue(data).list()
     assert [(e.name, e.category, e.size, e.units) for e in entries] == [("skirt-s", "bottom", "S", "m")]
@@ -97,11 +97,15 @@ def test_bad_flag_values_are_refused_by_argparse(tmp_path, capsys, flag, value):
 
 
 def test_category_guessed_from_the_file_name():
-    from tryon.cli.ingest import guess_category
+    from tryon.garment.catalogue import guess_category
 
     assert guess_category("polo-shirt.obj") == "top"
     assert guess_category("A-line_Skirt.glb") == "bottom"
     assert guess_category("cargo-pants.obj") == "bottom"
     assert guess_category("dress-straps.obj") == "dress"
     assert guess_category("outfit-tshirt-pants.obj") == "dress"  # a top and a bottom in one file
-    assert guess_category("garment.obj") == "top"
+    assert guess_category("blouse-skirt.obj") == "dress"
+    assert guess_category("longsleeve-m.obj") == "top"
+    assert guess_category("short-sleeve-shirt.obj") == "top"  # not shorts and a shirt
+    assert guess_category("shorts-m.obj") == "bottom"
+    assert guess_category("garment.obj") is None  # no hint: refused, not taken for a top

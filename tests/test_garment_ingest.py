@@ -165,12 +165,12 @@ def test_gltf_scene_with_two_meshes_is_concatenated(tshirt):
 
 BAD = [
     ("empty", b"", "t.obj", "empty"),
-    ("garbage", b"\x00\x01garbage\xff" * 10, "t.obj", "no triangle|no faces|could not read"),
-    ("garbage glb", b"glTF\x02\x00\x00\x00garbage", "t.glb", "could not read"),
+    ("garbage", b"\x00\x01garbage\xff" * 10, "t.obj", "t.obj is not a readable OBJ file: it is binary data"),
+    ("garbage glb", b"glTF\x02\x00\x00\x00garbage", "t.glb", "t.glb is not a readable GLB file: .* truncated"),
     ("point cloud", b"v 0 0 0\nv 1 0 0\nv 0 1 0\n", "t.obj", "point cloud"),
     ("non-finite", b"v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "t.obj", "non-finite"),
     ("infinite", b"v inf 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "t.obj", "non-finite"),
-    ("truncated ply", b"ply\nformat ascii 1.0\nelement vertex 3\n", "t.ply", "could not read|no faces"),
+    ("truncated ply", b"ply\nformat ascii 1.0\nelement vertex 3\n", "t.ply", "not a readable PLY file: .*no 'end_header'"),
     ("unknown ext", b"v 0 0 0\n", "t.xyz", "unknown file type"),
     ("no ext", b"v 0 0 0\n", "garment", "unknown file type"),
     ("3ds", b"MM\x00\x00", "t.3ds", "3DS files are not supported"),

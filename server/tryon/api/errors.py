@@ -10,7 +10,7 @@ methods the path does take, or a 404 naming the path.
 
 from __future__ import annotations
 
-import json
+import logging
 import math
 from typing import Any
 
@@ -28,6 +28,8 @@ ECHO_MAX_ITEMS = 50
 ECHO_MAX_DEPTH = 12
 # FastAPI's own words for a body it could not read (not JSON-decodable for another reason than syntax)
 _FASTAPI_PARSE_ERROR = "There was an error parsing the body"
+
+log = logging.getLogger(__name__)
 
 
 def json_safe(value: Any, depth: int = 0) -> Any:
@@ -60,12 +62,17 @@ def _is_json(content_type: str | None) -> bool:
 
 
 def _reworded(error: dict, request: Request) -> dict:
-    """FastAPI's two errors about the body as a whole, in words a client can act on."""
+    """FastAPI's two errors about the body as a whole, and its error for a text field where a file was
+    expected, in words a client can act on."""
     loc = tuple(error.get("loc", ()))
     if error.get("type") == "json_invalid":
         where = f" at offset {loc[1]}" if len(loc) > 1 else ""
         reason = (error.get("ctx") or {}).get("error", "")
         return {**error, "msg": f"the body is not valid JSON{where}" + (f": {reason}" if reason else "")}
+    if error.get("type") == "value_error" and "Expected UploadFile" in str(error.get("msg")):
+        # FastAPI's "Expected UploadFile, received: <class 'str'>" names a Python class
+        plain = {k: v for k, v in error.items() if k != "ctx"}
+        return {**plain, "msg": "expected a file (a form part with a file name), got a text field"}
     content_type = request.headers.get("content-type")
     if loc == ("body",) and error.get("type") == "model_attributes_type" and not _is_json(content_type):
         return {**error, "msg": "the body must be a JSON object sent with Content-Type: application/json "
@@ -80,22 +87,28 @@ async def validation_error(request: Request, exc: RequestValidationError) -> JSO
 
 
 async def http_error(request: Request, exc: StarletteHTTPException):
-    """FastAPI's "There was an error parsing the body" (400) with the reason, unrouted ``/api/`` requests
-    in words (``_no_api_route``); everything else as usual."""
+    """FastAPI's "There was an error parsing the body" (400) with the reason in our words
+    (``_unreadable_body``), unrouted ``/api/`` requests in words (``_no_api_route``); everything else as
+    usual."""
     if exc.status_code == 400 and exc.detail == _FASTAPI_PARSE_ERROR:
-        cause = exc.__cause__
-        if isinstance(cause, UnicodeDecodeError):
-            reason = "it is not UTF-8 text"
-        elif isinstance(cause, RecursionError):
-            reason = "it is nested too deeply"
-        elif isinstance(cause, (ValueError, json.JSONDecodeError)):
-            reason = str(cause)
-        else:
-            reason = f"{type(cause).__name__}: {cause}" if cause is not None else "unknown reason"
+        reason = _unreadable_body(exc.__cause__)
         return JSONResponse({"detail": f"could not read the request body as JSON: {reason}"}, status_code=400)
     if exc.status_code in (404, 405) and request.url.path.startswith("/api/") and _unrouted(request):
         return _no_api_route(request)
     return await http_exception_handler(request, exc)
+
+
+def _unreadable_body(cause: BaseException | None) -> str:
+    """Why a body could not be read, in our words; the exception itself (a library's or Python's text,
+    such as "use sys.set_int_max_str_digits() to increase the limit") is logged, not sent."""
+    if isinstance(cause, UnicodeDecodeError):
+        return "it is not UTF-8 text"
+    if isinstance(cause, RecursionError):
+        return "it is nested too deeply"
+    log.info("unreadable request body: %s: %s", type(cause).__name__, cause)
+    if isinstance(cause, ValueError) and "digits" in str(cause):
+        return "it has a whole number with too many digits to read"
+    return "it is not JSON that can be read"
 
 
 # methods an API route may answer, tried in turn to tell a wrong method (405) from a wrong path (404)

@@ -4,6 +4,9 @@
                  [--simplify B] [--size S] [--data-dir DIR]
     tryon ingest --catalogue garments/      # every file listed in garments/catalogue.json
 
+``--category auto`` (the default) guesses the category from words in the file name, as the upload API
+does (``tryon.garment.catalogue.guess_category``); a file whose name tells none is refused.
+
 Exit status 0 if every file was ingested (or already was), 1 if any was refused (the others are still
 ingested), 2 for a usage error.
 """
@@ -12,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import sqlite3
 import sys
 import time
@@ -20,19 +22,6 @@ from pathlib import Path
 
 from tryon.cli.common import CliError, load_settings
 from tryon.garment.ingest import UNITS, GarmentError
-
-DRESS_WORDS = r"dress|gown|robe|outfit|suit|jumpsuit|overall"
-BOTTOM_WORDS = r"skirt|trouser|pant|short|jean|legging|bottom"
-TOP_WORDS = r"shirt|tee|top|blouse|polo|sweater|jacket|hoodie"
-
-
-def guess_category(name: str) -> str:
-    """top | bottom | dress from words in a file name: a dress (or a top and a bottom in one file, an
-    outfit covering the body from the shoulders down) is "dress"; top when nothing matches."""
-    has = lambda pattern: re.search(pattern, name, re.IGNORECASE) is not None  # noqa: E731
-    if has(DRESS_WORDS) or (has(TOP_WORDS) and has(BOTTOM_WORDS)):
-        return "dress"
-    return "bottom" if has(BOTTOM_WORDS) else "top"
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -42,7 +31,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--catalogue", type=Path, metavar="DIR", help="ingest every file listed in DIR/catalogue.json")
     p.add_argument("--name", help="display name (default: the file name); only with one file")
     p.add_argument("--category", default="auto", choices=["auto", "top", "bottom", "dress"],
-                   help="garment category (default auto: from words in the file name)")
+                   help="garment category (default auto: from words in the file name, such as shirt, skirt "
+                        "or dress; a file whose name has none is refused)")
     p.add_argument("--units", default="auto", choices=list(UNITS), help="units of the file (default auto: guessed)")
     p.add_argument("--simplify", type=float, default=None, metavar="B",
                    help="simplification degree B = kept / original vertices, in (0, 1] (default 0.3)")
@@ -52,6 +42,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+# What a JSON value is, in JSON's words (not Python's type names).
+_JSON_KINDS = {dict: "an object", str: "a string", int: "a number", float: "a number", bool: "true or false",
+               type(None): "null"}
+
+
+def _listing_problem(exc: Exception) -> str:
+    """What is wrong with a catalogue.json, in words: the reason, not the exception's own text."""
+    if isinstance(exc, json.JSONDecodeError):
+        return f"it is not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg.lower()})"
+    if isinstance(exc, UnicodeDecodeError):
+        return "it is not UTF-8 text"
+    if isinstance(exc, OSError):
+        return exc.strerror or "it cannot be read"
+    return str(exc)  # one of _jobs' own messages
+
+
 def _jobs(args: argparse.Namespace) -> list[dict]:
     """One dict per file: path and the ingest keyword arguments."""
     jobs = []
@@ -59,15 +65,14 @@ def _jobs(args: argparse.Namespace) -> list[dict]:
         listing = args.catalogue / "catalogue.json"
         entries = json.loads(listing.read_text())
         if not isinstance(entries, list):
-            raise ValueError(f"expected a JSON list of entries, got a {type(entries).__name__}")
+            raise ValueError(f"expected a JSON list of entries, got {_JSON_KINDS.get(type(entries), 'a value')}")
         for i, e in enumerate(entries):
             if not isinstance(e, dict) or not isinstance(e.get("file"), str):
                 raise ValueError(f"entry {i} is not an object with a \"file\" name: {json.dumps(e)[:80]}")
             jobs.append(dict(path=args.catalogue / e["file"], name=e.get("name"), category=e.get("category", "top"),
                              units=e.get("units", "auto"), size=e.get("size")))
     for path in args.paths:
-        category = args.category if args.category != "auto" else guess_category(path.name)
-        jobs.append(dict(path=path, name=args.name, category=category, units=args.units, size=args.size))
+        jobs.append(dict(path=path, name=args.name, category=args.category, units=args.units, size=args.size))
     for job in jobs:
         if args.simplify is not None:
             job["simplify"] = args.simplify
@@ -90,8 +95,8 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         jobs = _jobs(args)
-    except (OSError, ValueError, KeyError) as exc:
-        print(f"tryon ingest: cannot read {args.catalogue}/catalogue.json: {exc}", file=sys.stderr)
+    except (OSError, ValueError) as exc:
+        print(f"tryon ingest: cannot read {args.catalogue}/catalogue.json: {_listing_problem(exc)}", file=sys.stderr)
         return 2
     settings = load_settings()
     data_dir = args.data_dir or settings.data_dir

@@ -27,7 +27,8 @@ def run(args: argparse.Namespace) -> int:
     try:  # a broken index would otherwise be a 500 on every catalogue request
         Catalogue(settings.data_dir)
     except (OSError, sqlite3.Error) as exc:
-        raise CliError(f"cannot open the catalogue in {settings.data_dir}: {exc}") from None
+        reason = getattr(exc, "strerror", None) or exc  # the system's words (sqlite's for a broken index)
+        raise CliError(f"cannot open the catalogue in {settings.data_dir}: {reason}") from None
     if not (settings.web_dir / "index.html").is_file():
         raise CliError(f"the page's files are missing: no index.html in {settings.web_dir}")
     uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level=args.log_level)

@@ -23,6 +23,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shutil
 import sqlite3
 import threading
@@ -37,6 +38,13 @@ from tryon.garment.model import GarmentMeta, GarmentModel
 from tryon.garment.prepare import DEFAULT_DENSITY, DEFAULT_SIMPLIFICATION, prepare
 
 CATEGORIES = ("top", "bottom", "dress")
+# Words in a file name that tell its category ("auto"), matched anywhere in the name, any case. A dress,
+# or a file with a top word and a bottom word (an outfit: a shirt and trousers in one file), is "dress":
+# the sim aligns each piece of a file by its own kind (sim/pieces.py), but a file catalogued as a bottom
+# is one bottom whatever its pieces. "short" before "sleeve" is a short-sleeved top, not shorts.
+DRESS_WORDS = r"dress|gown|robe|outfit|suit|jumpsuit|overall"
+BOTTOM_WORDS = r"skirt|trouser|pant|short(?![-_ ]?sleeve)|jean|legging|bottom|chino|jogger|culotte"
+TOP_WORDS = r"shirt|tee|top|blouse|polo|sweater|jacket|hoodie|sleeve|cardigan|coat|vest|tunic|pullover|blazer"
 # Prepared models kept in memory per process (a model of 5,000 vertices is ~1 MB).
 MODEL_CACHE_SIZE = 16
 # SQLite waits this long (s) for another writer's transaction before giving up.
@@ -60,6 +68,33 @@ CREATE TABLE IF NOT EXISTS garments (
     created REAL NOT NULL
 )
 """
+
+
+def guess_category(filename: str) -> str | None:
+    """top | bottom | dress from the words in a file name (see ``DRESS_WORDS``), or None when the name
+    has none of them."""
+    has = lambda pattern: re.search(pattern, filename, re.IGNORECASE) is not None  # noqa: E731
+    if has(DRESS_WORDS) or (has(TOP_WORDS) and has(BOTTOM_WORDS)):
+        return "dress"
+    if has(BOTTOM_WORDS):
+        return "bottom"
+    return "top" if has(TOP_WORDS) else None
+
+
+def resolve_category(category: str, filename: str) -> str:
+    """``category`` as given, or for ``auto`` the one the file name tells (``guess_category``).
+    GarmentError (422) for an unknown category, or ``auto`` with a file name that tells none."""
+    if category == "auto":
+        guessed = guess_category(filename)
+        if guessed is None:
+            raise GarmentError(
+                f"the file name {filename!r} gives no hint of the category (no word such as shirt, skirt, "
+                f"trousers or dress): choose one of {', '.join(CATEGORIES)}"
+            )
+        return guessed
+    if category not in CATEGORIES:
+        raise GarmentError(f"category must be one of {', '.join(CATEGORIES)} or auto, not {category!r}")
+    return category
 
 
 def entry_id(sha256: str, units: str, simplification: float, density: float) -> str:
@@ -149,6 +184,7 @@ class Catalogue:
                max_faces: int = 400_000) -> GarmentMeta:
         """Prepare and add a garment (a path, or bytes with ``filename``); returns the entry. The same
         file with the same parameters returns the existing entry without preparing again.
+        ``category``: top | bottom | dress | auto (guessed from the file name, ``resolve_category``);
         ``units``: m | cm | mm | dm | in | auto; ``simplify``: B in (0, 1]; ``density``: kg/m^2.
         GarmentError (a reason for the user) if the file or a parameter is refused."""
         return self.ingest_with_status(source, name, category, units, simplify, size, filename, density, max_faces)[0]
@@ -168,8 +204,7 @@ class Catalogue:
             data = path.read_bytes()
             filename = filename or path.name
         ext = file_extension(filename)
-        if category not in CATEGORIES:
-            raise GarmentError(f"category must be one of {', '.join(CATEGORIES)}, not {category!r}")
+        category = resolve_category(category, filename)
         if not 0.0 < simplify <= 1.0:
             raise GarmentError(f"simplify must be in (0, 1], got {simplify}")
         if not density > 0.0:

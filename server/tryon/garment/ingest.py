@@ -2,13 +2,16 @@
 
 ``load_garment(data, filename, units, max_faces) -> CleanMesh``: read with trimesh, weld, split quads,
 drop degenerate/duplicate faces and specks, orient y up, convert to metres. Everything refused raises
-``GarmentError`` with a reason a user can act on.
+``GarmentError`` with a reason a user can act on, in the project's own words: a reader library's
+exception text is logged for developers, never shown to a user.
 """
 
 from __future__ import annotations
 
 import io
+import logging
 import re
+import struct
 import warnings
 from dataclasses import dataclass, field
 from pathlib import PurePosixPath, PureWindowsPath
@@ -19,6 +22,8 @@ import scipy.sparse.csgraph
 import trimesh
 
 from tryon.garment.topology import vertex_pieces
+
+log = logging.getLogger(__name__)
 
 # Scale from a file unit to metres.
 UNIT_SCALE = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "in": 0.0254}
@@ -56,6 +61,10 @@ LOOP_AXIS_COS = 0.85
 LOOP_FLATNESS = 0.4
 # A panel is flat when its thickness (smallest principal extent) is under 1% of its size.
 FLAT_PANEL_RATIO = 0.01
+# A text format (OBJ, OFF, ASCII STL, glTF) with more than this fraction of control bytes (other than
+# tab, line feed, carriage return, form feed, and the DOS end-of-file mark) is binary data: random bytes
+# have 11%, a text file none or a stray one.
+MAX_CONTROL_BYTE_FRACTION = 0.001
 
 
 class GarmentError(ValueError):
@@ -106,9 +115,8 @@ def load_garment(data: bytes, filename: str, units: str = "auto", max_faces: int
     if not data:
         raise GarmentError("the file is empty")
     notes: list[str] = []
-    if ext == "obj":
-        _refuse_truncated_obj(data)
-    vertices, faces = _read(data, ext, max_faces)
+    data = _readable(data, ext, filename)
+    vertices, faces = _read(data, ext, filename, max_faces)
     unused = _unused_fraction(data, ext, vertices, faces)
     if unused > MAX_UNUSED_VERTEX_FRACTION:
         raise GarmentError(
@@ -128,38 +136,146 @@ def load_garment(data: bytes, filename: str, units: str = "auto", max_faces: int
 # --- reading --------------------------------------------------------------------------------------
 
 
-def _read(data: bytes, ext: str, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
+def _unreadable(filename: str, ext: str, reason: str) -> GarmentError:
+    """The refusal of a file that is not the format its name says, with our reason."""
+    return GarmentError(f"{filename} is not a readable {_format_name(ext)} file: {reason}")
+
+
+def _format_name(ext: str) -> str:
+    return "glTF" if ext == "gltf" else ext.upper()
+
+
+def _readable(data: bytes, ext: str, filename: str) -> bytes:
+    """Refuse, in our words, a file that is visibly not its format (the reader libraries' own messages
+    are internal: "Not a ply file!", "No module named 'charset_normalizer'"); return the bytes to read,
+    text formats as UTF-8 (trimesh refuses other encodings)."""
+    if ext == "stl":
+        if _is_binary_stl(data):
+            return data
+        if _looks_binary(data):
+            raise _unreadable(filename, ext, "it is binary data, but its length does not match the triangle "
+                                             "count in its header (a binary STL that is truncated or damaged)")
+    if ext in ("obj", "off", "gltf", "stl"):
+        data = _as_utf8_text(data, ext, filename)
+    if ext == "obj":
+        data = _check_obj_text(data)
+    elif ext == "off":
+        _check_off_header(data, filename)
+    elif ext == "stl" and not data.lstrip()[:5].lower() == b"solid":
+        raise _unreadable(filename, ext, "it is neither a binary STL nor STL text (which starts with 'solid')")
+    elif ext == "ply":
+        _check_ply_header(data, filename)
+    elif ext == "glb":
+        _check_glb_header(data, filename)
+    elif ext == "gltf" and not data.lstrip().startswith(b"{"):
+        raise _unreadable(filename, ext, "it is not glTF JSON text (which starts with '{')")
+    return data
+
+
+def _as_utf8_text(data: bytes, ext: str, filename: str) -> bytes:
+    """The text of a text format as UTF-8 without a byte order mark; a file in another 8-bit encoding
+    (a Latin-1 comment or material name) is read as Latin-1. Refuses binary data and UTF-16."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise _unreadable(filename, ext, "it is UTF-16 text: save it as UTF-8 or ASCII text")
+    if _looks_binary(data):
+        raise _unreadable(filename, ext, f"it is binary data, not {_format_name(ext)} text")
+    data = data.removeprefix(b"\xef\xbb\xbf")
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1").encode("utf-8")
+    return data
+
+
+# Bytes a text file may hold: printable ASCII, tab, line feed, carriage return, form feed, the DOS
+# end-of-file mark (0x1a), and every byte of 0x80 and above (UTF-8 or another 8-bit encoding).
+_TEXT_BYTES = bytes([9, 10, 12, 13, 26, *range(32, 127), *range(128, 256)])
+
+
+def _looks_binary(data: bytes) -> bool:
+    """True for data with a NUL byte or more control bytes than a text file has."""
+    return b"\x00" in data or len(data.translate(None, _TEXT_BYTES)) > MAX_CONTROL_BYTE_FRACTION * len(data)
+
+
+def _check_off_header(data: bytes, filename: str) -> None:
+    """An OFF file starts (after comments) with the keyword OFF, or COFF for one with colours."""
+    for line in data[:1 << 16].splitlines():
+        words = line.split(b"#", 1)[0].split()
+        if not words:
+            continue
+        keyword = words[0].decode("latin-1")
+        if keyword.upper() in ("OFF", "COFF"):
+            return
+        if keyword.upper().endswith("OFF"):
+            raise _unreadable(filename, "off", f"its header {keyword!r} is an OFF variant that is not read: "
+                                               "save it as plain OFF")
+        break
+    raise _unreadable(filename, "off", "its first line is not an OFF header (the word OFF)")
+
+
+def _is_binary_stl(data: bytes) -> bool:
+    """A binary STL is an 80-byte header, a triangle count n and 50 bytes per triangle."""
+    return len(data) >= 84 and len(data) == 84 + 50 * struct.unpack_from("<I", data, 80)[0]
+
+
+def _check_ply_header(data: bytes, filename: str) -> None:
+    """A PLY file starts with the line ``ply`` and its header ends with ``end_header``."""
+    if not data.startswith((b"ply\n", b"ply\r\n", b"ply \n", b"ply\r")):
+        raise _unreadable(filename, "ply", "its header is not a PLY header (a PLY file starts with the "
+                                           "line 'ply')")
+    if b"end_header" not in data[:1 << 16]:
+        raise _unreadable(filename, "ply", "its header has no 'end_header' line: the file is truncated")
+
+
+def _check_glb_header(data: bytes, filename: str) -> None:
+    """A GLB file starts with ``glTF``, version 2 and its length in bytes."""
+    if len(data) < 12 or data[:4] != b"glTF":
+        raise _unreadable(filename, "glb", "its header is not a GLB header (a GLB file starts with "
+                                           "'glTF')")
+    version, length = struct.unpack_from("<II", data, 4)
+    if version == 1:
+        raise _unreadable(filename, "glb", "it is glTF 1.0; only glTF 2.0 is read: export it again")
+    if version != 2:
+        raise _unreadable(filename, "glb", f"its header names no glTF version (it says {version}): the file "
+                                           "is damaged")
+    if length > len(data):
+        raise _unreadable(filename, "glb", f"its header says {length:,} bytes but the file has "
+                                           f"{len(data):,}: it is truncated")
+
+
+def _read(data: bytes, ext: str, filename: str, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
     """Parse with trimesh (no processing), weld UV/normal seams, return raw float64/int64 arrays."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             loaded = trimesh.load(io.BytesIO(data), file_type=ext, process=False)
+            if isinstance(loaded, trimesh.Scene):
+                geoms = ([g for g in loaded.dump(concatenate=False) if isinstance(g, trimesh.Trimesh)]
+                         if loaded.geometry else [])
+                loaded = (trimesh.util.concatenate(geoms) if len(geoms) > 1 else geoms[0]) if geoms else None
     except Exception as exc:  # trimesh raises many types for broken files
         if ext == "gltf" and b'"uri"' in data and b'"data:' not in data:
             raise GarmentError(
                 "this .gltf refers to separate buffer files, which were not uploaded: export a single .glb "
                 "(or a .gltf with embedded buffers)"
             ) from exc
-        raise GarmentError(
-            f"could not read the file as {ext.upper()}: it is truncated or not a mesh ({_short(exc)})"
-        ) from exc
-    if isinstance(loaded, trimesh.Scene):
-        geoms = [g for g in loaded.dump(concatenate=False) if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
-        if not geoms:
-            raise GarmentError("the file has no triangle or quad faces (no mesh in the scene)")
-        mesh = trimesh.util.concatenate(geoms) if len(geoms) > 1 else geoms[0]
-    elif isinstance(loaded, trimesh.Trimesh):
-        mesh = loaded
-    elif isinstance(loaded, trimesh.PointCloud):
+        log.warning("trimesh could not read %s as %s: %s: %s", filename, ext, type(exc).__name__, exc)
+        log.debug("trimesh's traceback for %s", filename, exc_info=exc)
+        raise _unreadable(filename, ext, "it is damaged or truncated (its content does not follow the "
+                                         f"{_format_name(ext)} format)") from None
+    if loaded is None:
+        raise GarmentError("the file has no triangle or quad faces (no mesh in the scene)")
+    if isinstance(loaded, trimesh.PointCloud):
         raise GarmentError("the file is a point cloud (vertices without faces): a garment needs faces")
-    else:
-        raise GarmentError(f"the file holds a {type(loaded).__name__}, not a surface mesh with faces")
-    faces = np.asarray(mesh.faces)
+    if not isinstance(loaded, trimesh.Trimesh):
+        log.info("%s holds a %s", filename, type(loaded).__name__)
+        raise GarmentError("the file holds lines or curves, not a surface mesh with faces")
+    faces = np.asarray(loaded.faces)
     if faces.size == 0:
         raise GarmentError("the file has no faces (a point cloud or empty mesh): a garment needs faces")
     if len(faces) > max_faces:
         raise GarmentError(f"the mesh has {len(faces):,} faces, more than the limit of {max_faces:,}", 413)
-    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    vertices = np.asarray(loaded.vertices, dtype=np.float64)
     if not np.isfinite(vertices).all():
         raise GarmentError("the file has non-finite vertex coordinates (NaN or infinity)")
     if faces.min() < 0 or faces.max() >= len(vertices):
@@ -184,19 +300,161 @@ def _unused_fraction(data: bytes, ext: str, vertices: np.ndarray, faces: np.ndar
     return 1.0 - used / max(total, used, 1)
 
 
-def _refuse_truncated_obj(data: bytes) -> None:
-    """An OBJ cut off in the middle of a ``v`` or ``f`` line is truncated."""
-    tail = data.rstrip(b"\r\n\t ")
-    if tail != data.rstrip(b"\t "):  # ends with a newline: nothing visibly cut
-        return
-    last = tail.rsplit(b"\n", 1)[-1].split()
-    if (last[:1] == [b"v"] and len(last) < 4) or (last[:1] == [b"f"] and len(last) < 4):
-        raise GarmentError("the file ends in the middle of a line: it is truncated")
+# --- OBJ text check -------------------------------------------------------------------------------
+# trimesh reads "f 12 13 1267/" (a file cut in the middle of its last face) as a whole face, "f 0 1 2"
+# as a face on the last vertex, and refuses "f 1 2 x" with numpy's words. One search with a regular
+# expression finds the first v/vt/vn/f line that does not parse, numpy checks every face's vertex index
+# (together about 1 s for a 50 MB file of 440,000 faces, at C speed); only a bad line is then taken
+# apart in Python, for the message. The text is searched with a line break in front, so that every
+# line starts after one (a search for a line break is much faster than one for the start of a line).
+
+# One number of a v/vt/vn line: a decimal with an optional exponent, or nan/inf (refused later, in
+# ``_read``, as non-finite). Atomic groups and possessive quantifiers keep the search linear, even on a
+# line of a million digits.
+_NUMBER = rb"(?>[-+]?+(?:\d++(?:\.\d*+)?+|\.\d++)(?:[eE][-+]?+\d++)?+|[-+]?+(?i:nan|inf(?:inity)?+))"
+# One corner of a face: v, v/vt, v//vn or v/vt/vn, each a whole number (negative: counted back).
+_CORNER = rb"(?>[-+]?+\d++(?:/[-+]?+\d*+/[-+]?+\d++|/[-+]?+\d++)?+)"
+# After a keyword: a blank (a longer word such as "vp" or "fo" is another keyword).
+_KEYWORD_END = rb"(?![^ \t\r\n])"
+# The end of a good line: blanks and the line break (trimesh reads no comment after data on a line).
+_END = rb"[ \t\r]*+(?=\n|\Z)"
+# The first v, vt, vn or f line that is not at least 3 numbers (v, vn), 1 number (vt), 3 corners (f).
+_BAD_OBJ_LINE = re.compile(
+    rb"\n(?:v" + _KEYWORD_END + rb"(?![ \t]++" + _NUMBER + rb"(?:[ \t]++" + _NUMBER + rb"){2,}+" + _END + rb")"
+    rb"|vn" + _KEYWORD_END + rb"(?![ \t]++" + _NUMBER + rb"(?:[ \t]++" + _NUMBER + rb"){2,}+" + _END + rb")"
+    rb"|vt" + _KEYWORD_END + rb"(?![ \t]++" + _NUMBER + rb"(?:[ \t]++" + _NUMBER + rb")*+" + _END + rb")"
+    rb"|f" + _KEYWORD_END + rb"(?![ \t]++" + _CORNER + rb"(?:[ \t]++" + _CORNER + rb"){2,}+" + _END + rb"))"
+)
+# A run of consecutive face lines (after the check above: "f", a blank, corners).
+_FACE_RUN = re.compile(rb"(?:\nf[ \t][^\n]*+)++")
+# One face line, its corners in group 1 (for the messages).
+_FACE_LINE = re.compile(rb"\nf[ \t]++([^\r\n]*+)")
+# A comment after the data of a v, vt, vn or f line (the data is group 1).
+_DATA_COMMENT = re.compile(rb"(\n(?:v[tn]?+|f)[ \t][^#\r\n]*+)#[^\r\n]*+")
+# What each token of a v, vt, vn or f line is, and how many a line needs: for the messages.
+_OBJ_LINE_KINDS = {
+    b"v": ("vertex coordinate", 3, "a vertex needs 3 coordinates (x y z)"),
+    b"vn": ("normal coordinate", 3, "a normal needs 3 coordinates"),
+    b"vt": ("texture coordinate", 1, "a texture coordinate needs at least 1 number"),
+    b"f": ("face index", 3, "a face needs at least 3 vertices"),
+}
 
 
-def _short(exc: Exception) -> str:
-    text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-    return text[:120]
+def _check_obj_text(data: bytes) -> bytes:
+    """Refuse an OBJ whose v/vt/vn/f lines do not parse or whose faces name vertices that do not exist,
+    naming the line and the token; a file cut in the middle of a line is called truncated. Returns the
+    text for trimesh, which reads neither a comment after data on a line (removed here, only in a file
+    that has one), nor a line continued with a backslash (joined), nor a tab after a keyword (a space)."""
+    text = b"\n" + data
+    if b"\\\n" in text or b"\\\r\n" in text:
+        # joined as trimesh would join them (later line numbers are then off by the number of joins:
+        # rare, and the token is still named)
+        text = text.replace(b"\\\r\n", b"").replace(b"\\\n", b"")
+    # trimesh reads "v 1 2 3", not "v<tab>1 2 3" (and the v lines are counted below as "\nv ")
+    for keyword in (b"v", b"vt", b"vn", b"f"):
+        text = text.replace(b"\n" + keyword + b"\t", b"\n" + keyword + b" ")
+    bad = _BAD_OBJ_LINE.search(text)
+    if bad is not None and b"#" in _line_at(text, bad.start())[1]:
+        text = _DATA_COMMENT.sub(rb"\1", text)
+        bad = _BAD_OBJ_LINE.search(text)
+    if bad is not None:
+        raise GarmentError(_bad_line_message(text, bad.start()))
+    _check_face_indices(text)
+    return text[1:]
+
+
+def _line_at(text: bytes, newline: int) -> tuple[int, bytes, bool]:
+    """(1-based line number, the line without its break, whether the file ends in the middle of it: it is
+    the last line, without a line break) of the line after the line break at ``newline`` of ``text``
+    (the file with a line break in front)."""
+    end = text.find(b"\n", newline + 1)
+    line = text[newline + 1:] if end < 0 else text[newline + 1:end]
+    return text.count(b"\n", 0, newline + 1), line.rstrip(b"\r"), end < 0
+
+
+def _shown(token: bytes) -> str:
+    """A token of a file, quoted, cut short if long (a line of a million digits is not sent back whole)."""
+    text = token.decode("utf-8", "replace")  # the checked text is UTF-8
+    return repr(text) if len(text) <= 40 else repr(text[:30] + "...") + f" ({len(text):,} characters)"
+
+
+def _truncated(cut: bool) -> str:
+    return ": the file ends in the middle of this line, it is truncated" if cut else ""
+
+
+def _bad_line_message(text: bytes, newline: int) -> str:
+    """Why the v/vt/vn/f line after ``newline`` does not parse: its first bad token, or too few."""
+    number, line, cut = _line_at(text, newline)
+    keyword, *tokens = re.split(rb"[ \t]+", line.strip(b" \t\r"))
+    what, least, needs = _OBJ_LINE_KINDS[keyword]
+    good = re.compile(_CORNER if keyword == b"f" else _NUMBER)
+    for token in tokens:
+        if good.fullmatch(token) is None:
+            form = ("a face lists vertex numbers such as 12, 12/5, 12//7 or 12/5/7" if keyword == b"f"
+                    else "a coordinate is a decimal number such as -0.25 or 1.5e-3")
+            return f"line {number}: {what} {_shown(token)} does not parse ({form}){_truncated(cut)}"
+    if len(tokens) < least:
+        return f"line {number}: {needs}, this one has {len(tokens)}{_truncated(cut)}"
+    return f"line {number}: the line does not parse (it has characters other than numbers and blanks)"
+
+
+def _check_face_indices(text: bytes) -> None:
+    """Every face's vertex index names an existing vertex: 1..(vertices in the file), or a negative one
+    counting back from the last vertex before its line. vt/vn indices are not checked (not read)."""
+    index, before = _face_corners(text)
+    n_vertices = text.count(b"\nv ")
+    bad = (index == 0) | (index > n_vertices) | (index < -before)  # (-index overflows at -2**63)
+    if bad.any():
+        raise GarmentError(_bad_index_message(text, int(np.argmax(bad)), n_vertices))
+
+
+def _face_corners(text: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """Every face corner of the checked ``text`` (with a line break in front), in file order: (corners,)
+    int64 its vertex index (the number before its first '/'), and (corners,) int64 how many v lines come
+    before its line. One Python step per run of consecutive face lines, not per line."""
+    runs, before, seen, at = [], [], 0, 0
+    for m in _FACE_RUN.finditer(text, max(text.find(b"\nf"), 0)):
+        seen += text.count(b"\nv ", at, m.start())
+        at = m.end()
+        runs.append(m.group().replace(b"\nf", b"\n ").replace(b"//", b"/0/"))  # each '/' between numbers
+        before.append(seen)
+    if not runs:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    faces = b"".join(runs)
+    c = np.frombuffer(faces, dtype=np.uint8)
+    in_number = ((c >= ord("0")) & (c <= ord("9"))) | (c == ord("-")) | (c == ord("+"))
+    starts = in_number.copy()
+    starts[1:] &= ~in_number[:-1]
+    corner = starts.copy()
+    corner[1:] &= c[:-1] != ord("/")  # a number not after a '/' starts a corner
+    numbers = np.fromstring(faces.replace(b"/", b" "), dtype=np.int64, sep=" ")
+    offsets = np.cumsum([0] + [len(r) for r in runs[:-1]])
+    per_run = np.add.reduceat(corner, offsets, dtype=np.int64)
+    return numbers[corner[starts]], np.repeat(np.array(before, dtype=np.int64), per_run)
+
+
+def _face_lines(text: bytes) -> list[tuple[int, list[bytes]]]:
+    """(line break before it, its corners) of every face line: the slow way, for a message."""
+    return [(m.start(), m.group(1).split()) for m in _FACE_LINE.finditer(text)]
+
+
+def _bad_index_message(text: bytes, corner: int, n_vertices: int) -> str:
+    """Why face corner number ``corner`` (counted over the whole file) names no vertex, with its line."""
+    lines = _face_lines(text)
+    ends = np.cumsum([len(corners) for _, corners in lines])
+    row = int(np.searchsorted(ends, corner, side="right"))
+    newline, corners = lines[row]
+    number, _, cut = _line_at(text, newline)
+    token = corners[corner - (int(ends[row - 1]) if row else 0)]
+    value = int(token.split(b"/")[0])
+    if value == 0:
+        reason = "is 0, but OBJ counts vertices from 1"
+    elif value > 0:
+        reason = f"names vertex {value:,}, but the file has only {n_vertices:,} vertices"
+    else:
+        before = text.count(b"\nv ", 0, newline)
+        reason = f"counts back {-value:,} vertices, but only {before:,} come before this line"
+    return f"line {number}: face index {_shown(token)} {reason}{_truncated(cut)}"
 
 
 # --- cleaning -------------------------------------------------------------------------------------

@@ -9,7 +9,9 @@ from fastapi.concurrency import run_in_threadpool
 
 from tryon.api.deps import AdminDep, CatalogueDep, SettingsDep
 from tryon.api.export import MEDIA_TYPES, json_bytes, mesh_bytes, mesh_json
-from tryon.api.schemas.garments import Category, GarmentEntry, GarmentList, MeshFormat, Units
+from tryon.api.schemas.garments import (CATEGORY_CHOICE_DESCRIPTION, CategoryChoice, GarmentEntry, GarmentList,
+                                        MeshFormat, Units)
+from tryon.garment.catalogue import resolve_category
 from tryon.garment.ingest import GarmentError, file_extension
 from tryon.garment.prepare import DEFAULT_SIMPLIFICATION
 
@@ -68,7 +70,7 @@ async def upload_garment(
     response: Response,
     file: Annotated[UploadFile, File(description="the mesh file: .obj, .glb, .gltf, .ply, .stl or .off")],
     name: Annotated[str, Form(min_length=1, max_length=200, description="display name")],
-    category: Annotated[Category, Form(description="top | bottom | dress")],
+    category: Annotated[CategoryChoice, Form(description=CATEGORY_CHOICE_DESCRIPTION)] = "auto",
     units: Annotated[Units, Form(description="units of the file's coordinates, or auto to guess")] = "auto",
     size: Annotated[str | None, Form(max_length=20, description="size label, e.g. M")] = None,
     simplify: Annotated[float, Form(ge=0.05, le=1.0, allow_inf_nan=False,
@@ -76,7 +78,8 @@ async def upload_garment(
     = DEFAULT_SIMPLIFICATION,
 ) -> GarmentEntry:
     """Prepare an uploaded garment into the catalogue (admin). 201 with the new entry; 200 with the
-    existing one if the same file was already ingested with the same parameters."""
+    existing one if the same file was already ingested with the same parameters. A refused file is a 4xx
+    with the reason in words; the catalogue is then as it was."""
     name, size = name.strip(), (size or "").strip() or None
     if not name:
         raise HTTPException(422, "name: must not be blank")
@@ -85,6 +88,10 @@ async def upload_garment(
         file_extension(filename)
     except GarmentError as exc:
         raise HTTPException(exc.status, f"file: {exc}") from None
+    try:
+        category = resolve_category(category, filename)
+    except GarmentError as exc:
+        raise HTTPException(exc.status, f"category: {exc}") from None
     data = bytearray()
     while chunk := await file.read(UPLOAD_CHUNK):
         data += chunk

@@ -9,6 +9,14 @@ from pydantic import BaseModel, Field
 from tryon.garment.model import GarmentMeta
 
 Category = Literal["top", "bottom", "dress"]
+# An upload's category: one of the above, or "auto" to guess it from the file name.
+CategoryChoice = Literal["auto", "top", "bottom", "dress"]
+CATEGORY_CHOICE_DESCRIPTION = (
+    "top | bottom | dress, or auto (the default): guessed from words in the file name, as `tryon ingest` "
+    "does: dress, gown, suit... or a top word and a bottom word together (an outfit, several pieces in one "
+    "file) make a dress; skirt, trousers, pants, shorts, jeans... a bottom; shirt, tee, top, blouse, "
+    "sleeve, jacket... a top. A file name with none of these words is refused (422)."
+)
 Units = Literal["auto", "m", "cm", "mm", "dm", "in"]
 MeshFormat = Literal["json", "glb", "obj"]
 

@@ -162,3 +162,22 @@ def test_fit_with_fewer_substeps_says_so(tmp_path, capsys):
     assert fit["headline"][0].startswith("fit, 8 substeps: 3 drapes")
     assert "8 substeps of one pass a step" in (out / "bench.md").read_text()
     assert report["command"].endswith("--substeps 8")
+
+
+def test_the_figures_page_is_written_from_bench_json(bench, tmp_path, capsys):
+    out, _, report = bench
+    page = tmp_path / "docs" / "benchmarks.md"
+    assert main(["bench", "--from", str(out / "bench.json"), "--page", str(page)]) == 0
+    text = page.read_text()
+    assert text.startswith("# Benchmarks") and "bench.json" in text
+    for s in report["sections"]:
+        assert f"Reproduce: `tryon bench --only {s['name']}`" in text
+        for h in s["headline"]:
+            assert f"- {h}" in text  # the run's own figures, not retyped
+        for name in s["plots"]:
+            assert f"![{name}](bench/{name})" in text
+            assert (page.parent / "bench" / name).read_bytes() == (out / name).read_bytes()
+    assert main(["bench", "--from", str(out / "bench.json")]) == 2
+    assert "--from needs --page" in capsys.readouterr().err
+    assert main(["bench", "--from", str(tmp_path / "none.json"), "--page", str(page)]) == 2
+    assert "cannot read" in capsys.readouterr().err

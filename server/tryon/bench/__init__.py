@@ -56,6 +56,7 @@ def run_bench(out_dir: Path | str = "bench-results", quick: bool = False, stress
     if stress:
         mode += " + stress"
     cmd = ("tryon bench" + (" --quick" if quick else "") + (" --stress" if stress else "")
+           + (f" --only {' '.join(only)}" if only else "")
            + (f" --substeps {substeps}" if substeps is not None else ""))
     report = write_report(out, done, {
         "started": started, "mode": mode, "command": cmd, "seconds": time.perf_counter() - t0,

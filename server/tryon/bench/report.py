@@ -33,9 +33,13 @@ def _md_table(table: dict) -> list[str]:
     return out + [""]
 
 
-def write_markdown(path: Path, report: dict) -> None:
+def render_markdown(report: dict, plot_prefix: str = "", title: str = "tryon bench",
+                    reproduce: bool = False) -> str:
+    """The report as Markdown: headline, section list, then every section's tables, plots and notes.
+    ``plot_prefix``: put before each plot's file name in its link; ``reproduce``: give each section the
+    command that runs it again."""
     lines = [
-        "# tryon bench", "",
+        f"# {title}", "",
         f"Run {report['started']} UTC, mode **{report['mode']}**, {report['seconds']:.0f} s in all. "
         f"Command: `{report['command']}`.", "",
         f"Machine: {report['machine'].get('cpu', '?')}, {report['machine'].get('cpus')} CPUs, load average "
@@ -52,19 +56,49 @@ def write_markdown(path: Path, report: dict) -> None:
     lines.append("")
     for s in report["sections"]:
         lines += [f"## {s['title']}", ""]
+        if reproduce and s.get("name"):
+            lines += [f"Reproduce: `tryon bench --only {s['name']}` (figures in `bench-results/bench.json`, "
+                      f"section `{s['name']}`).", ""]
         if s["status"] != "ok":
             lines += [f"**{s['status']}**: {s['error']}", ""]
         for t in s["tables"]:
             lines += _md_table(t)
         for p in s["plots"]:
-            lines += [f"![{p}]({p})", ""]
+            lines += [f"![{p}]({plot_prefix}{p})", ""]
         notes = [n for n in s["notes"] if not n.startswith("Traceback")]
         lines += [f"- {n}" for n in notes]
         tb = [n for n in s["notes"] if n.startswith("Traceback")]
         if tb:
             lines += ["", "```", *tb[0].splitlines(), "```"]
         lines.append("")
-    path.write_text("\n".join(lines) + "\n")
+    return "\n".join(lines) + "\n"
+
+
+def write_markdown(path: Path, report: dict) -> None:
+    path.write_text(render_markdown(report))
+
+
+# The figures page's plots go in this folder beside it.
+PAGE_PLOTS = "bench"
+
+
+def write_page(page: Path, report: dict, bench_dir: Path) -> list[Path]:
+    """The figures page (``docs/benchmarks.md``), written from a bench run's report (``bench.json``'s
+    content) so it cannot drift from the measurements: the same tables and notes, each section with the
+    command that reproduces it, the plots copied from ``bench_dir`` into ``<page's folder>/bench/``.
+    Returns the files written. FileNotFoundError if a plot the report names is missing."""
+    plots_dir = page.parent / PAGE_PLOTS
+    plots_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    for s in report["sections"]:
+        for name in s["plots"]:
+            target = plots_dir / name
+            target.write_bytes((bench_dir / name).read_bytes())
+            written.append(target)
+    text = render_markdown(report, plot_prefix=f"{PAGE_PLOTS}/", title="Benchmarks", reproduce=True)
+    page.write_text(text.replace("\n## Headline", "\nWritten by `tryon bench --page` from the run's "
+                                 "`bench.json`; run it again to bring this page up to date.\n\n## Headline", 1))
+    return [page, *written]
 
 
 def write_report(out_dir: Path, sections: list[Section], meta: dict) -> dict:

@@ -19,6 +19,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=Path("bench-results"), help="output directory (default bench-results/)")
     p.add_argument("--only", nargs="+", metavar="SECTION", default=None,
                    help="run only these sections (table1 table2 table3 fit poses pareto simplify peers stability scaling)")
+    p.add_argument("--page", type=Path, default=None, metavar="MD",
+                   help="also write the figures page (e.g. docs/benchmarks.md, its plots beside it in bench/)")
+    p.add_argument("--from", dest="from_json", type=Path, default=None, metavar="BENCH_JSON",
+                   help="with --page: write the page from an earlier run's bench.json instead of running")
     p.add_argument("--substeps", type=int, default=None, metavar="N",
                    help=f"fit section: N substeps per step, one spring pass each (default {SimSettings().substeps}), "
                         f"to see what fewer cost in accuracy; 1 to {MAX_SUBSTEPS}")
@@ -27,6 +31,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from tryon.bench import run_bench, sections
+
+    if args.from_json is not None:
+        return write_page_from(args.from_json, args.page)
 
     known = [name for name, _, _ in sections()]
     unknown = [name for name in args.only or () if name not in known]
@@ -42,4 +49,33 @@ def run(args: argparse.Namespace) -> int:
             print(h)
     print(f"wrote {args.out / 'bench.json'}, {args.out / 'bench.md'}"
           + ("" if code == 0 else " (some sections failed: see bench.md)"))
+    if args.page is not None:
+        code = max(code, write_page_from(args.out / "bench.json", args.page))
     return code
+
+
+def write_page_from(bench_json: Path, page: Path | None) -> int:
+    """``--page`` from an existing ``bench.json`` (its plots beside it)."""
+    import json
+
+    from tryon.bench.report import write_page
+
+    if page is None:
+        raise CliError("--from needs --page: the figures page to write")
+    try:
+        report = json.loads(bench_json.read_text())
+    except OSError as exc:
+        raise CliError(f"cannot read {bench_json}: {exc.strerror}") from None
+    except ValueError:
+        raise CliError(f"{bench_json} is not a bench.json (not valid JSON)") from None
+    if not isinstance(report, dict) or not isinstance(report.get("sections"), list):
+        raise CliError(f"{bench_json} is not a bench.json (no sections)")
+    writable_dir(page.parent, "--page's folder")
+    try:
+        written = write_page(page, report, bench_json.parent)
+    except FileNotFoundError as exc:
+        raise CliError(f"a plot of {bench_json} is missing: {exc.filename}") from None
+    except KeyError as exc:
+        raise CliError(f"{bench_json} is not a bench.json (missing {exc})") from None
+    print(f"wrote {page} and {len(written) - 1} plots in {page.parent / 'bench'}")
+    return 0

@@ -17,7 +17,7 @@ FRAME_DT = 1.0 / 60.0  # s, one display frame
 FRAMES = 300  # frames simulated per run (5 s: the fall, the contact and the settling)
 WARMUP_FRAMES = 10  # frames left out of the timing median (JIT, caches, first contacts)
 DENSITY = 0.15  # kg/m^2, areal density of a light shirt fabric (the garment stage's default order)
-SIZES = (32, 64, 100)  # particles per side: 1k, 4k, 10k particles
+SIZES = (32, 64, 100, 200)  # particles per side: 1k, 4k, 10k, 40k particles
 
 
 def grid_positions(n: int) -> np.ndarray:
@@ -51,7 +51,8 @@ class FrameProbe:
 
     max_stretch: largest structural edge length / rest - 1 over all frames (rest = SIDE / (n - 1));
     final_stretch: the same at the last frame.
-    max_penetration_mm: deepest particle inside the sphere, mm (0 if never inside).
+    max_penetration_mm: deepest particle inside the sphere over all frames, mm (0 if never inside);
+    final_penetration: the same at the last frame.
     """
 
     def __init__(self, n: int):
@@ -61,6 +62,7 @@ class FrameProbe:
         self.max_penetration = 0.0
         self.final = None
         self.final_stretch = 0.0
+        self.final_penetration = 0.0
 
     def __call__(self, x: np.ndarray) -> None:
         x = np.asarray(x, dtype=np.float64).reshape(-1, 3)
@@ -70,6 +72,7 @@ class FrameProbe:
         self.max_stretch = max(self.max_stretch, float(stretch))
         self.final_stretch = float(stretch)
         self.max_penetration = max(self.max_penetration, float(depth))
+        self.final_penetration = max(0.0, float(depth))
         self.final = x
 
     def summary(self, frame_seconds: list[float]) -> dict:
@@ -85,6 +88,7 @@ class FrameProbe:
             "max_stretch": self.max_stretch,
             "final_stretch": self.final_stretch,
             "max_penetration_mm": self.max_penetration * 1e3,
+            "final_penetration_mm": self.final_penetration * 1e3,
             # the cloth still lies on the ball when some particle is within 2 cm of its surface
             "on_sphere_at_end": bool(r.min() < RADIUS + 0.02),
             "final_lowest_y": float(final[:, 1].min()),

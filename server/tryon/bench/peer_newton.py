@@ -1,4 +1,4 @@
-"""Peer engine: Newton (NVIDIA Warp's successor to ``warp.sim``) XPBD cloth, CPU device (subprocess).
+"""Peer engine: Newton (NVIDIA Warp's successor to ``warp.sim``) XPBD or VBD cloth, CPU device (subprocess).
 
 Set up as Newton's own cloth examples do (``newton/examples/cloth/example_cloth_hanging.py``, XPBD
 variant): ``ModelBuilder.add_cloth_grid`` with ``add_springs=True``, ``SolverXPBD(iterations=10)``, 10
@@ -8,9 +8,14 @@ our collision margin (4 mm) instead of 5 cm. The example's 0.1 kg per particle a
 kept: with a light fabric's mass (0.15 kg/m^2) or springs 100x stiffer the XPBD cloth blew up on this
 scene (measured), so the peer runs in the regime its authors tuned.
 
-``python -m tryon.bench.peer_newton SCENE N FRAMES MAX_SECONDS`` prints one JSON line; SCENE is ``sphere`` (the
-cloth-on-ball scene, N particles per side) or a path to an ``.npz`` with a garment-on-body scene
-(``cloth_vertices``, ``cloth_faces``, ``body_vertices``, ``body_faces``, ``edges``, ``rest``; N unused).
+VBD (Vertex Block Descent, Chen et al. 2024: per-vertex Newton steps over graph colours, the fastest converging
+solver published for cloth) is set up as the same example's VBD variant: triangle (StVK) elasticity
+``tri_ke = tri_ka = 1e3``, damping ``tri_kd = 1e2``, the particles coloured (``builder.color``), contact
+stiffness and damping 1e2, 10 iterations per substep; self-contact off (the ball scene has none).
+
+``python -m tryon.bench.peer_newton SCENE N FRAMES MAX_SECONDS [xpbd|vbd]`` prints one JSON line; SCENE is
+``sphere`` (the cloth-on-ball scene, N particles per side) or a path to an ``.npz`` with a garment-on-body scene
+(``cloth_vertices``, ``cloth_faces``, ``body_vertices``, ``body_faces``, ``edges``, ``rest``; N unused; XPBD).
 """
 
 from __future__ import annotations
@@ -30,10 +35,16 @@ SPRING_KD = 1.0  # the example's spring damping
 PARTICLE_RADIUS = 0.004  # m: contact thickness, equal to our collision margin
 CONTACT_MU = 1.0  # the example's soft-contact friction
 PARTICLE_MASS = 0.1  # kg, the example's particle mass
+VBD_TRI_KE = 1.0e3  # the VBD example's triangle stretch stiffness (and tri_ka, its area stiffness)
+VBD_TRI_KD = 1.0e2  # the VBD example's triangle damping
+VBD_CONTACT_KE = 1.0e2  # the VBD example's soft-contact stiffness and damping
 
 
-def _solver_loop(model, wp, newton):
-    solver = newton.solvers.SolverXPBD(model, iterations=ITERATIONS)
+def _solver_loop(model, wp, newton, method: str = "xpbd"):
+    if method == "vbd":
+        solver = newton.solvers.SolverVBD(model, iterations=ITERATIONS, particle_enable_self_contact=False)
+    else:
+        solver = newton.solvers.SolverXPBD(model, iterations=ITERATIONS)
     state = [model.state(), model.state()]
     control = model.control()
     pipeline = newton.CollisionPipeline(model)
@@ -73,7 +84,7 @@ def _finish(frame, state, probe, frames, max_seconds) -> list[float]:
     return times
 
 
-def run_sphere(n: int, frames: int, max_seconds: float = 1e9) -> dict:
+def run_sphere(n: int, frames: int, max_seconds: float = 1e9, method: str = "xpbd") -> dict:
     import warp as wp
 
     wp.config.quiet = True
@@ -84,16 +95,22 @@ def run_sphere(n: int, frames: int, max_seconds: float = 1e9) -> dict:
         builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -9.81, 0.0))
         cell = SIDE / (n - 1)
         # The grid spans local x, y; turning it by -90 degrees about x lays local y along world z.
+        material = (dict(tri_ke=VBD_TRI_KE, tri_ka=VBD_TRI_KE, tri_kd=VBD_TRI_KD) if method == "vbd" else
+                    dict(add_springs=True, spring_ke=SPRING_KE, spring_kd=SPRING_KD))
         builder.add_cloth_grid(
             pos=wp.vec3(-SIDE / 2, HEIGHT, SIDE / 2), rot=wp.quat_from_axis_angle(wp.vec3(1.0, 0.0, 0.0), -wp.pi * 0.5),
             vel=wp.vec3(0.0, 0.0, 0.0), dim_x=n - 1, dim_y=n - 1, cell_x=cell, cell_y=cell,
-            mass=PARTICLE_MASS, add_springs=True, spring_ke=SPRING_KE, spring_kd=SPRING_KD,
-            edge_ke=1.0e1, edge_kd=0.0, particle_radius=PARTICLE_RADIUS,
+            mass=PARTICLE_MASS, edge_ke=1.0e1, edge_kd=0.0, particle_radius=PARTICLE_RADIUS, **material,
         )
         builder.add_shape_sphere(-1, xform=wp.transform(wp.vec3(0.0, 0.0, 0.0), wp.quat_identity()), radius=RADIUS)
+        if method == "vbd":
+            builder.color(include_bending=True)
         model = builder.finalize()
         model.soft_contact_mu = CONTACT_MU
-        frame, state = _solver_loop(model, wp, newton)
+        if method == "vbd":
+            model.soft_contact_ke = VBD_CONTACT_KE
+            model.soft_contact_kd = VBD_CONTACT_KE
+        frame, state = _solver_loop(model, wp, newton, method)
         setup = time.perf_counter() - t0
         # Newton orders the grid with x fastest (index j * n + i); reorder to our row-major (i, j).
         order = np.arange(n * n).reshape(n, n).T.ravel()
@@ -105,9 +122,11 @@ def run_sphere(n: int, frames: int, max_seconds: float = 1e9) -> dict:
         times = _finish(frame, state, probe, frames, max_seconds)
     out = probe_inner.summary(times)
     out.update({
-        "engine": "newton", "version": newton.__version__, "method": "XPBD (SolverXPBD)", "particles": n * n,
+        "engine": f"newton {method}", "version": newton.__version__,
+        "method": "VBD (SolverVBD)" if method == "vbd" else "XPBD (SolverXPBD)", "particles": n * n,
         "substeps": SUBSTEPS, "setup_s": setup,
-        "params": {"iterations": ITERATIONS, "spring_ke": SPRING_KE, "spring_kd": SPRING_KD,
+        "params": {"iterations": ITERATIONS, **({"tri_ke": VBD_TRI_KE, "tri_kd": VBD_TRI_KD} if method == "vbd" else
+                                              {"spring_ke": SPRING_KE, "spring_kd": SPRING_KD}),
                    "particle_mass": PARTICLE_MASS, "particle_radius": PARTICLE_RADIUS, "mu": CONTACT_MU,
                    "device": "cpu", "precision": "f32"},
     })
@@ -168,7 +187,7 @@ def run_garment(path: str, frames: int, max_seconds: float = 1e9) -> dict:
 if __name__ == "__main__":
     scene_arg, n_arg, frames_arg, budget = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4])
     if scene_arg == "sphere":
-        result = run_sphere(n_arg, frames_arg, budget)
+        result = run_sphere(n_arg, frames_arg, budget, sys.argv[5] if len(sys.argv) > 5 else "xpbd")
     else:
         result = run_garment(scene_arg, frames_arg, budget)
     print(json.dumps(result))

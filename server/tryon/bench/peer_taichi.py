@@ -6,7 +6,8 @@ The physics is Taichi's own example (``examples/ggui_examples/mass_spring_3d_ggu
 dt = 4e-2 / n with floor(frame / dt) substeps per frame (n >= 100; see ``run`` for coarser cloths).
 Only the scene size is ours (``cloth_scene``).
 
-``python -m tryon.bench.peer_taichi N FRAMES MAX_SECONDS`` prints one JSON line with the figures of ``cloth_scene``.
+``python -m tryon.bench.peer_taichi N FRAMES MAX_SECONDS [THREADS]`` prints one JSON line with the figures of
+``cloth_scene``; THREADS caps Taichi's CPU threads (default: all cores).
 """
 
 from __future__ import annotations
@@ -19,10 +20,11 @@ import time
 from tryon.bench.cloth_scene import FRAME_DT, HEIGHT, RADIUS, SIDE, FrameProbe
 
 
-def run(n: int, frames: int, max_seconds: float = 1e9) -> dict:
+def run(n: int, frames: int, max_seconds: float = 1e9, threads: int | None = None) -> dict:
     import taichi as ti
 
-    ti.init(arch=ti.cpu, log_level=ti.WARN, offline_cache=True)
+    extra = {} if threads is None else {"cpu_max_num_threads": int(threads)}
+    ti.init(arch=ti.cpu, log_level=ti.WARN, offline_cache=True, **extra)
     quad = SIDE / (n - 1)
     # The example's step is 4e-2 / n (s), tuned at n = 128; below n ~ 100 its dashpot term (1e4 x quad per
     # spring, unit masses) is no longer stable with that step, so coarser cloths use n = 100's step.
@@ -90,11 +92,12 @@ def run(n: int, frames: int, max_seconds: float = 1e9) -> dict:
         "engine": "taichi", "version": ".".join(map(str, ti.__version__)), "method": "explicit mass-spring",
         "particles": n * n, "substeps": substeps, "setup_s": setup,
         "params": {"dt": dt, "spring_Y": spring_y, "dashpot_damping": dashpot, "drag": drag,
-                   "threads": "taichi default (all cores)", "precision": "f32"},
+                   "threads": threads or "taichi default (all cores)", "precision": "f32"},
     })
     return out
 
 
 if __name__ == "__main__":
-    result = run(int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]))
+    result = run(int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]),
+                 int(sys.argv[4]) if len(sys.argv) > 4 else None)
     print(json.dumps(result))

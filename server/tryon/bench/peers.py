@@ -1,7 +1,8 @@
 """Peer engines side by side with ours, in the same run (section "peers").
 
-(a) The classic square cloth dropped on a ball (``cloth_scene``) at 1k, 4k and 10k particles: Taichi's
-explicit mass-spring example on its CPU backend, Newton's XPBD cloth on the CPU device, and ours.
+(a) The classic square cloth dropped on a ball (``cloth_scene``) at 1k, 4k, 10k and 40k particles: Taichi's
+explicit mass-spring example on its CPU backend with 1 and with 2 threads (ours uses one), Newton's XPBD and
+VBD cloth on the CPU device, and ours.
 (b) One catalogue garment on one body: ours (``drape``) and Newton XPBD with the body as a triangle-mesh
 collider. Taichi is left out of (b): its example collides with an analytic ball only, and a particle vs
 body-mesh collision for it is a project of its own.
@@ -9,7 +10,8 @@ body-mesh collision for it is a project of its own.
 Peers run in subprocesses (``peer_taichi``, ``peer_newton``): a crash or a missing package there is a
 note in the report, never a failure of the benchmark. Headline: our per-frame time over the fastest
 peer's, among the peers whose cloth stretched as much as ours or more (and, beside it, over the fastest
-peer at all).
+peer at all), and against Taichi at our thread count, with whether our quality (max stretch and max
+penetration over all frames) is no worse than its.
 """
 
 from __future__ import annotations
@@ -32,6 +34,15 @@ PEERS = {
     "taichi": ("taichi", "tryon.bench.peer_taichi"),
     "newton": ("newton", "tryon.bench.peer_newton"),
 }
+# The peer runs of the ball scene: (engine, label in the report, arguments after the budget).
+BALL_RUNS = (
+    ("taichi", "taichi (1 thread)", ("1",)),
+    ("taichi", "taichi (2 threads)", ("2",)),
+    ("newton", "newton xpbd", ("xpbd",)),
+    ("newton", "newton vbd", ("vbd",)),
+)
+# Our threads (numba kernels run serial): the Taichi run compared at equal threads.
+OUR_THREADS = 1
 # Wall-time budget (s) of one peer run in the full and the quick benchmark: Newton's CPU device runs
 # ~0.1-1 s per frame here, so 300 frames of its 10k cloth would take minutes; the frames it did run
 # within the budget give its median (the report says how many).
@@ -49,9 +60,10 @@ def peer_available(engine: str) -> str | None:
     return None
 
 
-def run_peer(engine: str, args: list[str], budget: float) -> dict:
-    """Run a peer's subprocess; its figures, or {'error': why}."""
-    cmd = [sys.executable, "-m", PEERS[engine][1], *map(str, args), str(budget)]
+def run_peer(engine: str, args: list, budget: float, extra: tuple = ()) -> dict:
+    """Run a peer's subprocess (``args``, the wall-time budget in s, then ``extra``); its figures, or
+    {'error': why}."""
+    cmd = [sys.executable, "-m", PEERS[engine][1], *map(str, args), str(budget), *map(str, extra)]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=budget + PEER_STARTUP_S)
     except subprocess.TimeoutExpired:
@@ -66,8 +78,9 @@ def run_peer(engine: str, args: list[str], budget: float) -> dict:
 def our_substeps(n: int) -> int:
     """Our time steps per 1/60 s frame on an n x n cloth: one (our default step is 0.02 s) up to 4k
     particles; two for the 1 cm spacing of the 10k cloth, whose impact on the ball otherwise stretches
-    it to ~1.9x its length (measured; with two, ~1.4x)."""
-    return 1 if n <= 64 else 2
+    it to ~1.9x its length (measured; with two, ~1.4x); four for the 0.5 cm of the 40k cloth (with two it
+    stretched to 1.95x, with four 1.53x), the step halving with the spacing."""
+    return 1 if n <= 64 else 2 if n <= 100 else 4
 
 
 def headline_ratio(rows: list[dict]) -> dict | None:
@@ -89,6 +102,12 @@ def headline_ratio(rows: list[dict]) -> dict | None:
         "speedup_vs_fastest": fastest["frame_ms_median"] / ours["frame_ms_median"],
         "peer": None, "peer_frame_ms": None, "peer_stretch": None, "speedup": None, "ratio": None,
     }
+    same = next((r for r in peers if r["engine"] == f"taichi ({OUR_THREADS} thread)"), None)
+    if same is not None:
+        out.update({"same_threads_peer": same["engine"], "same_threads_frame_ms": same["frame_ms_median"],
+                    "same_threads_speedup": same["frame_ms_median"] / ours["frame_ms_median"],
+                    "same_threads_quality_ok": bool(ours["max_stretch"] <= same["max_stretch"] + 1e-9 and
+                                                    ours["max_penetration_mm"] <= same["max_penetration_mm"] + 1e-9)})
     if best is not None:
         out.update({"peer": best["engine"], "peer_frame_ms": best["frame_ms_median"],
                     "peer_stretch": best["max_stretch"],
@@ -119,16 +138,16 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
         ctx.log(f"[bench]   cloth on ball, {n * n} particles: ours")
         ours = run_sphere(n, FRAMES, substeps=our_substeps(n), max_seconds=budget * 4)
         rows.append(ours)
-        for engine in PEERS:
+        for engine, label, extra in BALL_RUNS:
             if missing[engine]:
                 continue
-            ctx.log(f"[bench]   cloth on ball, {n * n} particles: {engine}")
+            ctx.log(f"[bench]   cloth on ball, {n * n} particles: {label}")
             args = [n, FRAMES] if engine == "taichi" else ["sphere", n, FRAMES]
-            r = run_peer(engine, args, budget)
-            r.setdefault("engine", engine)
+            r = run_peer(engine, args, budget, extra)
+            r["engine"] = label
             r.setdefault("particles", n * n)
             if "error" in r:
-                sec.notes.append(f"{engine} at {n * n} particles failed: {r['error']}")
+                sec.notes.append(f"{label} at {n * n} particles failed: {r['error']}")
             rows.append(r)
         results[str(n * n)] = rows
     sec.data["cloth_on_ball"] = results
@@ -140,24 +159,25 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
     for rows in results.values():
         for r in rows:
             if "error" in r:
-                table_rows.append([r["engine"], r["particles"], "failed", "-", "-", "-", "-", "-", "-"])
+                table_rows.append([r["engine"], r["particles"], "failed", "-", "-", "-", "-", "-", "-", "-"])
                 continue
             table_rows.append([
                 r["engine"], r["particles"], fmt(r["frame_ms_median"]), r["frames"], r.get("substeps", "-"),
                 fmt(r["max_stretch"]), fmt(r.get("final_stretch")), fmt(r["max_penetration_mm"]),
-                r.get("outcome", fmt(r["on_sphere_at_end"])),
+                fmt(r.get("final_penetration_mm")), r.get("outcome", fmt(r["on_sphere_at_end"])),
             ])
     sec.tables.append(Table(
         "Cloth dropped on a ball (1 m square, 0.3 m ball, 1/60 s frames)",
-        ["engine", "particles", "ms / frame (median)", "frames run", "steps / frame", "max stretch", "final stretch",
-         "max penetration (mm)", "at the end"],
+        ["engine", "particles", "ms / frame (median)", "frames run", "steps / frame", "max stretch (all frames)",
+         "stretch at the end (rest)", "max penetration over all frames (mm)", "penetration at the end (mm)",
+         "at the end"],
         table_rows,
         note=(f"Median over frames after {WARMUP_FRAMES} warm-up frames; stretch = largest grid-edge length / rest - 1 "
-              "over all frames (the impact included); penetration = deepest particle inside the true ball. "
-              "Taichi's example has a frictionless ball (the cloth slides off); ours uses the default "
-              "SimSettings friction, Newton's example mu = 1. Threads: Taichi uses both cores, ours and "
-              "Warp's CPU kernels one. Newton runs within a wall-time budget, so on the larger cloths its "
-              "figures cover only the frames it reached (see 'frames run')."),
+              f"(the impact included in the max; 'at the end' after {FRAMES} frames, the cloth at rest); "
+              "penetration = deepest particle inside the true ball. Taichi's example has a frictionless ball (the "
+              "cloth slides off); ours uses the default SimSettings friction, Newton's examples mu = 1. Threads: "
+              "Taichi with 1 and with 2, ours and Warp's CPU kernels one. Newton runs within a wall-time budget, so "
+              "on the larger cloths its figures cover only the frames it reached (see 'frames run')."),
     ))
     for h in ratios:
         text = f"cloth on ball, {h['particles']} particles: ours {fmt(h['ours_frame_ms'])} ms/frame"
@@ -166,6 +186,10 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
         if h["peer"]:
             text += (f"; vs the fastest peer at equal or higher stretch, {h['peer']} {fmt(h['peer_frame_ms'])} ms: "
                      f"{_speed_words(h['speedup'])} (stretch {fmt(h['ours_stretch'])} vs {fmt(h['peer_stretch'])})")
+        if h.get("same_threads_peer"):
+            text += (f"; vs {h['same_threads_peer']} (our thread count) {fmt(h['same_threads_frame_ms'])} ms: "
+                     f"{_speed_words(h['same_threads_speedup'])}, our quality "
+                     f"{'no worse' if h['same_threads_quality_ok'] else 'WORSE'} (stretch, penetration)")
         if h["fastest_peer"] != h["peer"]:
             text += (f"; vs the fastest peer, {h['fastest_peer']} {fmt(h['fastest_peer_frame_ms'])} ms: "
                      f"{_speed_words(h['speedup_vs_fastest'])} (its stretch {fmt(h['fastest_peer_stretch'])}, "

@@ -10,10 +10,10 @@ import argparse
 import sys
 
 from tryon import __version__
-from tryon.cli import bench, ingest, serve, warmup
+from tryon.cli import bench, fit, ingest, serve, warmup
 from tryon.cli.common import CliError
 
-COMMANDS = [serve, ingest, bench, warmup]
+COMMANDS = [serve, ingest, fit, bench, warmup]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,7 +1,7 @@
 """``tryon ingest``: prepare garment files into the catalogue (offline), one line per garment.
 
     tryon ingest PATH... [--name N] [--category top|bottom|dress|auto] [--units auto|m|cm|mm|dm|in]
-                 [--simplify B] [--size S] [--data-dir DIR]
+                 [--simplify B] [--size S] [--style ID] [--size-chart JSON] [--data-dir DIR]
     tryon ingest --catalogue garments/      # every file listed in garments/catalogue.json
 
 ``--category auto`` (the default) guesses the category from words in the file name, as the upload API
@@ -22,6 +22,7 @@ from pathlib import Path
 
 from tryon.cli.common import CliError, load_settings
 from tryon.garment.ingest import UNITS, GarmentError
+from tryon.garment.sizes import check_labels
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -37,6 +38,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--simplify", type=float, default=None, metavar="B",
                    help="simplification degree B = kept / original vertices, in (0, 1] (default 0.3)")
     p.add_argument("--size", help="size label, e.g. M")
+    p.add_argument("--style", metavar="ID",
+                   help="the style (product) this file is one size of: a short id such as tshirt; needs --size")
+    p.add_argument("--size-chart", metavar="JSON", dest="size_chart",
+                   help='the size\'s chart row, body girths in cm: \'{"chest": [92, 100], "waist": [78, 86]}\' '
+                        "(chest, waist, hips; each [min, max] or one value); needs --size")
     p.add_argument("--density", type=float, default=None, help="fabric areal density, kg/m^2 (default 0.15)")
     p.add_argument("--data-dir", type=Path, help="catalogue directory (default: TRYON_DATA_DIR or ./data)")
     p.set_defaults(func=run)
@@ -70,9 +76,11 @@ def _jobs(args: argparse.Namespace) -> list[dict]:
             if not isinstance(e, dict) or not isinstance(e.get("file"), str):
                 raise ValueError(f"entry {i} is not an object with a \"file\" name: {json.dumps(e)[:80]}")
             jobs.append(dict(path=args.catalogue / e["file"], name=e.get("name"), category=e.get("category", "top"),
-                             units=e.get("units", "auto"), size=e.get("size")))
+                             units=e.get("units", "auto"), size=e.get("size"), style=e.get("style"),
+                             chart=e.get("chart")))
     for path in args.paths:
-        jobs.append(dict(path=path, name=args.name, category=args.category, units=args.units, size=args.size))
+        jobs.append(dict(path=path, name=args.name, category=args.category, units=args.units, size=args.size,
+                         style=args.style, chart=args.size_chart))
     for job in jobs:
         if args.simplify is not None:
             job["simplify"] = args.simplify
@@ -93,6 +101,12 @@ def run(args: argparse.Namespace) -> int:
     if args.simplify is not None and not 0.0 < args.simplify <= 1.0:
         print(f"tryon ingest: --simplify must be in (0, 1], got {args.simplify}", file=sys.stderr)
         return 2
+    if args.paths and (args.style or args.size_chart):
+        try:  # one mistake in the flags is one usage error, not one refusal per file
+            check_labels(args.style, args.size, args.size_chart)
+        except GarmentError as exc:
+            print(f"tryon ingest: {exc}", file=sys.stderr)
+            return 2
     try:
         jobs = _jobs(args)
     except (OSError, ValueError) as exc:
@@ -132,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
         s = meta.springs
         print(
             f"{prefix}: {meta.id} {meta.name!r} {meta.category}"
-            f"{' ' + meta.size if meta.size else ''}, {meta.vertices} v / {meta.faces} f -> "
+            f"{' style ' + meta.style if meta.style else ''}{' ' + meta.size if meta.size else ''}, {meta.vertices} v / {meta.faces} f -> "
             f"{meta.coarse_vertices} v / {meta.coarse_faces} f (B {meta.simplification:g}), springs "
             f"{s.get('structural', 0)}/{s.get('shear', 0)}/{s.get('bending', 0)}, units {meta.units}"
             f"{' (guessed)' if meta.units_guessed else ''}, {dt * 1000:.0f} ms"

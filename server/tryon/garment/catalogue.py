@@ -36,6 +36,7 @@ from pathlib import Path
 from tryon.garment.ingest import GarmentError, file_extension, load_garment
 from tryon.garment.model import GarmentMeta, GarmentModel
 from tryon.garment.prepare import DEFAULT_DENSITY, DEFAULT_SIMPLIFICATION, prepare
+from tryon.garment.sizes import check_labels, size_order
 
 CATEGORIES = ("top", "bottom", "dress")
 # Words in a file name that tell its category ("auto"), matched anywhere in the name, any case. A dress,
@@ -58,6 +59,8 @@ CREATE TABLE IF NOT EXISTS garments (
     name TEXT NOT NULL,
     category TEXT NOT NULL,
     size TEXT,
+    style TEXT,
+    chart TEXT,
     units TEXT NOT NULL,
     requested_units TEXT NOT NULL,
     simplification REAL NOT NULL,
@@ -68,6 +71,9 @@ CREATE TABLE IF NOT EXISTS garments (
     created REAL NOT NULL
 )
 """
+# Columns added after the first catalogues were written: (name, SQL type). A catalogue.sqlite without them
+# gains them when opened (NULL: no style, no chart), so existing data directories keep working.
+_ADDED_COLUMNS = (("style", "TEXT"), ("chart", "TEXT"))
 
 
 def guess_category(filename: str) -> str | None:
@@ -120,6 +126,13 @@ class Catalogue:
         with self._connect() as db:
             db.execute("PRAGMA journal_mode=WAL")
             db.execute(_SCHEMA)
+            have = {r[1] for r in db.execute("PRAGMA table_info(garments)")}
+            for column, kind in _ADDED_COLUMNS:
+                if column not in have:
+                    try:
+                        db.execute(f"ALTER TABLE garments ADD COLUMN {column} {kind}")
+                    except sqlite3.OperationalError:  # another process added it first
+                        pass
         self._remove_stale_tmp()
 
     # --- reading ----------------------------------------------------------------------------------
@@ -127,14 +140,28 @@ class Catalogue:
     def list(self) -> list[GarmentMeta]:
         """Every entry, oldest first."""
         with self._connect() as db:
-            rows = db.execute("SELECT meta FROM garments ORDER BY created, id").fetchall()
-        return [GarmentMeta(**json.loads(r[0])) for r in rows]
+            rows = db.execute("SELECT * FROM garments ORDER BY created, id").fetchall()
+        return [_meta(r) for r in rows]
 
     def get(self, garment_id: str) -> GarmentMeta | None:
         """The entry's meta, or None if there is no such id."""
         with self._connect() as db:
-            row = db.execute("SELECT meta FROM garments WHERE id = ?", (garment_id,)).fetchone()
-        return GarmentMeta(**json.loads(row[0])) if row else None
+            row = db.execute("SELECT * FROM garments WHERE id = ?", (garment_id,)).fetchone()
+        return _meta(row) if row else None
+
+    def styles(self) -> dict[str, list[GarmentMeta]]:
+        """Every style and its entries in size order (``sizes.size_order``), styles in the order their
+        first entry was added."""
+        out: dict[str, list[GarmentMeta]] = {}
+        for meta in self.list():
+            if meta.style is not None:
+                out.setdefault(meta.style, []).append(meta)
+        return {style: [entries[i] for i in size_order([m.size or "" for m in entries])]
+                for style, entries in out.items()}
+
+    def style(self, style: str) -> list[GarmentMeta]:
+        """The entries of one style in size order; empty if there is no such style."""
+        return self.styles().get(style, [])
 
     def model(self, garment_id: str, simplification: float | None = None) -> GarmentModel:
         """The prepared model (from memory, else disk). Another simplification degree than the entry's
@@ -166,9 +193,8 @@ class Catalogue:
             meta = asdict(replace(model.meta, name=row["name"], category=row["category"], size=row["size"]))
             with self._connect() as db:
                 db.execute("UPDATE garments SET meta = ? WHERE id = ?", (json.dumps(meta), garment_id))
-        # name, category and size are the entry's (the uploader's words), not the prepared model's
-        model = replace(model, meta=replace(model.meta, id=garment_id, name=row["name"],
-                                            category=row["category"], size=row["size"]))
+        # name, category, size, style and chart are the entry's (the uploader's words), not the model's
+        model = replace(model, meta=_meta(row, model.meta))
         with self._lock:
             self._cache[key] = model
             self._cache.move_to_end(key)
@@ -181,20 +207,25 @@ class Catalogue:
     def ingest(self, source: Path | str | bytes, name: str | None = None, category: str = "top",
                units: str = "auto", simplify: float = DEFAULT_SIMPLIFICATION, size: str | None = None,
                filename: str | None = None, density: float = DEFAULT_DENSITY,
-               max_faces: int = 400_000) -> GarmentMeta:
+               max_faces: int = 400_000, style: str | None = None, chart: dict | str | None = None) -> GarmentMeta:
         """Prepare and add a garment (a path, or bytes with ``filename``); returns the entry. The same
         file with the same parameters returns the existing entry without preparing again.
         ``category``: top | bottom | dress | auto (guessed from the file name, ``resolve_category``);
-        ``units``: m | cm | mm | dm | in | auto; ``simplify``: B in (0, 1]; ``density``: kg/m^2.
+        ``units``: m | cm | mm | dm | in | auto; ``simplify``: B in (0, 1]; ``density``: kg/m^2;
+        ``style``, ``size``, ``chart``: the product this is one size of, the size's label and its size-chart
+        row (``sizes.check_labels``).
         GarmentError (a reason for the user) if the file or a parameter is refused."""
-        return self.ingest_with_status(source, name, category, units, simplify, size, filename, density, max_faces)[0]
+        return self.ingest_with_status(source, name, category, units, simplify, size, filename, density, max_faces,
+                                       style, chart)[0]
 
     def ingest_with_status(self, source: Path | str | bytes, name: str | None = None, category: str = "top",
                            units: str = "auto", simplify: float = DEFAULT_SIMPLIFICATION,
                            size: str | None = None, filename: str | None = None,
-                           density: float = DEFAULT_DENSITY, max_faces: int = 400_000
-                           ) -> tuple[GarmentMeta, bool]:
-        """As ``ingest``, plus whether a new entry was made (False: it was already there)."""
+                           density: float = DEFAULT_DENSITY, max_faces: int = 400_000,
+                           style: str | None = None, chart: dict | str | None = None) -> tuple[GarmentMeta, bool]:
+        """As ``ingest``, plus whether a new entry was made (False: it was already there). An entry that was
+        already there takes the style, size and chart given (when given): a catalogue made before styles
+        existed gains them by ingesting its files again."""
         if isinstance(source, (bytes, bytearray)):
             data = bytes(source)
             if filename is None:
@@ -205,6 +236,7 @@ class Catalogue:
             filename = filename or path.name
         ext = file_extension(filename)
         category = resolve_category(category, filename)
+        style, size, chart = check_labels(style, size, chart)
         if not 0.0 < simplify <= 1.0:
             raise GarmentError(f"simplify must be in (0, 1], got {simplify}")
         if not density > 0.0:
@@ -214,7 +246,15 @@ class Catalogue:
         gid = entry_id(sha, units, simplify, density)
         existing = self.get(gid)
         if existing is not None:
+            if style is not None and (existing.style, existing.size, existing.chart) != (style, size, chart):
+                self._check_size_free(style, size, gid)
+                with self._connect() as db:
+                    db.execute("UPDATE garments SET style = ?, size = ?, chart = ? WHERE id = ?",
+                               (style, size, json.dumps(chart) if chart else None, gid))
+                return self.get(gid), False
             return existing, False
+        if style is not None:
+            self._check_size_free(style, size, gid)
         directory = self.models / gid
         if not GarmentModel.is_current(directory):
             if directory.exists():  # a leftover of another preparation version: not adopted
@@ -229,7 +269,7 @@ class Catalogue:
         meta = json.loads((directory / "meta.json").read_text())
         # name/category/size are the uploader's words for this entry, not part of the prepared model
         meta.update(name=name, category=category, size=size)
-        created = self._insert_row(gid, name, category, size, meta, units, simplify, density, sha, ext)
+        created = self._insert_row(gid, name, category, size, meta, units, simplify, density, sha, ext, style, chart)
         return self.get(gid), created
 
     def delete(self, garment_id: str) -> bool:
@@ -259,18 +299,26 @@ class Catalogue:
         db.row_factory = sqlite3.Row
         return _Closing(db)
 
-    def _insert_row(self, gid, name, category, size, meta, units, simplify, density, sha, ext) -> bool:
+    def _insert_row(self, gid, name, category, size, meta, units, simplify, density, sha, ext, style=None,
+                    chart=None) -> bool:
         """Add the index row in one transaction; False if another ingestion added it first."""
         with self._connect() as db:
             db.execute("BEGIN IMMEDIATE")
             cur = db.execute(
-                "INSERT OR IGNORE INTO garments (id, name, category, size, units, requested_units, "
+                "INSERT OR IGNORE INTO garments (id, name, category, size, style, chart, units, requested_units, "
                 "simplification, density, source_sha256, source_ext, meta, created) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                (gid, name, category, size, meta["units"], units, float(simplify), float(density), sha, ext,
-                 json.dumps(meta), time.time()),
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (gid, name, category, size, style, json.dumps(chart) if chart else None, meta["units"], units,
+                 float(simplify), float(density), sha, ext, json.dumps(meta), time.time()),
             )
             return cur.rowcount == 1
+
+    def _check_size_free(self, style: str, size: str, gid: str) -> None:
+        """GarmentError (409) if another entry already is this style's ``size``."""
+        for other in self.style(style):
+            if other.id != gid and (other.size or "").upper() == size.upper():
+                raise GarmentError(f"style {style!r} already has a size {other.size} (garment {other.id}, "
+                                   f"{other.name!r}): delete it first, or give another size label", status=409)
 
     def _row(self, garment_id: str):
         with self._connect() as db:
@@ -346,6 +394,14 @@ class _Closing:
                 self.db.execute("ROLLBACK" if exc_type else "COMMIT")
         finally:
             self.db.close()
+
+
+def _meta(row, base: GarmentMeta | None = None) -> GarmentMeta:
+    """An index row's GarmentMeta: the stored meta (or ``base``, a prepared model's) with the entry's own
+    words from the row's columns (name, category, size, style, chart)."""
+    meta = base if base is not None else GarmentMeta(**json.loads(row["meta"]))
+    return replace(meta, id=row["id"], name=row["name"], category=row["category"], size=row["size"],
+                   style=row["style"], chart=json.loads(row["chart"]) if row["chart"] else None)
 
 
 def meta_dict(meta: GarmentMeta) -> dict:

@@ -41,6 +41,8 @@ class GarmentMeta:
     coarse_faces: int
     springs: dict = field(default_factory=dict)  # kind name -> count
     notes: list = field(default_factory=list)  # what cleaning did, in words
+    style: str | None = None  # the product this entry is one size of (a short id such as tshirt), or None
+    chart: dict | None = None  # its size-chart row: {"chest" | "waist" | "hips": [min, max] cm}, or None
 
 
 @dataclass(frozen=True)

@@ -9,11 +9,12 @@ from fastapi.concurrency import run_in_threadpool
 
 from tryon.api.deps import AdminDep, CatalogueDep, SettingsDep
 from tryon.api.export import MEDIA_TYPES, json_bytes, mesh_bytes, mesh_json
-from tryon.api.schemas.garments import (CATEGORY_CHOICE_DESCRIPTION, CategoryChoice, GarmentEntry, GarmentList,
-                                        MeshFormat, Units)
+from tryon.api.schemas.garments import (CATEGORY_CHOICE_DESCRIPTION, SIZE_CHART_DESCRIPTION, CategoryChoice,
+                                        GarmentEntry, GarmentList, MeshFormat, Units)
 from tryon.garment.catalogue import resolve_category
 from tryon.garment.ingest import GarmentError, file_extension
 from tryon.garment.prepare import DEFAULT_SIMPLIFICATION
+from tryon.garment.sizes import check_labels
 
 router = APIRouter(tags=["garments"])
 
@@ -73,6 +74,9 @@ async def upload_garment(
     category: Annotated[CategoryChoice, Form(description=CATEGORY_CHOICE_DESCRIPTION)] = "auto",
     units: Annotated[Units, Form(description="units of the file's coordinates, or auto to guess")] = "auto",
     size: Annotated[str | None, Form(max_length=20, description="size label, e.g. M")] = None,
+    style: Annotated[str | None, Form(max_length=40, description="style id: the product this file is one size "
+                                                                 "of, e.g. tshirt (needs a size)")] = None,
+    size_chart: Annotated[str | None, Form(max_length=2000, description=SIZE_CHART_DESCRIPTION)] = None,
     simplify: Annotated[float, Form(ge=0.05, le=1.0, allow_inf_nan=False,
                                     description="simplification degree B (kept / original vertices)")]
     = DEFAULT_SIMPLIFICATION,
@@ -92,6 +96,10 @@ async def upload_garment(
         category = resolve_category(category, filename)
     except GarmentError as exc:
         raise HTTPException(exc.status, f"category: {exc}") from None
+    try:
+        style, size, chart = check_labels(style, size, size_chart)
+    except GarmentError as exc:
+        raise HTTPException(exc.status, str(exc)) from None
     data = bytearray()
     while chunk := await file.read(UPLOAD_CHUNK):
         data += chunk
@@ -101,10 +109,10 @@ async def upload_garment(
     try:
         meta, created = await run_in_threadpool(
             catalogue.ingest_with_status, bytes(data), name, category, units, simplify, size, filename,
-            max_faces=settings.max_faces,
+            max_faces=settings.max_faces, style=style, chart=chart,
         )
     except GarmentError as exc:
-        raise HTTPException(exc.status, f"file: {exc}") from None
+        raise HTTPException(exc.status, f"{'style' if exc.status == 409 else 'file'}: {exc}") from None
     if not created:
         response.status_code = status.HTTP_200_OK
     return GarmentEntry.from_meta(meta)

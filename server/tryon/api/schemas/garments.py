@@ -34,6 +34,11 @@ class GarmentEntry(BaseModel):
     name: str = Field(description="display name")
     category: Category = Field(description="top | bottom | dress")
     size: str | None = Field(default=None, description="size label, e.g. S, M, L")
+    style: str | None = Field(default=None, description="the style (one product in several sizes) this entry is "
+                                                        "one size of, a short id such as tshirt; null for none")
+    chart: dict[str, list[float]] | None = Field(
+        default=None, description="the size's chart row: the body girths it is made for, {chest | waist | hips: "
+                                  "[min, max]} cm; null for none")
     units: str = Field(description="units the source file was read in (m, cm, mm, dm, in)")
     units_guessed: bool = Field(description="true if the units were guessed from the garment's size")
     simplification: float = Field(gt=0, le=1, description="simplification degree B = kept / original vertices")
@@ -48,7 +53,8 @@ class GarmentEntry(BaseModel):
     @classmethod
     def from_meta(cls, meta: GarmentMeta) -> "GarmentEntry":
         return cls(
-            id=meta.id, name=meta.name, category=meta.category, size=meta.size, units=meta.units,
+            id=meta.id, name=meta.name, category=meta.category, size=meta.size, style=meta.style,
+            chart=meta.chart, units=meta.units,
             units_guessed=meta.units_guessed, simplification=meta.simplification, vertices=meta.vertices,
             faces=meta.faces, coarse_vertices=meta.coarse_vertices, coarse_faces=meta.coarse_faces,
             springs=SpringCounts(**{k: meta.springs.get(k, 0) for k in ("structural", "shear", "bending")}),
@@ -58,3 +64,24 @@ class GarmentEntry(BaseModel):
 
 class GarmentList(BaseModel):
     garments: list[GarmentEntry] = Field(description="every catalogue entry, oldest first")
+
+
+SIZE_CHART_DESCRIPTION = (
+    'the size\'s chart row as JSON, body girths in cm: {"chest": [92, 100], "waist": [78, 86], "hips": 100} '
+    "(chest, waist, hips, each [min, max] or one value, within the range a body may measure); needs a size"
+)
+
+
+class StyleSize(BaseModel):
+    size: str = Field(description="size label")
+    garment_id: str = Field(description="catalogue id of this size (GET /api/garments/{id})")
+    chart: dict[str, list[float]] | None = Field(description="its chart row, {girth: [min, max]} cm, or null")
+
+
+class StyleOut(BaseModel):
+    """A style: one product in several sizes, the sizes in order (smallest first)."""
+
+    style: str = Field(description="style id")
+    name: str = Field(description="display name (its entries' name without the size label)")
+    category: Category = Field(description="top | bottom | dress")
+    sizes: list[StyleSize] = Field(description="the sizes in order")

@@ -1,0 +1,57 @@
+"""Request and response schemas of ``POST /api/fit``: size advice over a style's sizes."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from tryon.api.schemas.bodies import MeasurementsIn, PoseIn
+from tryon.fit.verdict import MAX_EASE_CM, MIN_CLOTH_EASE_CM
+
+Verdict = Literal["fits", "tight", "loose", "falls_off", "not_draped"]
+
+
+class FitRequest(BaseModel):
+    """``POST /api/fit``: which size of a style fits a body built from these measurements and pose."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    style: str = Field(min_length=1, max_length=40, description="style id (GET /api/styles)")
+    measurements: MeasurementsIn = Field(description="body measurements, cm")
+    pose: PoseIn = Field(default_factory=PoseIn, description="pose angles, degrees (default: the A-pose)")
+
+
+class SizeFitOut(BaseModel):
+    size: str = Field(description="size label")
+    garment_id: str = Field(description="catalogue id of this size: POST /api/tryon with it and the same "
+                                        "measurements and pose answers this size's drape from the result cache")
+    verdict: Verdict = Field(description="fits | tight (the cloth is stretched past its limit by the body, or a "
+                                         "top's cloth is shorter than the chest) | loose (more ease than "
+                                         f"{MAX_EASE_CM} cm at a girth) | falls_off (it slid off the shoulders or "
+                                         "hips) | not_draped (not simulated: see reason)")
+    ease_cm: dict[str, float | None] = Field(
+        default_factory=dict, description="per body girth the garment covers (chest for tops and dresses, waist "
+                                          "and hips for bottoms and dresses): the draped garment's tape girth "
+                                          "minus the body's at the same level, cm (null: it does not cover the "
+                                          "body there). About 2.8 cm of it is the cloth's offset from the skin")
+    cloth_ease_cm: dict[str, float | None] = Field(
+        default_factory=dict, description="per girth: the garment's tape girth there unstretched minus the "
+                                          "body's, cm; negative = that much short (a top is tight below "
+                                          f"{MIN_CLOTH_EASE_CM} cm)")
+    too_tight: dict[str, int] = Field(default_factory=dict, description="springs stretched past their limit by "
+                                                                        "the body, per body place")
+    max_strain: float | None = Field(None, description="largest spring strain of the drape (length / natural "
+                                                       "length - 1); null if not draped")
+    stays_up: bool | None = Field(None, description="whether the garment stayed on the shoulders / hips; null if "
+                                                    "not draped")
+    reason: str = Field(description="the verdict in words")
+
+
+class FitOut(BaseModel):
+    style: str = Field(description="style id")
+    recommended: str | None = Field(description="the smallest size that fits without being tight anywhere, or "
+                                                "null (see reason)")
+    reason: str = Field(description="why that size, or why none")
+    sizes: list[SizeFitOut] = Field(description="every size of the style, in order")
+    wall_seconds: float = Field(description="wall-clock time of this answer, s")

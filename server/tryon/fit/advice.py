@@ -1,0 +1,168 @@
+"""Size advice over a style's sizes: which sizes to drape, each drape's verdict, the recommendation.
+
+The drapes themselves are the caller's (the service runs them on its simulation pool and keeps them in its
+result cache, ``tryon.api.advice``; ``tryon fit`` runs them in the process): this module only decides and
+judges, from plain data.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tryon.body.types import Body
+from tryon.garment.model import GarmentMeta
+from tryon.fit.ease import measure_ease
+from tryon.fit.verdict import judge, recommend
+
+# Sizes this many or more steps from the person's size on the style's chart are not draped (the answer
+# does not need them: two sizes from the chart's choice are tight or loose for anyone the chart places).
+SKIP_SIZES_AWAY = 2
+
+
+@dataclass
+class SizeAdvice:
+    """One size's answer. ease_cm / cloth_ease_cm: per covered girth, cm (None where not measured)."""
+
+    size: str
+    garment_id: str
+    verdict: str
+    reason: str
+    ease_cm: dict = field(default_factory=dict)
+    cloth_ease_cm: dict = field(default_factory=dict)
+    too_tight: dict = field(default_factory=dict)
+    max_strain: float | None = None
+    stays_up: bool | None = None
+
+    def as_dict(self) -> dict:
+        return {"size": self.size, "garment_id": self.garment_id, "verdict": self.verdict,
+                "ease_cm": self.ease_cm, "cloth_ease_cm": self.cloth_ease_cm, "too_tight": self.too_tight,
+                "max_strain": self.max_strain, "stays_up": self.stays_up, "reason": self.reason}
+
+
+def chart_position(charts: list[dict | None], measurements: dict) -> dict[str, float]:
+    """Where the person falls on a style's chart, per girth every size's row gives: the index of the size
+    whose range holds the person's girth (the nearest range's, between two), -1 below the smallest size,
+    len(charts) above the largest. Empty if some size has no chart row."""
+    if not charts or any(c is None for c in charts):
+        return {}
+    keys = [k for k in charts[0] if all(k in c for c in charts) and measurements.get(k) is not None]
+    out = {}
+    for k in keys:
+        value = float(measurements[k])
+        lo = np.array([c[k][0] for c in charts])
+        hi = np.array([c[k][1] for c in charts])
+        if value < lo.min():
+            out[k] = -1.0
+        elif value > hi.max():
+            out[k] = float(len(charts))
+        else:  # distance to each range, 0 inside it
+            out[k] = float(np.argmin(np.maximum(lo - value, 0) + np.maximum(value - hi, 0)))
+    return out
+
+
+def sizes_away(index: int, position: dict[str, float]) -> float:
+    """How many sizes ``index`` is from the person (the nearest of their girths' places); 0 without a chart."""
+    return min((abs(index - p) for p in position.values()), default=0.0)
+
+
+def skip_reason(index: int, charts: list[dict | None], position: dict[str, float], measurements: dict) -> str | None:
+    """Why size ``index`` need not be draped (its chart row is ``SKIP_SIZES_AWAY`` or more sizes from the
+    person's), or None to drape it."""
+    away = sizes_away(index, position)
+    if away < SKIP_SIZES_AWAY:
+        return None
+    row = ", ".join(f"{k} {charts[index][k][0]:g}-{charts[index][k][1]:g}" for k in position)
+    yours = ", ".join(f"{k} {float(measurements[k]):g}" for k in position)
+    return f"not draped: its chart ({row} cm) is {away:.0f} sizes from yours ({yours} cm)"
+
+
+def advise_size(size: str, garment_id: str, category: str, body: Body, vertices: np.ndarray, faces: np.ndarray,
+                rest_vertices: np.ndarray, metrics: dict) -> SizeAdvice:
+    """One drape's advice: the ease measured on the draped ``vertices`` (n, 3) m (rest shape ``rest_vertices``)
+    around ``body``, and the verdict from it and the drape's ``metrics``."""
+    girths = measure_ease(body, vertices, faces, rest_vertices, category)
+    verdict, reason = judge(category, metrics, girths)
+    return SizeAdvice(
+        size=size, garment_id=garment_id, verdict=verdict, reason=reason,
+        ease_cm={k: (round(g.ease_cm, 1) if g else None) for k, g in girths.items()},
+        cloth_ease_cm={k: (round(g.cloth_ease_cm, 1) if g else None) for k, g in girths.items()},
+        too_tight=dict(metrics.get("too_tight") or {}), max_strain=round(float(metrics["max_strain"]), 5),
+        stays_up=bool(metrics.get("stays_up", True)))
+
+
+def not_draped(size: str, garment_id: str, reason: str) -> SizeAdvice:
+    return SizeAdvice(size=size, garment_id=garment_id, verdict="not_draped", reason=reason)
+
+
+def recommendation(advice: list[SizeAdvice]) -> tuple[str | None, str]:
+    """``verdict.recommend`` over the sizes' advice in order."""
+    return recommend([a.size for a in advice], [a.verdict for a in advice], [a.reason for a in advice])
+
+
+@dataclass
+class Drape:
+    """What advice needs of one size's drape: the shown mesh (vertices (n, 3) m, faces (f, 3)) and the
+    drape's metrics (``TryOnResult.metrics``)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    metrics: dict
+
+
+# Runs the drapes of the sizes at the given indices (of the style's entries) and answers, per index, the
+# Drape or the reason (words) it was not draped.
+DrapeSizes = Callable[[list[int]], dict[int, "Drape | str"]]
+
+
+def next_size(advice: list[SizeAdvice], skipped: set[int]) -> int | None:
+    """A skipped size the answer turns out to need, or None: when no draped size fits, the next larger one
+    after the largest draped if that one is tight, else the next smaller one before the smallest draped if
+    that one is too large (loose, falls off)."""
+    if any(a.verdict == "fits" for a in advice):
+        return None
+    draped = [i for i, a in enumerate(advice) if i not in skipped and a.verdict != "not_draped"]
+    if not draped:
+        return None
+    largest, smallest = max(draped), min(draped)
+    if advice[largest].verdict == "tight" and largest + 1 in skipped:
+        return largest + 1
+    if advice[smallest].verdict in ("loose", "falls_off") and smallest - 1 in skipped:
+        return smallest - 1
+    return None
+
+
+def advise_style(entries: list[GarmentMeta], measurements: dict, body: Body, drape_sizes: DrapeSizes,
+                 rest_vertices: Callable[[str], np.ndarray]) -> tuple[list[SizeAdvice], str | None, str]:
+    """The advice over a style's ``entries`` (in size order) for the person with ``measurements`` (cm) and
+    ``body`` (built from them): the sizes near the person's on the style's chart are draped at once
+    (``drape_sizes``, which may run them concurrently), the others reported ``not_draped`` unless the answer
+    turns out to need them (``next_size``). ``rest_vertices(garment_id)``: the garment's rest mesh (n, 3).
+    Returns each size's advice, the recommended size (or None) and why."""
+    charts = [m.chart for m in entries]
+    position = chart_position(charts, measurements)
+    advice: list[SizeAdvice] = []
+    skipped: set[int] = set()
+    wanted = []
+    for i, meta in enumerate(entries):
+        reason = skip_reason(i, charts, position, measurements)
+        advice.append(not_draped(meta.size, meta.id, reason or "not draped"))
+        if reason is None:
+            wanted.append(i)
+        else:
+            skipped.add(i)
+    while wanted:
+        for i, outcome in drape_sizes(wanted).items():
+            meta = entries[i]
+            if isinstance(outcome, str):
+                advice[i] = not_draped(meta.size, meta.id, outcome)
+            else:
+                advice[i] = advise_size(meta.size, meta.id, meta.category, body, outcome.vertices, outcome.faces,
+                                        rest_vertices(meta.id), outcome.metrics)
+        extra = next_size(advice, skipped)
+        wanted = [] if extra is None else [extra]
+        skipped.discard(extra)
+    recommended, why = recommendation(advice)
+    return advice, recommended, why

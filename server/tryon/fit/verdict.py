@@ -1,0 +1,119 @@
+"""A size's verdict from its drape: ``fits``, ``tight``, ``loose``, ``falls_off`` or ``not_draped``, with the
+reason in words; and the recommendation over a style's sizes.
+
+In this order (the first that applies):
+- ``not_draped``: the size was not simulated (its chart is far from the person's, or the run was cut
+  short by the service's wall-clock limit).
+- ``falls_off``: the drape's ``stays_up`` is false: it slid off the shoulders or the hips (a waistband
+  wider than the hips). Every other figure of such a drape is measured where it lies, not where it is worn.
+- ``tight``: the drape holds springs over their limit around the body (``too_tight``: the cloth would have
+  to stretch more than it can), or a top's cloth is shorter than the chest (``MIN_CLOTH_EASE_CM``).
+- ``loose``: at a covered girth the draped garment has more tape ease than ``MAX_EASE_CM``.
+- ``fits``: none of these.
+
+``max_strain`` and ``display_max_strain`` are reported but do not decide: a spring of free cloth at its
+limit is the solver holding it there (every drape reaches it somewhere: 0.15, the shear limit, on a loose
+XXL T-shirt), and the shown mesh's strain also grows where the drape comes apart around a hand or a foot
+(0.98 on trousers that fit well), which is the drape's fault, not the size's. Too tight is told by the
+springs held over their limit by the body (``too_tight``) and by the cloth's own girth.
+"""
+
+from __future__ import annotations
+
+from tryon.fit.ease import Girth
+
+VERDICTS = ("fits", "tight", "loose", "falls_off", "not_draped")
+
+# cm: the least room a top's or dress's cloth must leave at the chest (its ring of cloth there, unstretched,
+# minus the body's chest; ``ease.Girth.cloth_ease_cm``). A top hangs from the shoulders: nothing but the body
+# stretches its cloth around the chest, so a ring shorter than the chest is a top too small for it. Measured
+# on the catalogue's T-shirt on bodies at the centres of the chart's S, M, L and XL rows: the chart's own size
+# leaves +0.3 to +4 cm, the size below it -2 to -3 cm (the sleeveless dress, heavier, leaves -3 to -4 cm on
+# its chart's size: the drape says the dress is smaller at the chest than its chart claims).
+# The waist and hips are not judged by the cloth's length: a bottom hangs from its band, and its own weight
+# stretches its seat within the cloth's slack (the solver leaves a spring free up to its limit, 10 %), so its
+# cloth measures 2-5 cm short at the hips on the chart's own size as much as on the size below. There only
+# springs held past their limit by the body (``too_tight``) tell tight: on the catalogue's trousers and skirt
+# they do for each size below the chart's, never for the chart's own.
+MIN_CLOTH_EASE_CM = {"chest": 0.0}
+# cm: more tape ease than this at a girth and the garment hangs off the body: loose. The T-shirt is cut with
+# 8 cm at the chest and grows 8 cm a size; measured on the same bodies, one size over the chart's leaves 9-14
+# cm (tape ease, 2.8 cm of it the cloth's offset from the skin), two sizes over 18-25 cm. The trousers' seat
+# is cut with 6 cm and grows 6 cm a size; two sizes over leave 11-31 cm at the hips, a spread the waist's
+# band (resting on the hips) makes.
+MAX_EASE_CM = {"chest": 16.0, "waist": 16.0, "hips": 16.0}
+# Where a garment hangs from, by category: what "stays up" means in words.
+HANGS_FROM = {"top": "the shoulders", "dress": "the shoulders", "bottom": "the hips"}
+
+
+def _cm(x: float) -> str:
+    """A length in words: whole centimetres ("8 cm"), "under 1 cm" for less."""
+    r = round(abs(x))
+    return f"{r:.0f} cm" if r >= 1 else "under 1 cm"
+
+
+def place_name(place: str) -> str:
+    """A ``too_tight`` place in words: 'torso hips' -> 'the hips', 'upper_arm_l' -> 'the left upper arm'."""
+    if place.startswith("torso "):
+        return "the " + place[len("torso "):]
+    side = "left " if place.endswith("_l") else ("right " if place.endswith("_r") else "")
+    base = place[:-2] if side else place
+    return f"the {side}{base.replace('_', ' ')}"
+
+
+def judge(category: str, metrics: dict, girths: dict[str, Girth | None]) -> tuple[str, str]:
+    """(verdict, reason) of one drape: its ``metrics`` (``TryOnResult.metrics``: too_tight, stays_up,
+    slid_cm, sized_to_body) and its ``girths`` (``ease.measure_ease``). See the module doc."""
+    hangs = HANGS_FROM.get(category, "the body")
+    if not metrics.get("stays_up", True):
+        return "falls_off", (f"does not stay on {hangs}: it slid {_cm(metrics.get('slid_cm', 0.0))} down from "
+                             f"where it was put on")
+    measured = {k: g for k, g in girths.items() if g is not None}
+    short = []  # (place, words)
+    if not metrics.get("sized_to_body", False):
+        for name, g in measured.items():
+            if name in MIN_CLOTH_EASE_CM and g.cloth_ease_cm < MIN_CLOTH_EASE_CM[name]:
+                short.append((name, f"too tight at the {name}: {_cm(g.cloth_ease_cm)} short"))
+    named = {name for name, _ in short}
+    for place in metrics.get("too_tight") or {}:
+        girth = place[len("torso "):] if place.startswith("torso ") else None
+        if girth not in named:
+            short.append((place, f"too tight at {place_name(place)}: the cloth is stretched past its limit there"))
+            if girth:
+                named.add(girth)
+    if short:
+        return "tight", "; ".join(words for _, words in short)
+    over = [(n, g) for n, g in measured.items() if g.ease_cm > MAX_EASE_CM[n]]
+    if over:
+        return "loose", "loose: " + ", ".join(f"{_cm(g.ease_cm)} of ease at the {n} (over {MAX_EASE_CM[n]:g} cm)"
+                                              for n, g in over) + f"; stays on {hangs}"
+    if not measured:
+        return "fits", f"not too tight anywhere; stays on {hangs}"
+    return "fits", f"{_ease_phrase(measured)}; stays on {hangs}"
+
+
+def _ease_phrase(measured: dict[str, Girth]) -> str:
+    """'8 cm of ease at the chest' / '4 cm of ease at the waist, 6 cm at the hips'."""
+    parts = [f"{_cm(g.ease_cm)} at the {n}" for n, g in measured.items()]
+    first = parts[0].replace(" at the", " of ease at the", 1)
+    return ", ".join([first, *parts[1:]])
+
+
+def recommend(sizes: list[str], verdicts: list[str], reasons: list[str]) -> tuple[str | None, str]:
+    """(recommended size or None, why in words) over a style's ``sizes`` in order with their verdicts: the
+    smallest that fits without being tight anywhere."""
+    for size, verdict in zip(sizes, verdicts):
+        if verdict == "fits":
+            smaller = [s for s, v in zip(sizes, verdicts) if v == "tight" and sizes.index(s) < sizes.index(size)]
+            why = f"{size} is the smallest size that fits without being tight anywhere"
+            return size, why + (f" ({', '.join(smaller)} too tight)" if smaller else "")
+    draped = [(s, v, r) for s, v, r in zip(sizes, verdicts, reasons) if v != "not_draped"]
+    if not draped:
+        return None, "no size was draped"
+    if all(v == "tight" for _, v, _ in draped):
+        s, _, r = draped[-1]
+        return None, f"every size draped is too tight: the largest, {s}, is {r}"
+    if all(v in ("loose", "falls_off") for _, v, _ in draped):
+        s, v, r = draped[0]
+        return None, f"every size draped is too large: even {s} {'is ' + r if v == 'loose' else r}"
+    return None, "no size fits: " + "; ".join(f"{s} {v.replace('_', ' ')}" for s, v, _ in draped)

@@ -1,0 +1,345 @@
+"""Issue 27, which size fits me: styles and size charts in the catalogue (SQLite, upload form, ``tryon ingest``),
+``GET /api/styles``, the ease measured on a known garment, ``POST /api/fit`` (a person at a chart row's centre
+gets that size, two sizes smaller is tight, its drapes answer a later ``/api/tryon`` from the cache, a full
+pool is a 503, an unknown style 404, bad measurements 422) and ``tryon fit``.
+
+The catalogue is generated here (``tryon.garment.generate``): the T-shirt and the trousers in their five sizes
+with the chart rows the generator built them from, shared by the module.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from tryon.api.app import create_app
+from tryon.api.pool import get_pool
+from tryon.body.build import build_body
+from tryon.body.params import Measurements
+from tryon.cli import main
+from tryon.config import Settings
+from tryon.fit.advice import advise_size
+from tryon.fit.ease import measure_ease
+from tryon.garment.catalogue import Catalogue
+from tryon.garment.generate import GARMENTS, SIZE_CHART, chart_row, garment_mesh, half_axes, obj_text, spow
+from tryon.garment.ingest import GarmentError
+from tryon.garment.sizes import parse_chart, size_order
+from tryon.sim.run import drape
+from tryon.sim.settings import SimSettings
+
+ROOT = Path(__file__).resolve().parents[1]
+AUTH = {"Authorization": "Bearer t"}
+SIZES = list(SIZE_CHART)  # S, M, L, XL, XXL
+# People at the centre of the chart's M and L rows (cm).
+AT_M = {"height": 170, "chest": 96, "waist": 82, "hips": 100}
+AT_L = {"height": 178, "chest": 104, "waist": 90, "hips": 106}
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory) -> dict[tuple[str, str], Path]:
+    """OBJ files of the T-shirt and the trousers in every size."""
+    root = tmp_path_factory.mktemp("fit-src")
+    out = {}
+    for kind in ("tshirt", "trousers"):
+        for size in SIZES:
+            out[kind, size] = root / f"{kind}-{size.lower()}.obj"
+            out[kind, size].write_text(obj_text(garment_mesh(kind, size), f"{kind} {size}"))
+    return out
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory, files) -> Path:
+    """A catalogue of the two styles, each size ingested with its chart row, in a shuffled order (the style
+    keeps its sizes' order, not the ingestion's)."""
+    data = tmp_path_factory.mktemp("fit-data")
+    catalogue = Catalogue(data)
+    for kind in ("tshirt", "trousers"):
+        name, category = GARMENTS[kind]
+        for size in ("L", "S", "XXL", "M", "XL"):
+            catalogue.ingest(files[kind, size], name=f"{name} {size}", category=category, units="m", size=size,
+                             style=kind, chart=chart_row(size, category))
+    return data
+
+
+@pytest.fixture(scope="module")
+def client(data_dir):
+    with TestClient(create_app(Settings(data_dir=data_dir, admin_token="t"))) as c:
+        yield c
+
+
+# --- styles and charts in the catalogue -------------------------------------------------------------------
+
+
+def test_styles_keep_their_sizes_in_order_with_their_charts(data_dir):
+    styles = Catalogue(data_dir).styles()
+    assert list(styles) == ["tshirt", "trousers"]
+    for kind, category in (("tshirt", "top"), ("trousers", "bottom")):
+        entries = styles[kind]
+        assert [e.size for e in entries] == SIZES
+        assert all(e.style == kind and e.category == category for e in entries)
+        assert [e.chart for e in entries] == [chart_row(s, category) for s in SIZES]
+    assert styles["tshirt"][1].chart == {"chest": [92.0, 100.0], "waist": [78.0, 86.0]}
+
+
+def test_size_order_letters_numbers_and_as_given():
+    assert [["XL", "s", "M", "2XL"][i] for i in size_order(["XL", "s", "M", "2XL"])] == ["s", "M", "XL", "2XL"]
+    assert [["40", "36", "38"][i] for i in size_order(["40", "36", "38"])] == ["36", "38", "40"]
+    assert size_order(["petite", "regular", "tall"]) == [0, 1, 2]
+
+
+def test_the_catalogue_file_gives_six_styles_of_five_sizes_with_the_generators_charts():
+    entries = json.loads((ROOT / "garments" / "catalogue.json").read_text())
+    styles = {}
+    for e in entries:
+        styles.setdefault(e["style"], []).append(e)
+        assert e["chart"] == chart_row(e["size"], e["category"]), e["file"]
+        assert parse_chart(e["chart"]) == e["chart"]
+    assert list(styles) == list(GARMENTS)
+    assert all([e["size"] for e in v] == SIZES for v in styles.values())
+
+
+def test_a_catalogue_made_before_styles_gains_them_by_ingesting_again(tmp_path, files):
+    catalogue = Catalogue(tmp_path)
+    first = catalogue.ingest(files["tshirt", "M"], category="top", units="m", size="M")
+    with sqlite3.connect(tmp_path / "catalogue.sqlite") as db:  # the schema before issue 27
+        db.execute("ALTER TABLE garments DROP COLUMN style")
+        db.execute("ALTER TABLE garments DROP COLUMN chart")
+    reopened = Catalogue(tmp_path)
+    assert [(e.id, e.style, e.chart) for e in reopened.list()] == [(first.id, None, None)]
+    assert reopened.styles() == {}
+    again, created = reopened.ingest_with_status(files["tshirt", "M"], category="top", units="m", size="M",
+                                                 style="tshirt", chart='{"chest": [92, 100]}')
+    assert not created and again.id == first.id
+    assert (again.style, again.size, again.chart) == ("tshirt", "M", {"chest": [92.0, 100.0]})
+    assert reopened.model(first.id).meta.style == "tshirt"
+
+
+@pytest.mark.parametrize("chart, words", [
+    ('{"chest": [92, 100', "size chart is not valid JSON"),
+    ('[92, 100]', "size chart must be a JSON object"),
+    ('{"bust": 90}', "unknown key 'bust'"),
+    ('{"chest": [100, 92]}', "chest min 100 cm is greater than its max 92 cm"),
+    ('{"hips": [20, 30]}', "outside the plausible range [75, 150] cm"),
+    ('{"waist": "80"}', "waist must be a number or [min, max]"),
+    ('{"waist": [70, 80, 90]}', "waist must be a number or [min, max]"),
+])
+def test_size_chart_refusals(chart, words):
+    with pytest.raises(GarmentError, match=words.replace("[", r"\[").replace("]", r"\]")):
+        parse_chart(chart)
+
+
+def test_a_style_needs_a_size_and_a_short_id(tmp_path, files):
+    catalogue = Catalogue(tmp_path)
+    with pytest.raises(GarmentError, match="needs a size label"):
+        catalogue.ingest(files["tshirt", "S"], category="top", units="m", style="tshirt")
+    with pytest.raises(GarmentError, match="short id"):
+        catalogue.ingest(files["tshirt", "S"], category="top", units="m", size="S", style="T shirt")
+    catalogue.ingest(files["tshirt", "S"], category="top", units="m", size="S", style="tshirt")
+    with pytest.raises(GarmentError, match="already has a size S") as refused:
+        catalogue.ingest(files["tshirt", "M"], category="top", units="m", size="s", style="tshirt")
+    assert refused.value.status == 409
+    assert len(catalogue.list()) == 1
+
+
+# --- the API: upload form, styles, garments ---------------------------------------------------------------
+
+
+def test_get_styles_and_garments_show_style_and_size(client):
+    styles = client.get("/api/styles").json()
+    assert [(s["style"], s["name"], s["category"]) for s in styles] == [("tshirt", "T-shirt", "top"),
+                                                                      ("trousers", "Trousers", "bottom")]
+    garments = {g["id"]: g for g in client.get("/api/garments").json()["garments"]}
+    for style in styles:
+        assert [s["size"] for s in style["sizes"]] == SIZES
+        for s in style["sizes"]:
+            g = garments[s["garment_id"]]
+            assert (g["style"], g["size"], g["chart"]) == (style["style"], s["size"], s["chart"])
+            assert s["chart"] == chart_row(s["size"], style["category"])
+
+
+def test_upload_form_takes_style_size_and_chart(tmp_path, files):
+    data = files["tshirt", "S"].read_bytes()
+    with TestClient(create_app(Settings(data_dir=tmp_path, admin_token="t"))) as c:
+        def upload(**form):
+            fields = {"name": "Tee S", "category": "top", "units": "m", **form}
+            return c.post("/api/garments", files={"file": ("tee.obj", data)}, data=fields, headers=AUTH)
+
+        for form, status, words in (
+                (dict(style="tee", size="S", size_chart='{"chest": [84, 92'), 422, "size chart is not valid JSON"),
+                (dict(style="tee", size="S", size_chart='{"neck": 38}'), 422, "unknown key 'neck'"),
+                (dict(style="tee", size="S", size_chart='{"chest": [92, 84]}'), 422, "greater than its max"),
+                (dict(style="tee", size="S", size_chart='{"chest": 500}'), 422, "plausible range"),
+                (dict(style="tee"), 422, "needs a size label"),
+                (dict(style="Tee!", size="S"), 422, "style must be a short id")):
+            r = upload(**form)
+            assert r.status_code == status and words in r.json()["detail"], (form, r.text)
+        assert c.get("/api/garments").json() == {"garments": []}
+        r = upload(style="tee", size="S", size_chart='{"chest": [84, 92], "waist": 74}')
+        assert r.status_code == 201, r.text
+        assert (r.json()["style"], r.json()["size"], r.json()["chart"]) == ("tee", "S", {"chest": [84.0, 92.0],
+                                                                                       "waist": [74.0, 74.0]})
+        assert c.get("/api/styles").json() == [{"style": "tee", "name": "Tee", "category": "top", "sizes": [
+            {"size": "S", "garment_id": r.json()["id"], "chart": {"chest": [84.0, 92.0], "waist": [74.0, 74.0]}}]}]
+
+
+def test_ingest_command_takes_style_and_chart(tmp_path, files, capsys):
+    path = str(files["trousers", "M"])
+    base = ["ingest", path, "--units", "m", "--data-dir", str(tmp_path)]
+    assert main([*base, "--style", "trousers", "--size", "M", "--size-chart", '{"waist": [78, 86'] ) == 2
+    assert "size chart is not valid JSON" in capsys.readouterr().err
+    assert main([*base, "--style", "trousers", "--size", "M", "--size-chart", '{"hips": [103, 97]}']) == 2
+    assert "hips min 103 cm is greater than its max 97 cm" in capsys.readouterr().err
+    assert main([*base, "--style", "trousers", "--size-chart", '{"hips": 100}']) == 2
+    assert "needs a size label" in capsys.readouterr().err
+    assert main([*base, "--style", "trousers", "--size", "M", "--size-chart", '{"waist": [78, 86], "hips": 100}']) == 0
+    assert "style trousers M" in capsys.readouterr().out
+    (entry,) = Catalogue(tmp_path).list()
+    assert (entry.style, entry.size, entry.chart) == ("trousers", "M", {"waist": [78.0, 86.0], "hips": [100.0, 100.0]})
+
+
+# --- ease on a known garment ------------------------------------------------------------------------------
+
+
+def test_ease_of_a_tube_of_known_girth_around_a_known_body():
+    """A straight tube around the body's waist and hips, its sections 8 cm longer than the body's hips: its
+    tape ease is its girth minus the body's at each level, within 1 cm."""
+    body = build_body(Measurements(**AT_M))
+    girth = (AT_M["hips"] + 8) / 100.0
+    a, b = half_axes(girth)
+    n, rows = 96, 12
+    theta = 2 * np.pi * np.arange(n) / n
+    ys = np.linspace(body.levels["hips"] - 0.08, body.levels["waist"] + 0.06, rows)
+    torso = np.unique(body.faces[body.face_part == body.parts.index("torso")])
+    rings = []
+    for y in ys:
+        near = torso[np.abs(body.vertices[torso, 1] - y) < 0.02]
+        cx, cz = body.vertices[near][:, [0, 2]].mean(axis=0)
+        rings.append(np.column_stack([cx + a * spow(np.cos(theta)), np.full(n, y), cz + b * spow(np.sin(theta))]))
+    vertices = np.concatenate(rings)
+    k = np.arange(n)
+    faces = np.concatenate([np.concatenate([np.column_stack([r * n + k, r * n + (k + 1) % n, (r + 1) * n + k]),
+                                            np.column_stack([(r + 1) * n + k, r * n + (k + 1) % n,
+                                                             (r + 1) * n + (k + 1) % n])])
+                            for r in range(rows - 1)])
+    polygon = float(np.linalg.norm(np.diff(rings[0][:, [0, 2]], axis=0, append=rings[0][:1, [0, 2]]), axis=1).sum())
+    measured = measure_ease(body, vertices, faces, vertices, "bottom")
+    for name in ("waist", "hips"):
+        g = measured[name]
+        assert g.level_m == pytest.approx(body.levels[name])
+        assert g.body_cm == pytest.approx(body.achieved[name], abs=0.3)
+        assert g.ease_cm == pytest.approx(100 * polygon - body.achieved[name], abs=1.0)
+        assert g.cloth_ease_cm == pytest.approx(g.ease_cm, abs=0.05)  # unstretched: cloth = tape
+    # the same tube stretched 10 % around: its cloth is 10 % shorter than its tape
+    wide = vertices.copy()
+    centre = wide.mean(axis=0)
+    wide[:, [0, 2]] = centre[[0, 2]] + 1.1 * (wide[:, [0, 2]] - centre[[0, 2]])
+    g = measure_ease(body, wide, faces, vertices, "bottom")["hips"]
+    assert g.cloth_cm == pytest.approx(g.garment_cm / 1.1, rel=0.01)
+
+
+# --- POST /api/fit ----------------------------------------------------------------------------------------
+
+
+def test_a_person_at_the_m_rows_centre_gets_m(client):
+    r = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_M})
+    assert r.status_code == 200, r.text
+    out = r.json()
+    assert out["style"] == "tshirt" and out["recommended"] == "M", out
+    assert "M is the smallest size that fits" in out["reason"]
+    sizes = {s["size"]: s for s in out["sizes"]}
+    assert [s["size"] for s in out["sizes"]] == SIZES
+    styles = {s["style"]: s for s in client.get("/api/styles").json()}
+    assert [s["garment_id"] for s in out["sizes"]] == [s["garment_id"] for s in styles["tshirt"]["sizes"]]
+    assert sizes["S"]["verdict"] == "tight" and "too tight at the chest" in sizes["S"]["reason"]
+    m = sizes["M"]
+    assert m["verdict"] == "fits" and m["stays_up"] is True and m["too_tight"] == {}
+    assert 3.0 < m["ease_cm"]["chest"] < 16.0 and m["max_strain"] > 0
+    assert m["reason"] == f"{round(m['ease_cm']['chest'])} cm of ease at the chest; stays on the shoulders"
+    for size in ("XL", "XXL"):  # two and three sizes from the person's on the chart
+        assert sizes[size]["verdict"] == "not_draped" and "sizes from yours" in sizes[size]["reason"]
+        assert sizes[size]["ease_cm"] == {} and sizes[size]["stays_up"] is None
+    assert out["wall_seconds"] > 0
+
+    # the page then shows M's drape without simulating again
+    t = client.post("/api/tryon", json={"garment_id": m["garment_id"], "measurements": AT_M})
+    assert t.status_code == 200 and t.json()["metrics"]["cached"] is True
+    # ... and the advice again comes from the cache too
+    again = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_M}).json()
+    assert again["sizes"] == out["sizes"] and again["wall_seconds"] < out["wall_seconds"]
+
+
+def test_two_sizes_smaller_is_tight_and_the_trousers_follow_their_chart(client, data_dir):
+    out = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_L}).json()
+    assert out["recommended"] == "L", out
+    assert [s["verdict"] for s in out["sizes"]][1:3] == ["tight", "fits"]
+    assert out["sizes"][0]["verdict"] == "not_draped"  # S: two sizes under L on the chart, so not draped ...
+    catalogue = Catalogue(data_dir)
+    s = catalogue.style("tshirt")[0]
+    model = catalogue.model(s.id)
+    body = build_body(Measurements(**AT_L))
+    result = drape(body, model, SimSettings())  # ... but when it is, it is tight
+    advice = advise_size("S", s.id, "top", body, result.vertices, result.faces, model.vertices, result.metrics)
+    assert advice.verdict == "tight" and advice.reason.startswith("too tight at the chest: ")
+    assert advice.cloth_ease_cm["chest"] < 0
+    trousers = client.post("/api/fit", json={"style": "trousers", "measurements": AT_M}).json()
+    assert trousers["recommended"] == "M", trousers
+    s = trousers["sizes"][0]
+    assert s["verdict"] == "tight" and s["too_tight"] and "too tight at the waist" in s["reason"]
+    assert set(trousers["sizes"][1]["ease_cm"]) == {"waist", "hips"}
+
+
+def test_fit_errors(client):
+    r = client.post("/api/fit", json={"style": "gown", "measurements": AT_M})
+    assert r.status_code == 404 and "no style 'gown'" in r.json()["detail"]
+    r = client.post("/api/fit", json={"style": "tshirt", "measurements": {**AT_M, "chest": 300}})
+    assert r.status_code == 422 and "measurements.chest=300 cm is outside" in r.text
+    r = client.post("/api/fit", json={"style": "tshirt", "measurements": {"height": 170, "chest": 96, "waist": 82}})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "measurements", "hips"]
+    r = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_M, "pose": {"arm_angle": 120}})
+    assert r.status_code == 422 and "pose.arm_angle" in r.text
+    r = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_M, "size": "M"})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "size"]
+
+
+def test_a_full_pool_answers_503_with_retry_after(data_dir):
+    app = create_app(Settings(data_dir=data_dir, sim_workers=1, sim_queue=0))
+    with TestClient(app) as c:
+        release = threading.Event()
+        busy = get_pool(app).submit(release.wait)  # another shopper's try-on holds the only place
+        try:
+            r = c.post("/api/fit", json={"style": "tshirt", "measurements": {**AT_M, "height": 171}})
+            assert r.status_code == 503 and "busy" in r.json()["detail"]
+            assert int(r.headers["retry-after"]) > 0
+        finally:
+            release.set()
+            busy.result(timeout=10)
+
+
+# --- tryon fit --------------------------------------------------------------------------------------------
+
+
+def test_fit_command_prints_the_advice_as_a_table(data_dir, capsys):
+    assert main(["fit", "tshirt", "--height", "170", "--chest", "96", "--waist", "82", "--hips", "100",
+                 "--data-dir", str(data_dir)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split()[:4] == ["size", "verdict", "chest", "ease"]
+    assert [line.split()[:2] for line in out[1:6]] == [["S", "tight"], ["M", "fits"], ["L", "fits"],
+                                                       ["XL", "not_draped"], ["XXL", "not_draped"]]
+    assert out[6].startswith("recommended: M (M is the smallest size that fits")
+
+
+def test_fit_command_errors(data_dir, tmp_path, capsys):
+    base = ["--height", "170", "--chest", "96", "--waist", "82", "--hips", "100"]
+    assert main(["fit", "gown", *base, "--data-dir", str(data_dir)]) == 2
+    err = capsys.readouterr().err
+    assert "no style 'gown'" in err and "tshirt, trousers" in err
+    assert main(["fit", "tshirt", *base[:-1], "300", "--data-dir", str(data_dir)]) == 2
+    assert "hips=300 cm is outside [75, 150] cm" in capsys.readouterr().err
+    assert main(["fit", "tshirt", *base, "--data-dir", str(tmp_path / "empty")]) == 2
+    assert "no catalogue in" in capsys.readouterr().err

@@ -30,7 +30,7 @@ import threading
 import time
 import uuid
 from collections import OrderedDict
-from dataclasses import asdict, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from tryon.garment.ingest import GarmentError, file_extension, load_garment
@@ -107,6 +107,51 @@ def entry_id(sha256: str, units: str, simplification: float, density: float) -> 
     """12 hex digits naming (file content, preprocessing parameters)."""
     key = f"{sha256}|units={units}|B={simplification:.4f}|density={density:.5f}"
     return hashlib.sha256(key.encode()).hexdigest()[:12]
+
+
+@dataclass(frozen=True)
+class Preparation:
+    """What preparing one new entry needs, as plain data (it may travel to another process or machine, see
+    ``tryon ingest --ray``): the file's bytes and name, its units, the entry's meta so far, the fabric's
+    density (kg/m^2) and the largest mesh taken (faces)."""
+
+    data: bytes
+    filename: str
+    units: str
+    meta: GarmentMeta
+    density: float
+    max_faces: int
+
+
+def prepare_model(job: Preparation) -> GarmentModel:
+    """The middle of an ingestion, anywhere: load, clean and prepare the mesh (the costly part, CPU only;
+    no catalogue needed). GarmentError if the file is refused. Deterministic: the same job gives the same
+    arrays wherever it runs."""
+    mesh = load_garment(job.data, job.filename, job.units, job.max_faces)
+    m = job.meta
+    return prepare(mesh, id=m.id, name=m.name, category=m.category, size=m.size, source_sha256=m.source_sha256,
+                   source_name=m.source_name, simplification=m.simplification, density=job.density)
+
+
+@dataclass(frozen=True)
+class IngestPlan:
+    """One ingestion between ``Catalogue.plan_ingest`` and ``Catalogue.add_prepared``: the entry's id and
+    row fields, the file's bytes, and either the existing entry or the preparation a new one needs."""
+
+    gid: str
+    name: str
+    category: str
+    size: str | None
+    units: str
+    simplify: float
+    density: float
+    sha256: str
+    ext: str
+    style: str | None
+    chart: dict | None
+    data: bytes
+    existing: GarmentMeta | None = None
+    preparation: Preparation | None = None
 
 
 class Catalogue:
@@ -226,6 +271,23 @@ class Catalogue:
         """As ``ingest``, plus whether a new entry was made (False: it was already there). An entry that was
         already there takes the style, size and chart given (when given): a catalogue made before styles
         existed gains them by ingesting its files again."""
+        plan = self.plan_ingest(source, name, category, units, simplify, size, filename, density, max_faces,
+                                style, chart)
+        if plan.existing is not None:
+            return plan.existing, False
+        model = prepare_model(plan.preparation) if plan.preparation is not None else None
+        return self.add_prepared(plan, model)
+
+    def plan_ingest(self, source: Path | str | bytes, name: str | None = None, category: str = "top",
+                    units: str = "auto", simplify: float = DEFAULT_SIMPLIFICATION, size: str | None = None,
+                    filename: str | None = None, density: float = DEFAULT_DENSITY, max_faces: int = 400_000,
+                    style: str | None = None, chart: dict | str | None = None) -> "IngestPlan":
+        """The first third of an ingestion (``ingest``'s arguments), on the catalogue's machine: read the
+        file, check the parameters, name the entry. The plan holds the existing entry when the same file
+        with the same parameters is already in (taking the style, size and chart given), else what the
+        new entry needs: ``preparation`` for ``prepare_model`` (None when a complete model directory is
+        already in place, e.g. left by a crash: it is adopted) and the row's fields for ``add_prepared``.
+        GarmentError if the file or a parameter is refused."""
         if isinstance(source, (bytes, bytearray)):
             data = bytes(source)
             if filename is None:
@@ -244,6 +306,8 @@ class Catalogue:
         name = name or Path(filename).stem
         sha = hashlib.sha256(data).hexdigest()
         gid = entry_id(sha, units, simplify, density)
+        plan = IngestPlan(gid=gid, name=name, category=category, size=size, units=units, simplify=float(simplify),
+                          density=float(density), sha256=sha, ext=ext, style=style, chart=chart, data=data)
         existing = self.get(gid)
         if existing is not None:
             if style is not None and (existing.style, existing.size, existing.chart) != (style, size, chart):
@@ -251,26 +315,37 @@ class Catalogue:
                 with self._connect() as db:
                     db.execute("UPDATE garments SET style = ?, size = ?, chart = ? WHERE id = ?",
                                (style, size, json.dumps(chart) if chart else None, gid))
-                return self.get(gid), False
-            return existing, False
+                return replace(plan, existing=self.get(gid))
+            return replace(plan, existing=existing)
         if style is not None:
             self._check_size_free(style, size, gid)
         directory = self.models / gid
-        if not GarmentModel.is_current(directory):
-            if directory.exists():  # a leftover of another preparation version: not adopted
-                self._discard(directory)
-            meta = GarmentMeta(
-                id=gid, name=name, category=category, size=size, units=units, units_guessed=False,
-                simplification=float(simplify), source_sha256=sha, source_name=filename, vertices=0,
-                faces=0, coarse_vertices=0, coarse_faces=0,
-            )
-            self._prepare_into(directory, data, filename, units, meta, density, max_faces)
-        self._store_source(sha, ext, data)  # kept so that other simplification degrees can be made
+        if GarmentModel.is_current(directory):
+            return plan
+        if directory.exists():  # a leftover of another preparation version: not adopted
+            self._discard(directory)
+        meta = GarmentMeta(
+            id=gid, name=name, category=category, size=size, units=units, units_guessed=False,
+            simplification=float(simplify), source_sha256=sha, source_name=filename, vertices=0,
+            faces=0, coarse_vertices=0, coarse_faces=0,
+        )
+        return replace(plan, preparation=Preparation(data, filename, units, meta, float(density), int(max_faces)))
+
+    def add_prepared(self, plan: "IngestPlan", model: GarmentModel | None) -> tuple[GarmentMeta, bool]:
+        """The last third of an ingestion: put ``model`` (``prepare_model`` of ``plan.preparation``, made here
+        or on another machine; None if the plan needs none) into place atomically, keep the source, insert
+        the row. Returns (the entry, whether this call made it: False if another ingestion of the same file
+        won the race)."""
+        directory = self.models / plan.gid
+        if model is not None:
+            self._save_into(directory, model)
+        self._store_source(plan.sha256, plan.ext, plan.data)  # kept so that other simplification degrees can be made
         meta = json.loads((directory / "meta.json").read_text())
         # name/category/size are the uploader's words for this entry, not part of the prepared model
-        meta.update(name=name, category=category, size=size)
-        created = self._insert_row(gid, name, category, size, meta, units, simplify, density, sha, ext, style, chart)
-        return self.get(gid), created
+        meta.update(name=plan.name, category=plan.category, size=plan.size)
+        created = self._insert_row(plan.gid, plan.name, plan.category, plan.size, meta, plan.units, plan.simplify,
+                                   plan.density, plan.sha256, plan.ext, plan.style, plan.chart)
+        return self.get(plan.gid), created
 
     def delete(self, garment_id: str) -> bool:
         """Remove an entry, its prepared models and (if no other entry uses it) its source file.
@@ -342,13 +417,11 @@ class Catalogue:
 
     def _prepare_into(self, directory: Path, data: bytes, filename: str, units: str, meta: GarmentMeta,
                       density: float, max_faces: int = 400_000) -> None:
-        """Prepare a model into a work dir and move it to ``directory`` atomically (first one wins)."""
-        mesh = load_garment(data, filename, units, max_faces)
-        model = prepare(
-            mesh, id=meta.id, name=meta.name, category=meta.category, size=meta.size,
-            source_sha256=meta.source_sha256, source_name=meta.source_name,
-            simplification=meta.simplification, density=density,
-        )
+        """Prepare a model and move it to ``directory`` atomically (first one wins)."""
+        self._save_into(directory, prepare_model(Preparation(data, filename, units, meta, density, max_faces)))
+
+    def _save_into(self, directory: Path, model: GarmentModel) -> None:
+        """Save ``model`` into a work dir and move it to ``directory`` atomically (first one wins)."""
         work = self._work_dir()
         try:
             model.save(work)

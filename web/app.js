@@ -15,7 +15,10 @@ const state = {
   framesReceived: 0,
   state: 'loading',     // loading | ready | draping | done | error
   garments: [],
+  styles: [],           // GET /api/styles: each style's sizes in order
   garmentId: null,
+  advice: null,         // the last POST /api/fit answer shown, or null
+  fitting: false,
   init: null,
   done: null,
   lastError: null,
@@ -51,18 +54,30 @@ const CATEGORY_ICONS = {
 };
 const CATEGORY_COLORS = { top: '#b5523b', bottom: '#3f5f8a', dress: '#7a4f7f' };
 
-/** Entries that differ only by size ("T-shirt S", "T-shirt M") become one row with size chips. */
+/**
+ * One row per style (GET /api/styles: its name, its sizes in the style's order) with size chips; entries
+ * without a style that differ only by size ("T-shirt S", "T-shirt M") become one row too.
+ */
 function groupGarments(list) {
   const groups = new Map();
+  const styles = new Map(state.styles.map((s) => [s.style, s]));
+  const position = new Map();  // garment id -> place among its style's sizes
+  for (const s of state.styles) s.sizes.forEach((z, i) => position.set(z.garment_id, i));
   for (const g of list) {
-    const base = g.size && g.name.endsWith(` ${g.size}`) ? g.name.slice(0, -g.size.length - 1) : g.name;
-    const key = `${g.category}|${base}`;
-    if (!groups.has(key)) groups.set(key, { name: base, category: g.category, entries: [] });
+    const style = g.style && styles.has(g.style) ? styles.get(g.style) : null;
+    const base = style ? style.name
+      : (g.size && g.name.endsWith(` ${g.size}`) ? g.name.slice(0, -g.size.length - 1) : g.name);
+    const key = style ? `style|${style.style}` : `${g.category}|${base}`;
+    if (!groups.has(key)) groups.set(key, { name: base, category: g.category, style: style?.style ?? null, entries: [] });
     groups.get(key).entries.push(g);
   }
   const order = ['XXS', 'XS', 'S', 'M', 'L', 'XL', 'XXL', 'XXXL'];
-  const rank = (size) => { const i = order.indexOf(String(size).toUpperCase()); return i < 0 ? 99 : i; };
-  for (const group of groups.values()) group.entries.sort((a, b) => rank(a.size) - rank(b.size));
+  const rank = (g) => {
+    if (position.has(g.id)) return position.get(g.id);
+    const i = order.indexOf(String(g.size).toUpperCase());
+    return i < 0 ? 99 : i;
+  };
+  for (const group of groups.values()) group.entries.sort((a, b) => rank(a) - rank(b));
   return [...groups.values()];
 }
 
@@ -126,10 +141,15 @@ function selectGarment(id) {
     row.classList.toggle('selected', row.dataset.ids.split(' ').includes(id));
   }
   for (const chip of $('garments').querySelectorAll('.size')) chip.setAttribute('aria-checked', String(chip.dataset.id === id));
+  if (state.advice && !state.advice.sizes.some((z) => z.garment_id === id)) clearAdvice();  // another garment
+  for (const row of $('size-advice').querySelectorAll('.advice-row')) {
+    row.setAttribute('aria-current', String(row.dataset.id === id));
+  }
   updateTryOnButton();
 }
 
 function updateTryOnButton() {
+  updateFitButton();
   const button = $('tryon-button');
   if (state.state === 'draping') {
     button.textContent = 'Stop';
@@ -143,6 +163,7 @@ function updateTryOnButton() {
 // ---- body preview ---------------------------------------------------------------------------------
 function scheduleBody() {
   clearTimeout(bodyTimer);
+  if (state.advice) clearAdvice();  // the advice was for the old measurements
   if (state.state === 'draping') live?.cancel();  // that drape is for the old measurements
   updateTryOnButton();
   if (!form.valid()) return;
@@ -299,6 +320,125 @@ function showMetrics(done, strainLimit = state.init?.strain_limit ?? DEFAULT_STR
 
 state.showMetrics = showMetrics;  // for tests: render a given done message
 
+// ---- which size fits me -------------------------------------------------------------------------
+const VERDICT_WORDS = {
+  fits: 'Fits', tight: 'Too tight', loose: 'Loose', falls_off: 'Falls off', not_draped: 'Not draped',
+};
+
+/** The style of the chosen garment (null: it comes in no sizes of a style). */
+function chosenStyle() {
+  const g = state.garments.find((x) => x.id === state.garmentId);
+  return state.styles.find((s) => s.style === g?.style) || null;
+}
+
+function updateFitButton() {
+  const style = chosenStyle();
+  $('fit-button').disabled = !style || !form || !form.valid() || state.fitting || state.state === 'draping';
+  if (!state.fitting) {
+    $('fit-note').textContent = style
+      ? `Drapes the ${style.name}'s sizes (${style.sizes.map((z) => z.size).join(', ')}) on your body and says which fits.`
+      : 'Choose a garment that comes in several sizes to compare them on your body.';
+  }
+}
+
+function clearAdvice() {
+  state.advice = null;
+  $('size-advice').replaceChildren();
+  $('fit-summary').textContent = '';
+  for (const chip of $('garments').querySelectorAll('.size.recommended')) chip.classList.remove('recommended');
+}
+
+/** "ease +8 cm chest" / "ease +3 cm waist · +4 cm hips" (cm, rounded), '' when nothing was measured. */
+function easeText(ease) {
+  const parts = Object.entries(ease || {}).filter(([, v]) => Number.isFinite(v))
+    .map(([name, v]) => `${v >= 0 ? '+' : '−'}${Math.abs(Math.round(v))} cm ${name}`);
+  return parts.length ? `ease ${parts.join(' · ')}` : '';
+}
+
+function renderAdvice(advice) {
+  $('fit-summary').textContent = advice.recommended
+    ? `Take ${advice.recommended}: ${advice.reason}.`
+    : `No size to recommend: ${advice.reason}.`;
+  const list = $('size-advice');
+  list.replaceChildren();
+  for (const z of advice.sizes) {
+    const li = document.createElement('li');
+    li.className = `verdict-${z.verdict}${z.size === advice.recommended ? ' recommended' : ''}`;
+    const row = document.createElement('button');
+    row.type = 'button';
+    row.className = 'advice-row';
+    row.dataset.id = z.garment_id;
+    row.setAttribute('aria-current', String(z.garment_id === state.garmentId));
+    row.title = `Show size ${z.size} on your body`;
+    const size = document.createElement('span');
+    size.className = 'advice-size';
+    size.textContent = z.size;
+    const head = document.createElement('span');
+    head.className = 'advice-head';
+    const verdict = document.createElement('span');
+    verdict.className = 'advice-verdict';
+    verdict.textContent = VERDICT_WORDS[z.verdict] || z.verdict;
+    head.append(verdict);
+    if (z.size === advice.recommended) {
+      const tag = document.createElement('span');
+      tag.className = 'recommended-tag';
+      tag.textContent = 'Your size';
+      head.append(tag);
+    }
+    const ease = easeText(z.ease_cm);
+    if (ease) {
+      const e = document.createElement('span');
+      e.className = 'advice-ease';
+      e.textContent = ease;
+      head.append(e);
+    }
+    const reason = document.createElement('span');
+    reason.className = 'advice-reason';
+    reason.textContent = z.verdict === 'not_draped' ? z.reason.replace(/^not draped: /, '') : z.reason;
+    row.append(size, head, reason);
+    row.addEventListener('click', () => showSize(z.garment_id));
+    li.append(row);
+    list.append(li);
+  }
+  const recommended = advice.sizes.find((z) => z.size === advice.recommended);
+  for (const chip of $('garments').querySelectorAll('.size')) {
+    chip.classList.toggle('recommended', chip.dataset.id === recommended?.garment_id);
+  }
+}
+
+/** One size's drape: the same try-on the advice ran, so the server answers it from its result cache. */
+function showSize(garmentId) {
+  if (state.state === 'draping') return;
+  selectGarment(garmentId);
+  tryOn();
+}
+
+async function findSize() {
+  const style = chosenStyle();
+  if (!style || state.fitting) return;
+  clearNotice();
+  clearAdvice();
+  state.fitting = true;
+  updateTryOnButton();
+  $('fit-button').textContent = 'Draping the sizes…';
+  $('fit-summary').textContent = `Draping the ${style.name}'s sizes on your body…`;
+  try {
+    const response = await postJSON('/api/fit', { style: style.style, ...form.bodyRequest() });
+    state.advice = await response.json();
+    renderAdvice(state.advice);
+    const recommended = state.advice.sizes.find((z) => z.size === state.advice.recommended);
+    if (recommended && state.state !== 'draping') showSize(recommended.garment_id);
+  } catch (error) {
+    $('fit-summary').textContent = '';
+    showError(error);
+  } finally {
+    state.fitting = false;
+    $('fit-button').textContent = 'Find my size';
+    updateTryOnButton();
+  }
+}
+$('fit-button').addEventListener('click', findSize);
+
 // ---- layout -------------------------------------------------------------------------------------
 // On a narrow screen (the breakpoint of style.css) the fit summary is the first card of the controls,
 // under the 3D view, rather than a card over the figure it describes.
@@ -341,7 +481,11 @@ $('download-body').addEventListener('click', (e) => withBusy(e.currentTarget, as
 // ---- start --------------------------------------------------------------------------------------
 async function start() {
   try {
-    const [ranges, garments] = await Promise.all([getJSON('/api/bodies/ranges'), getJSON('/api/garments')]);
+    const [ranges, garments, styles] = await Promise.all([
+      getJSON('/api/bodies/ranges'), getJSON('/api/garments'),
+      getJSON('/api/styles').catch(() => []),  // an older server without styles: no size advice
+    ]);
+    state.styles = Array.isArray(styles) ? styles : [];
     form = new MeasurementForm(normaliseRanges(ranges), {
       required: $('measurements'), optional: $('more-measurements'), pose: $('pose'),
     }, scheduleBody);

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Idempotent set-up: a virtualenv in .venv with the package (and, with --test, its test extra), the
+# Idempotent set-up: a virtualenv in .venv with the package (and, with --test, its test and scale extras), the
 # page's npm packages, and, with --test, Debian's chromium for the browser tests. Fast when nothing
 # changed: each step is skipped when its stamp matches its inputs.
 set -euo pipefail
@@ -15,7 +15,7 @@ if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
 extras=""
-[ $want_test = 1 ] && extras="[test]"
+[ $want_test = 1 ] && extras="[test,scale]"
 key="$(sha256sum pyproject.toml | cut -c1-16)$extras"
 if ! stamp_ok .venv/.setup-stamp "$key"; then
   echo "setup: installing python packages$extras"

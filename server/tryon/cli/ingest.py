@@ -3,9 +3,15 @@
     tryon ingest PATH... [--name N] [--category top|bottom|dress|auto] [--units auto|m|cm|mm|dm|in]
                  [--simplify B] [--size S] [--style ID] [--size-chart JSON] [--data-dir DIR]
     tryon ingest --catalogue garments/      # every file listed in garments/catalogue.json
+    tryon ingest ... --ray [ADDRESS]        # prepared on a Ray cluster's workers (a local one by default)
 
 ``--category auto`` (the default) guesses the category from words in the file name, as the upload API
 does (``tryon.garment.catalogue.guess_category``); a file whose name tells none is refused.
+
+With ``--ray`` the preparations (load, clean, simplify, springs: the costly part) run as Ray tasks, a
+local Ray with every core when no ADDRESS is given, ``auto`` or ``host:port`` to join a running cluster;
+the catalogue is written here, on the driver, entry by entry as each preparation comes back, exactly as a
+local ingestion writes it (same ids, same arrays).
 
 Exit status 0 if every file was ingested (or already was), 1 if any was refused (the others are still
 ingested), 2 for a usage error.
@@ -45,12 +51,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "(chest, waist, hips; each [min, max] or one value); needs --size")
     p.add_argument("--density", type=float, default=None, help="fabric areal density, kg/m^2 (default 0.15)")
     p.add_argument("--data-dir", type=Path, help="catalogue directory (default: TRYON_DATA_DIR or ./data)")
+    p.add_argument("--ray", nargs="?", const=LOCAL_RAY, default=None, metavar="ADDRESS",
+                   help="prepare on a Ray cluster: no ADDRESS starts a local Ray, 'auto' or host:port joins one "
+                        "(needs the extra: pip install '.[scale]')")
     p.set_defaults(func=run)
 
 
 # What a JSON value is, in JSON's words (not Python's type names).
 _JSON_KINDS = {dict: "an object", str: "a string", int: "a number", float: "a number", bool: "true or false",
                type(None): "null"}
+
+
+# ``--ray`` without an address: start a local Ray
+LOCAL_RAY = "local"
 
 
 def _listing_problem(exc: Exception) -> str:
@@ -118,43 +131,117 @@ def run(args: argparse.Namespace) -> int:
         catalogue = Catalogue(data_dir)
     except (OSError, sqlite3.Error) as exc:
         raise CliError(f"cannot open the catalogue in {data_dir}: {getattr(exc, 'strerror', None) or exc}") from None
+    if args.ray is not None:
+        return _run_on_ray(args.ray, catalogue, jobs, settings.max_faces, data_dir)
     refused = 0
     total = len(jobs)
-    width = len(str(total))
     t_all = time.perf_counter()
     for i, job in enumerate(jobs, 1):
         path = job.pop("path")
-        prefix = f"[{i:>{width}}/{total}] {path.name}"
+        prefix = _prefix(i, total, path)
         print(f"{prefix} ...", end="\r", flush=True, file=sys.stderr) if sys.stderr.isatty() else None
         t0 = time.perf_counter()
         try:
-            if path.is_dir():
-                raise GarmentError(f"{path} is a directory: give mesh files, or --catalogue DIR for a "
-                                   f"directory with a catalogue.json")
-            if not path.is_file():
-                raise GarmentError(f"no such file: {path}")
+            _check_path(path)
             meta, created = catalogue.ingest_with_status(path, max_faces=settings.max_faces, **job)
-        except GarmentError as exc:
+        except (GarmentError, OSError) as exc:
             refused += 1
-            print(f"{prefix}: REFUSED: {exc}")
+            print(f"{prefix}: REFUSED: {_reason(exc)}")
             continue
-        except OSError as exc:  # unreadable file, or the catalogue could not be written (disk full)
-            refused += 1
-            print(f"{prefix}: REFUSED: {exc.strerror or exc}{f': {exc.filename}' if exc.filename else ''}")
-            continue
-        dt = time.perf_counter() - t0
-        s = meta.springs
-        print(
-            f"{prefix}: {meta.id} {meta.name!r} {meta.category}"
-            f"{' style ' + meta.style if meta.style else ''}{' ' + meta.size if meta.size else ''}, {meta.vertices} v / {meta.faces} f -> "
-            f"{meta.coarse_vertices} v / {meta.coarse_faces} f (B {meta.simplification:g}), springs "
-            f"{s.get('structural', 0)}/{s.get('shear', 0)}/{s.get('bending', 0)}, units {meta.units}"
-            f"{' (guessed)' if meta.units_guessed else ''}, {dt * 1000:.0f} ms"
-            f"{'' if created else ' (cached)'}"
-        )
-        for note in meta.notes:
-            if created:
-                print(f"{' ' * (len(prefix) + 2)}note: {note}")
-    print(f"{total - refused} of {total} garments in {data_dir} ({time.perf_counter() - t_all:.2f} s)"
+        _print_entry(prefix, meta, time.perf_counter() - t0, created)
+    _print_total(total, refused, data_dir, time.perf_counter() - t_all)
+    return 1 if refused else 0
+
+
+def _prefix(i: int, total: int, path: Path) -> str:
+    return f"[{i:>{len(str(total))}}/{total}] {path.name}"
+
+
+def _check_path(path: Path) -> None:
+    if path.is_dir():
+        raise GarmentError(f"{path} is a directory: give mesh files, or --catalogue DIR for a "
+                           f"directory with a catalogue.json")
+    if not path.is_file():
+        raise GarmentError(f"no such file: {path}")
+
+
+def _reason(exc: Exception) -> str:
+    """Why a file was refused: a GarmentError's words; an OSError (unreadable file, or the catalogue could
+    not be written: disk full) its system message and file."""
+    if isinstance(exc, OSError):
+        return f"{exc.strerror or exc}{f': {exc.filename}' if exc.filename else ''}"
+    return str(exc)
+
+
+def _print_entry(prefix: str, meta, seconds: float, created: bool) -> None:
+    s = meta.springs
+    print(
+        f"{prefix}: {meta.id} {meta.name!r} {meta.category}"
+        f"{' style ' + meta.style if meta.style else ''}{' ' + meta.size if meta.size else ''}, {meta.vertices} v / {meta.faces} f -> "
+        f"{meta.coarse_vertices} v / {meta.coarse_faces} f (B {meta.simplification:g}), springs "
+        f"{s.get('structural', 0)}/{s.get('shear', 0)}/{s.get('bending', 0)}, units {meta.units}"
+        f"{' (guessed)' if meta.units_guessed else ''}, {seconds * 1000:.0f} ms"
+        f"{'' if created else ' (cached)'}"
+    )
+    for note in meta.notes:
+        if created:
+            print(f"{' ' * (len(prefix) + 2)}note: {note}")
+
+
+def _print_total(total: int, refused: int, data_dir: Path, seconds: float) -> None:
+    print(f"{total - refused} of {total} garments in {data_dir} ({seconds:.2f} s)"
           + (f"; {refused} refused" if refused else ""))
+
+
+def _run_on_ray(address: str, catalogue, jobs: list[dict], max_faces: int, data_dir: Path) -> int:
+    """``--ray``: plan every file here, prepare the new ones as Ray tasks, add each to the catalogue here as
+    it comes back (see the module docstring). Lines come in the order the preparations finish."""
+    from tryon.garment.catalogue import prepare_model
+    from tryon.scale.ray_jobs import RayUnavailable, connect, disconnect, run_tasks
+
+    t_all = time.perf_counter()
+    total = len(jobs)
+    refused = 0
+    plans = []  # (prefix, plan) of the files to prepare
+    for i, job in enumerate(jobs, 1):
+        path = job.pop("path")
+        prefix = _prefix(i, total, path)
+        try:
+            _check_path(path)
+            plan = catalogue.plan_ingest(path, max_faces=max_faces, **job)
+        except (GarmentError, OSError) as exc:
+            refused += 1
+            print(f"{prefix}: REFUSED: {_reason(exc)}")
+            continue
+        if plan.preparation is None:  # already in the catalogue (or its model is): nothing to prepare
+            meta, created = (plan.existing, False) if plan.existing is not None else catalogue.add_prepared(plan, None)
+            _print_entry(prefix, meta, 0.0, created)
+            continue
+        plans.append((prefix, plan))
+    if plans:
+        try:
+            started = connect(None if address == LOCAL_RAY else address)
+        except RayUnavailable as exc:
+            raise CliError(str(exc), code=1) from None
+        try:
+            t0 = time.perf_counter()
+            for k, result in run_tasks(prepare_model, [(plan.preparation,) for _, plan in plans]):
+                prefix, plan = plans[k]
+                try:
+                    if isinstance(result, BaseException):
+                        raise result
+                    meta, created = catalogue.add_prepared(plan, result)
+                except (GarmentError, OSError) as exc:
+                    refused += 1
+                    print(f"{prefix}: REFUSED: {_reason(exc)}", flush=True)
+                    continue
+                except Exception as exc:  # noqa: BLE001 - the worker died past its retries: say so, go on
+                    refused += 1
+                    print(f"{prefix}: REFUSED: its preparation failed on the cluster ({type(exc).__name__})", flush=True)
+                    continue
+                _print_entry(prefix, meta, time.perf_counter() - t0, created)
+        finally:
+            if started:
+                disconnect()
+    _print_total(total, refused, data_dir, time.perf_counter() - t_all)
     return 1 if refused else 0

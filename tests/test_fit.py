@@ -247,6 +247,8 @@ def test_ease_of_a_tube_of_known_girth_around_a_known_body():
 
 
 def test_a_person_at_the_m_rows_centre_gets_m(client):
+    pool = get_pool(client.app)
+    before = pool.stats()["submitted"]
     r = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_M})
     assert r.status_code == 200, r.text
     out = r.json()
@@ -265,6 +267,8 @@ def test_a_person_at_the_m_rows_centre_gets_m(client):
         assert sizes[size]["verdict"] == "not_draped" and "sizes from yours" in sizes[size]["reason"]
         assert sizes[size]["ease_cm"] == {} and sizes[size]["stays_up"] is None
     assert out["wall_seconds"] > 0
+    stats = pool.stats()  # S, M and L draped on the pool, at most its workers at once; nothing left running
+    assert stats["submitted"] - before == 3 and stats["running"] == 0 and stats["waiting"] == 0
 
     # the page then shows M's drape without simulating again
     t = client.post("/api/tryon", json={"garment_id": m["garment_id"], "measurements": AT_M})
@@ -272,6 +276,7 @@ def test_a_person_at_the_m_rows_centre_gets_m(client):
     # ... and the advice again comes from the cache too
     again = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_M}).json()
     assert again["sizes"] == out["sizes"] and again["wall_seconds"] < out["wall_seconds"]
+    assert pool.stats()["submitted"] - before == 3
 
 
 def test_two_sizes_smaller_is_tight_and_the_trousers_follow_their_chart(client, data_dir):

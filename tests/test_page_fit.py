@@ -74,7 +74,7 @@ def test_find_my_size(browser, fit_shop, width, height):
         assert [r["recommended"] for r in rows] == [False, True, False, False, False]
         assert rows[1]["ease"].startswith("ease +") and rows[1]["ease"].endswith(" cm chest")
         assert rows[1]["reason"].endswith("stays on the shoulders") and "short" in rows[0]["reason"]
-        assert page.text_content("#fit-summary").startswith("Take M: M is the smallest size that fits")
+        assert page.text_content("#fit-summary").startswith("Take M: the smallest size that fits")
         # the recommended size is shown, from the cache the advice filled; its chip is chosen and marked
         assert page.evaluate("window.tryon.garmentId") == rows[1]["id"] and rows[1]["current"]
         assert page.evaluate("window.tryon.done.cached") is True

@@ -356,8 +356,9 @@ function easeText(ease) {
 }
 
 function renderAdvice(advice) {
+  // "M is the smallest size that fits..." -> "Take M: the smallest size that fits..."
   $('fit-summary').textContent = advice.recommended
-    ? `Take ${advice.recommended}: ${advice.reason}.`
+    ? `Take ${advice.recommended}: ${advice.reason.replace(`${advice.recommended} is `, '')}.`
     : `No size to recommend: ${advice.reason}.`;
   const list = $('size-advice');
   list.replaceChildren();

@@ -75,12 +75,11 @@ def judge(category: str, metrics: dict, girths: dict[str, Girth | None]) -> tupl
             if name in MIN_CLOTH_EASE_CM and g.cloth_ease_cm < MIN_CLOTH_EASE_CM[name]:
                 short.append((name, f"too tight at the {name}: {_cm(g.cloth_ease_cm)} short"))
     named = {name for name, _ in short}
-    for place in metrics.get("too_tight") or {}:
-        girth = place[len("torso "):] if place.startswith("torso ") else None
-        if girth not in named:
-            short.append((place, f"too tight at {place_name(place)}: the cloth is stretched past its limit there"))
-            if girth:
-                named.add(girth)
+    stretched = [place_name(p) for p in metrics.get("too_tight") or {}
+                 if not (p.startswith("torso ") and p[len("torso "):] in named)]
+    if stretched:
+        where = stretched[0] if len(stretched) == 1 else f"{', '.join(stretched[:-1])} and {stretched[-1]}"
+        short.append(("", f"too tight at {where}: the cloth is stretched past its limit there"))
     if short:
         return "tight", "; ".join(words for _, words in short)
     over = [(n, g) for n, g in measured.items() if g.ease_cm > MAX_EASE_CM[n]]

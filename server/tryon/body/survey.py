@@ -23,21 +23,29 @@ from tryon.body.params import Measurements, Pose, check_measurements
 from tryon.body.types import PART_NAMES
 
 
+# Required columns of an ANSUR II style CSV (millimetres) and the measurement each gives.
+REQUIRED_COLUMNS = {"stature": "height", "chestcircumference": "chest", "waistcircumference": "waist",
+                    "buttockcircumference": "hips"}
+
+
+def ansur_measurements(row: dict, all_measurements: bool = False) -> dict[str, float]:
+    """The measurements (cm) of one CSV row (mm): height, chest, waist, hips, and with ``all_measurements``
+    the optional ones too. KeyError for a missing column, ValueError for a value that is not a number."""
+    cm = {k: float(v) / 10.0 for k, v in row.items() if k in REQUIRED_COLUMNS or all_measurements
+          and k not in ("subjectid", "Gender")}
+    kw = {name: cm[column] for column, name in REQUIRED_COLUMNS.items()}
+    if all_measurements:
+        kw.update(shoulder_width=cm["biacromialbreadth"],
+                  arm_length=cm["acromionradialelength"] + cm["radialestylionlength"],
+                  inseam=cm["crotchheight"], neck=cm["neckcircumference"],
+                  thigh=cm["thighcircumference"], upper_arm=cm["bicepscircumferenceflexed"])
+    return kw
+
+
 def read_people(path: str, all_measurements: bool) -> list[Measurements]:
     """Measurements (cm) of every row of the CSV (mm)."""
-    people = []
     with open(path, newline="", encoding="latin-1") as fh:
-        for row in csv.DictReader(fh):
-            cm = {k: float(v) / 10.0 for k, v in row.items() if k not in ("subjectid", "Gender")}
-            kw = dict(height=cm["stature"], chest=cm["chestcircumference"], waist=cm["waistcircumference"],
-                      hips=cm["buttockcircumference"])
-            if all_measurements:
-                kw.update(shoulder_width=cm["biacromialbreadth"],
-                          arm_length=cm["acromionradialelength"] + cm["radialestylionlength"],
-                          inseam=cm["crotchheight"], neck=cm["neckcircumference"],
-                          thigh=cm["thighcircumference"], upper_arm=cm["bicepscircumferenceflexed"])
-            people.append(Measurements(**kw))
-    return people
+        return [Measurements(**ansur_measurements(row, all_measurements)) for row in csv.DictReader(fh)]
 
 
 def main(argv: list[str] | None = None) -> None:

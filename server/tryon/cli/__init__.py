@@ -10,10 +10,10 @@ import argparse
 import sys
 
 from tryon import __version__
-from tryon.cli import bench, fit, ingest, serve, warmup
+from tryon.cli import bench, fit, fit_table, ingest, serve, warmup
 from tryon.cli.common import CliError
 
-COMMANDS = [serve, ingest, fit, bench, warmup]
+COMMANDS = [serve, ingest, fit, fit_table, bench, warmup]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -4,7 +4,7 @@ Sections (one module each): the paper's tables 1-3 (``tables``), the catalogue's
 (``fit``) and in other poses (``poses``), run time against error and the default
 settings (``pareto``), the paper's simplification against quadric edge collapse (``simplify_compare``),
 peer engines (``peers``: Taichi, Newton), the stability stress summary (``stability``), and scaling
-(``scaling``). Each runs isolated: a failure is reported with its reason and the others still run.
+(``scaling``), fit-table throughput on Ray (``scale``). Each runs isolated: a failure is reported with its reason and the others still run.
 ``report`` writes bench.json, bench.md and the PNG plots.
 """
 
@@ -20,7 +20,7 @@ from tryon.bench.report import now, write_report
 
 def sections():
     """(name, title, function) of every section, in report order."""
-    from tryon.bench import fit, pareto, peers, poses, scaling, simplify_compare, stability, tables
+    from tryon.bench import fit, pareto, peers, poses, scale, scaling, simplify_compare, stability, tables
 
     return [
         ("table1", "Paper table 1: simplification and collision time", tables.table1),
@@ -33,6 +33,7 @@ def sections():
         ("peers", "Peer engines", peers.run),
         ("stability", "Stability stress", stability.run),
         ("scaling", "Scaling", scaling.run),
+        ("scale", "Past one machine: fit tables on Ray", scale.run),
     ]
 
 

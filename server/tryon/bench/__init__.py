@@ -4,7 +4,7 @@ Sections (one module each): the paper's tables 1-3 (``tables``), the catalogue's
 (``fit``) and in other poses (``poses``), run time against error and the default
 settings (``pareto``), the paper's simplification against quadric edge collapse (``simplify_compare``),
 peer engines (``peers``: Taichi, Newton), the stability stress summary (``stability``), and scaling
-(``scaling``), fit-table throughput on Ray (``scale``). Each runs isolated: a failure is reported with its reason and the others still run.
+(``scaling``), fit-table throughput on Ray (``scale``), size advice against the chart on people of a CSV (``sizes``). Each runs isolated: a failure is reported with its reason and the others still run.
 ``report`` writes bench.json, bench.md and the PNG plots.
 """
 
@@ -20,7 +20,7 @@ from tryon.bench.report import now, write_report
 
 def sections():
     """(name, title, function) of every section, in report order."""
-    from tryon.bench import fit, pareto, peers, poses, scale, scaling, simplify_compare, stability, tables
+    from tryon.bench import fit, pareto, peers, poses, scale, scaling, simplify_compare, sizes, stability, tables
 
     return [
         ("table1", "Paper table 1: simplification and collision time", tables.table1),
@@ -28,6 +28,7 @@ def sections():
         ("table3", "Paper table 3: pipeline stages", tables.table3),
         ("fit", "Catalogue fit on three bodies", fit.run),
         ("poses", "Fit in other poses", poses.run),
+        ("sizes", "Size advice against the chart", sizes.run),
         ("pareto", "Run time against error", pareto.run),
         ("simplify", "Simplification compared", simplify_compare.run),
         ("peers", "Peer engines", peers.run),
@@ -38,13 +39,14 @@ def sections():
 
 
 def run_bench(out_dir: Path | str = "bench-results", quick: bool = False, stress: bool = False,
-              only: list[str] | None = None, log=print, substeps: int | None = None) -> tuple[dict, int]:
+              only: list[str] | None = None, log=print, substeps: int | None = None,
+              bodies: Path | None = None) -> tuple[dict, int]:
     """Run the benchmark into ``out_dir``; returns (report dict, exit code). The exit code is 1 when a
     section failed (our code raised), 0 otherwise (skipped optional peers are not failures). ``substeps``:
     the fit section's substeps per step (one spring pass each) instead of the default settings."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    ctx = Context(out_dir=out, quick=quick, stress=stress, log=log, substeps=substeps)
+    ctx = Context(out_dir=out, quick=quick, stress=stress, log=log, substeps=substeps, bodies=bodies)
     started = now()
     info = machine()
     # every kernel compiled (or loaded) before the first section times anything, as the service does
@@ -62,6 +64,7 @@ def run_bench(out_dir: Path | str = "bench-results", quick: bool = False, stress
         mode += " + stress"
     cmd = ("tryon bench" + (" --quick" if quick else "") + (" --stress" if stress else "")
            + (f" --only {' '.join(only)}" if only else "")
+           + (f" --bodies {bodies}" if bodies is not None else "")
            + (f" --substeps {substeps}" if substeps is not None else ""))
     report = write_report(out, done, {
         "started": started, "mode": mode, "command": cmd, "seconds": time.perf_counter() - t0,

@@ -71,6 +71,7 @@ class Context:
     cache: dict = field(default_factory=dict)
     log: Callable[[str], None] = print
     substeps: int | None = None
+    bodies: Path | None = None  # the sizes section's people (an ANSUR II style CSV); None: the shipped sample
 
     def cached(self, key, make):
         if key not in self.cache:

@@ -18,11 +18,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--stress", action="store_true", help="run the long stability stress test")
     p.add_argument("--out", type=Path, default=Path("bench-results"), help="output directory (default bench-results/)")
     p.add_argument("--only", nargs="+", metavar="SECTION", default=None,
-                   help="run only these sections (table1 table2 table3 fit poses pareto simplify peers stability scaling scale)")
+                   help="run only these sections (table1 table2 table3 fit poses sizes pareto simplify peers stability scaling scale)")
     p.add_argument("--page", type=Path, default=None, metavar="MD",
                    help="also write the figures page (e.g. docs/benchmarks.md, its plots beside it in bench/)")
     p.add_argument("--from", dest="from_json", type=Path, default=None, metavar="BENCH_JSON",
                    help="with --page: write the page from an earlier run's bench.json instead of running")
+    p.add_argument("--bodies", type=Path, default=None, metavar="CSV",
+                   help="sizes section: the people (an ANSUR II style CSV, mm; default: tests/data/bodies-sample.csv)")
     p.add_argument("--substeps", type=int, default=None, metavar="N",
                    help=f"fit section: N substeps per step, one spring pass each (default {SimSettings().substeps}), "
                         f"to see what fewer cost in accuracy; 1 to {MAX_SUBSTEPS}")
@@ -42,8 +44,10 @@ def run(args: argparse.Namespace) -> int:
     if args.substeps is not None and not 1 <= args.substeps <= MAX_SUBSTEPS:
         raise CliError(f"--substeps must be 1 to {MAX_SUBSTEPS}, got {args.substeps}")
     writable_dir(args.out, "--out")  # before the run, not after minutes of it
+    if args.bodies is not None and not args.bodies.is_file():
+        raise CliError(f"--bodies: no such file {args.bodies}")
     report, code = run_bench(args.out, quick=args.quick, stress=args.stress, only=args.only,
-                             substeps=args.substeps)
+                             substeps=args.substeps, bodies=args.bodies)
     for s in report["sections"]:
         for h in s["headline"]:
             print(h)

@@ -1,0 +1,126 @@
+"""Size advice against the size chart on real people (section "sizes"): for every person of an ANSUR II
+style CSV (``tryon bench --bodies CSV``; by default the small sample of made-up people in
+``tests/data/bodies-sample.csv``) and the catalogue's T-shirt and trousers styles, the drape-based advice
+(``tryon fit-table``'s code, that of ``POST /api/fit``) beside the size the style's own chart gives:
+how often they agree, exactly and within one size, every disagreement with the advice's reason, and the time
+of one advice.
+
+The chart is the maker's claim, the drape our measurement: where they disagree the report says why (the
+advice's reason), it does not tune the verdict to the chart. The chart's size of a person is the largest of
+the sizes whose ranges hold each of their girths the chart gives (a garment must go round every one);
+people outside the chart (below its smallest row or above its largest) are counted apart.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from tryon.bench.common import Context, Section, SkipSection, Table, fmt
+
+STYLES = ("tshirt", "trousers")
+# People taken in the quick run (the first of the CSV).
+QUICK_PEOPLE = 3
+SAMPLE = Path("tests") / "data" / "bodies-sample.csv"
+
+
+def _bodies_path(ctx: Context) -> Path:
+    from tryon.bench.scenes import garments_dir
+
+    if ctx.bodies is not None:
+        return ctx.bodies
+    sample = garments_dir().parent / SAMPLE
+    if not sample.exists():
+        raise SkipSection(f"no bodies: give --bodies CSV (the sample {SAMPLE} is not in this installation)")
+    return sample
+
+
+def _catalogue(root: Path):
+    """The catalogue's styles of STYLES, ingested from ``garments/`` with their charts."""
+    from tryon.bench.scenes import catalogue_entries, garments_dir
+    from tryon.garment.catalogue import Catalogue
+
+    catalogue = Catalogue(root)
+    for e in catalogue_entries():
+        if e.get("style") in STYLES:
+            catalogue.ingest(garments_dir() / e["file"], name=e["name"], category=e["category"], units=e["units"],
+                             size=e["size"], style=e["style"], chart=e.get("chart"))
+    return catalogue
+
+
+def chart_size(entries, measurements: dict) -> int | None:
+    """Index of the chart's size for a person (see the module doc); None outside the chart."""
+    from tryon.fit.advice import chart_position
+
+    position = chart_position([m.chart for m in entries], measurements)
+    if not position:
+        return None
+    worst = max(position.values())
+    if worst < 0 or worst >= len(entries) or min(position.values()) < 0:
+        return None
+    return int(worst)
+
+
+def run(ctx: Context, sec: Section) -> None:
+    from tryon.scale.fit_table import advise_person, read_bodies
+
+    path = _bodies_path(ctx)
+    people = read_bodies(path)
+    if ctx.quick:
+        people = people[:QUICK_PEOPLE]
+    with tempfile.TemporaryDirectory(prefix="tryon-sizes-") as tmp:
+        catalogue = _catalogue(Path(tmp))
+        styles = {s: catalogue.style(s) for s in STYLES if catalogue.style(s)}
+        models = {m.id: catalogue.model(m.id) for entries in styles.values() for m in entries}
+        rows, disagreements, times = [], [], []
+        stats = {}
+        for style, entries in styles.items():
+            labels = [m.size for m in entries]
+            st = stats[style] = {"people": 0, "covered": 0, "exact": 0, "within_one": 0, "no_advice": 0}
+            for person in people:
+                t = time.perf_counter()
+                row = advise_person(person, style, entries, models)
+                times.append(time.perf_counter() - t)
+                st["people"] += 1
+                want = chart_size(entries, person.measurements)
+                got = labels.index(row["recommended"]) if row["recommended"] in labels else None
+                if got is None:
+                    st["no_advice"] += 1
+                if want is None:
+                    continue
+                st["covered"] += 1
+                st["exact"] += got == want
+                st["within_one"] += got is not None and abs(got - want) <= 1
+                if got != want:
+                    disagreements.append([person.id, style, labels[want], row["recommended"] or "none",
+                                          row["verdicts"], row["reason"]])
+    for style, st in stats.items():
+        covered = max(st["covered"], 1)
+        rows.append([style, st["people"], st["covered"], st["exact"], f"{100 * st['exact'] / covered:.0f} %",
+                     st["within_one"], f"{100 * st['within_one'] / covered:.0f} %", st["no_advice"]])
+    sec.data.update({"bodies": str(path), "people": len(people), "styles": stats,
+                     "advice_s_median": float(np.median(times)) if times else None,
+                     "disagreements": disagreements})
+    sec.tables.append(Table(
+        f"Drape-based advice against the style's chart ({len(people)} people of {path.name})",
+        ["style", "people", "in the chart", "same size", "same %", "within one size", "within one %", "no size fits"],
+        rows,
+        note="The chart's size: the largest of the sizes whose ranges hold the person's girths (chest and waist for "
+             "tops, waist and hips for bottoms, as the catalogue's charts give them); 'in the chart': people inside "
+             "its smallest and largest rows. 'no size fits': the advice recommends none (its reason below).",
+    ))
+    sec.tables.append(Table(
+        "Where the drape and the chart disagree",
+        ["person", "style", "chart", "advice", "verdicts", "the advice's reason"],
+        disagreements or [["-", "-", "-", "-", "-", "none"]],
+    ))
+    median = sec.data["advice_s_median"]
+    for style, st in stats.items():
+        covered = max(st["covered"], 1)
+        sec.headline.append(
+            f"sizes, {style}: the advice agrees with the chart for {st['exact']} of {st['covered']} people "
+            f"({100 * st['exact'] / covered:.0f} %), within one size for {st['within_one']} "
+            f"({100 * st['within_one'] / covered:.0f} %); median {fmt(median)} s an advice")

@@ -37,7 +37,7 @@ FIRST_REQUESTS = textwrap.dedent("""
     before = signatures()
     from tryon.api.export import json_bytes, mesh_bytes
     from tryon.api.routes.bodies import body_glb, body_json
-    from tryon.api.routes.tryon import result_json, run_tryon, strain_colours
+    from tryon.api.service import result_json, run_tryon, strain_colours
     from tryon.api.schemas.tryon import TryOnRequest
     from tryon.body.build import build_body
     from tryon.api.schemas.bodies import to_body_params

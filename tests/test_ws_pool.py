@@ -19,7 +19,8 @@ from tryon.api.pool import (
     busy_response_headers,
     request_key,
 )
-from tryon.api.routes.ws import FRAME_HEADER, MAX_CLOSE_REASON_BYTES, FrameCodec, close_reason, encode_frame, encoding
+from tryon.api.frames import FRAME_HEADER, FrameCodec, encode_frame, encoding
+from tryon.api.routes.ws import MAX_CLOSE_REASON_BYTES, close_reason
 
 
 def test_pool_refuses_at_once_when_full_and_frees_slots():
@@ -130,7 +131,7 @@ def test_frame_encoding_roundtrip():
 
 def test_tryon_key_fills_defaults_and_ignores_fps():
     from tryon.api.pool import tryon_key
-    from tryon.api.routes.ws import LiveTryOnRequest
+    from tryon.api.live import LiveTryOnRequest
     from tryon.api.schemas.tryon import TryOnRequest
 
     body = {"height": 170, "chest": 96, "waist": 82, "hips": 100}

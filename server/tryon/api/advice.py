@@ -13,7 +13,7 @@ from __future__ import annotations
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 
 from tryon.api.pool import PoolFull, ResultCache, SimPool, tryon_key
-from tryon.api.routes.tryon import simulate
+from tryon.api.service import simulate
 from tryon.api.schemas.bodies import to_body_params
 from tryon.api.schemas.fit import FitRequest
 from tryon.api.schemas.tryon import TryOnRequest

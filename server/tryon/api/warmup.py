@@ -53,7 +53,7 @@ def _exercise() -> None:
     # what the warm-up warms
     from tryon.api.export import json_bytes, mesh_bytes
     from tryon.api.routes.bodies import body_glb, body_json
-    from tryon.api.routes.tryon import result_json, run_tryon, strain_colours
+    from tryon.api.service import result_json, run_tryon, strain_colours
     from tryon.api.schemas.bodies import to_body_params
     from tryon.api.schemas.tryon import TryOnRequest
     from tryon.body.build import build_body

@@ -1,0 +1,178 @@
+"""One live try-on's simulation side (``WS /ws/tryon``): the request with its display fields, the init and
+done messages, the run on a pool thread that hands frames to the event loop (``LiveSession``), and what a
+cached try-on needs to be replayed. The route and the socket's coroutines are in ``routes/ws.py``."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import threading
+import time
+from concurrent.futures import Future
+from typing import Any, Literal
+
+import numpy as np
+from fastapi import HTTPException
+from pydantic import Field
+
+from tryon.api.export import json_bytes, mesh_arrays
+from tryon.api.frames import FLOAT32, FrameCodec
+from tryon.api.pool import CachedTryOn, RunGuard
+from tryon.api.schemas.tryon import TryOnRequest
+from tryon.api.service import body_mesh, prepare_tryon, result_json
+from tryon.garment.catalogue import Catalogue
+from tryon.garment.model import GarmentModel
+from tryon.sim.run import TryOnResult, drape
+from tryon.sim.settings import SimSettings
+
+class LiveTryOnRequest(TryOnRequest):
+    """``POST /api/tryon``'s body plus the frame rate the client wants."""
+
+    fps: int = Field(30, ge=1, le=60, description="frames per second of wall time to send, 1/s; range [1, 60]")
+    encoding: Literal["float32", "uint16"] = Field(
+        "float32", description="frame positions: float32 metres, or uint16 quantized in a box around the "
+                               "body (half the bytes, ~0.04 mm steps)")
+
+
+def init_message(body: dict, model: GarmentModel, sim_settings: SimSettings) -> dict:
+    """The init message without its ``encoding`` (see :func:`with_encoding`): topology, the body (its
+    ``routes.tryon.body_mesh``), the garment's catalogue facts, the run's settings."""
+    meta = model.meta
+    return {
+        "type": "init",
+        "vertex_count": int(len(model.vertices)),
+        "face_count": int(len(model.faces)),
+        "faces": np.ascontiguousarray(model.faces, dtype=np.int32),
+        "body": {**mesh_arrays(body["vertices"], body["faces"]), "achieved": body["achieved"]},
+        "garment": {"id": meta.id, "name": meta.name, "category": meta.category, "size": meta.size,
+                    "vertices": meta.vertices, "faces": meta.faces, "coarse_vertices": meta.coarse_vertices},
+        "max_steps": int(sim_settings.max_steps),
+        "time_step": float(sim_settings.time_step),
+        "strain_limit": float(sim_settings.strain_limit[0]),  # structural springs' stretch limit
+    }
+
+
+def with_encoding(init_text: str, codec: FrameCodec, vertex_count: int) -> str:
+    """The init JSON text (an object) with ``"encoding"`` added: the (large) rest is serialised once and
+    kept, so a cached try-on can be replayed in any encoding without re-serialising two meshes."""
+    return init_text[:-1] + ',"encoding":' + json.dumps(codec.describe(vertex_count), separators=(",", ":")) + "}"
+
+
+def done_message(result: TryOnResult, stopped_by: str | None, cached_answer_s: float | None = None) -> dict:
+    """The done message: the same metrics as ``POST /api/tryon``, the per-vertex strain beside them.
+    ``stopped_by``: the run's ``RunGuard.stopped_by``; ``cached_answer_s``: see ``result_json``."""
+    metrics = result_json(result, cached_answer_s)["metrics"]
+    strain = metrics.pop("strain")
+    if stopped_by == "wall_limit":
+        metrics["timed_out"] = True
+    return {"type": "done", "metrics": metrics, "strain": strain, "stopped_by": stopped_by,
+            "timed_out": stopped_by == "wall_limit", "cached": cached_answer_s is not None}
+
+
+def replay_parts(run: CachedTryOn, model: GarmentModel) -> tuple[str, np.ndarray]:
+    """The init message's text without its encoding and the body's bounding box (2, 3) m of a try-on
+    (``model``: its garment), made once and kept with it in ``run.extra``: ~0.5 MB of JSON, made on a
+    worker, never on the event loop. A try-on first asked for over REST gets them when a stream replays it."""
+    if "init_base" not in run.extra:
+        vertices = run.body["vertices"]
+        run.extra["body_box"] = np.stack([vertices.min(axis=0), vertices.max(axis=0)])
+        run.extra["init_base"] = json_bytes(init_message(run.body, model, run.settings)).decode()
+    return run.extra["init_base"], run.extra["body_box"]
+
+
+def run_live(catalogue: Catalogue, request: LiveTryOnRequest, session: LiveSession,
+             guard: RunGuard) -> tuple[CachedTryOn, dict] | None:
+    """On a worker: build the body, load the garment, hand over init, drape. Returns (the run as the
+    result cache keeps it, the done message), or None when the client left before a worker was free."""
+    guard.start()
+    if guard.cancelled.is_set():
+        return None
+    body, model, sim_settings = prepare_tryon(catalogue, request)
+    run = CachedTryOn(result=None, body=body_mesh(body), settings=sim_settings)
+    # serialised here, on the worker: the init message carries two meshes (~0.5 MB of JSON), too much
+    # work for the event loop
+    init_base, box = replay_parts(run, model)
+    session.offer_init(init_base, model, FrameCodec.around(request.encoding, box))
+    run.result = drape(body, model, sim_settings, guard)
+    return run, done_message(run.result, guard.stopped_by)
+
+
+def failure_reason(error: BaseException, request: TryOnRequest) -> str:
+    """A failed try-on in words."""
+    if isinstance(error, HTTPException):
+        return str(error.detail)
+    if isinstance(error, KeyError):
+        return f"no garment with id {request.garment_id!r} in the catalogue (see GET /api/garments)"
+    if isinstance(error, ValueError):
+        return f"cannot run this try-on: {error}"
+    return f"the simulation failed ({type(error).__name__}: {error})"
+
+
+class LiveSession:
+    """The state shared by one connection's simulation thread and its sender coroutine.
+
+    The thread hands things over through ``call_soon_threadsafe`` only; the loop owns the fields.
+    The latest-frame slot holds ``(step, positions bytes)``; the sender numbers the frames it sends.
+    """
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, fps: int):
+        self.loop = loop
+        self.interval_s = 1.0 / fps
+        self.cancelled = threading.Event()  # read by the simulation thread's RunGuard
+        self.wake = asyncio.Event()
+        self.init: str | None = None  # the init message, as JSON text
+        self.latest: tuple[int, bytes] | None = None  # the latest-frame slot
+        self.finished = False
+        self.frames_sent = 0
+        self.frames_offered = 0
+        self.bytes_sent = 0
+        self.first_frame_at: float | None = None
+        self.started_at = time.monotonic()
+        self.future: Future | None = None  # the pool job
+        # simulation-thread side
+        self._next_offer_at = 0.0
+        self._model: Any = None
+        self.codec = FLOAT32  # set with the init message, before any frame
+
+    # -- called on the simulation thread ---------------------------------------------------------
+    def offer_init(self, init_base: str, model: Any, codec: FrameCodec) -> None:
+        """The init message (JSON text without ``encoding``), the model whose frames follow, their codec."""
+        self.codec = codec
+        self._model = model
+        self.loop.call_soon_threadsafe(self._set_init, with_encoding(init_base, codec, len(model.vertices)))
+
+    def on_frame(self, step: int, coarse: np.ndarray) -> bool:
+        """Hand a frame over when one is due (at most ``fps`` per second); never blocks. Only these
+        frames are expanded to the full mesh."""
+        now = time.monotonic()
+        if now < self._next_offer_at or self._model is None:
+            return True
+        # a fixed cadence (not "now + interval"): steps rarely land on the deadline, and waiting a full
+        # interval from a late step would deliver well under fps; the sender still spaces frames 1/fps apart
+        self._next_offer_at = max(self._next_offer_at + self.interval_s, now - self.interval_s)
+        payload = self.codec.encode(self._model.expand(coarse))
+        self.loop.call_soon_threadsafe(self._put_frame, (step, payload))
+        return True
+
+    # -- called on the event loop ------------------------------------------------------------------
+    def _set_init(self, message: str) -> None:
+        self.init = message
+        self.wake.set()
+
+    def _put_frame(self, frame: tuple[int, bytes]) -> None:
+        self.latest = frame  # replaces an unsent frame: a slow client never gets a backlog
+        self.frames_offered += 1
+        self.wake.set()
+
+    def finish(self, step: int, vertices: np.ndarray) -> None:
+        """The final state: always sent, replacing any frame still waiting."""
+        self._put_frame((step, self.codec.encode(vertices)))
+        self.finished = True
+
+    def stop(self) -> None:
+        """The client is gone (or the run failed): stop simulating, free a waiting slot at once."""
+        if self.future is not None:
+            self.future.cancel()  # only succeeds while the job still waits for a worker
+        self.cancelled.set()
+        self.finished = True
+        self.wake.set()

@@ -83,6 +83,7 @@ def test_unknown_garment_is_404(client_and_id):
 @pytest.mark.parametrize("patch, field", [
     ({"settings": {"time_step": 0.5}}, "time_step"),
     ({"settings": {"passes": 0}}, "passes"),
+    ({"settings": {"passes": 20, "substeps": 16}}, "multiple of substeps"),
     ({"settings": {"simplification": 0.0}}, "simplification"),
     ({"settings": {"max_steps": 100000}}, "max_steps"),
     ({"settings": {"unknown": 1}}, "unknown"),

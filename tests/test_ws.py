@@ -30,7 +30,7 @@ BODY = {"height": 170.0, "chest": 96.0, "waist": 82.0, "hips": 100.0}
 SHORT = {"max_steps": 60}  # a quick drape of the T-shirt (a few hundred ms)
 # The most work a request may ask for (dense trousers, every vertex simulated, smallest step, most
 # passes): ~0.3 s per step, a minute to rest, so it runs until stopped (client gone, or the wall-clock limit).
-LONG = {"max_steps": 3000, "time_step": 0.005, "passes": 50, "substeps": 16, "simplification": 1.0}
+LONG = {"max_steps": 3000, "time_step": 0.005, "passes": 48, "substeps": 16, "simplification": 1.0}
 # Many quick steps (small time step): far more steps per second than frames asked for.
 MANY_STEPS = {"max_steps": 3000, "time_step": 0.005}
 

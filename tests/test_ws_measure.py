@@ -26,7 +26,7 @@ pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 ARTIFACTS = Path(__file__).resolve().parents[1] / "test-artifacts"
 BODY = {"height": 172.0, "chest": 98.0, "waist": 84.0, "hips": 100.0}
-HEAVY = {"max_steps": 3000, "time_step": 0.005, "passes": 50, "substeps": 16, "simplification": 1.0}
+HEAVY = {"max_steps": 3000, "time_step": 0.005, "passes": 48, "substeps": 16, "simplification": 1.0}
 
 
 def stream(ws_url: str, request: dict, fps: int = 30) -> dict:

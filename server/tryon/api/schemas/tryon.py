@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from tryon.api.schemas.bodies import MeasurementsIn, PoseIn
 from tryon.sim.metrics import SLID_LIMIT_CM
@@ -26,7 +26,7 @@ class SimSettingsIn(BaseModel):
     time_step: float = Field(_DEFAULT.time_step, ge=0.005, le=0.1,
                              description="time step, s (the paper uses 0.05 s); range [0.005, 0.1]")
     passes: int = Field(_DEFAULT.passes, ge=1, le=50,
-                        description="constraint passes per time step; range [1, 50]")
+                        description="constraint passes per time step, a multiple of substeps; range [1, 50]")
     substeps: int = Field(_DEFAULT.substeps, ge=1, le=16,
                           description="substeps per time step the passes are spread over; range [1, 16]")
     simplification: float = Field(_DEFAULT.simplification, ge=0.05, le=1.0,
@@ -35,6 +35,17 @@ class SimSettingsIn(BaseModel):
     max_steps: int = Field(_DEFAULT.max_steps, ge=1, le=3000,
                            description="step limit (the run stops earlier once the garment is at rest); "
                                        "range [1, 3000]")
+
+    @model_validator(mode="after")
+    def _passes_fill_the_substeps(self) -> "SimSettingsIn":
+        """A setting means what it says: each substep runs passes / substeps spring passes, so passes must be a
+        multiple of substeps (20 passes on 16 substeps would run 16)."""
+        if self.passes % self.substeps:
+            lower = max(self.substeps, self.passes // self.substeps * self.substeps)
+            raise ValueError(f"passes ({self.passes}) must be a multiple of substeps ({self.substeps}): each substep "
+                             f"runs passes / substeps spring passes (try passes {lower}, or substeps that divide "
+                             f"{self.passes})")
+        return self
 
     def to_settings(self) -> SimSettings:
         return SimSettings(time_step=self.time_step, passes=self.passes, substeps=self.substeps,

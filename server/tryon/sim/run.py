@@ -163,12 +163,9 @@ CONTACT_WEIGHT = 0.2
 # Extra Gauss-Seidel passes per substep over the springs with both ends on the body (a waistband around
 # the hips, a bodice over the chest), stretch only: their hoop tension is what holds a garment up, and
 # with one pass of the whole cloth per substep it stretched 15-25 % before friction held it, so bottoms
-# came to rest 1-2 cm too low, beyond their limits (before the relaxation after the loop existed). One
-# pass (/work/scratch/matrix.py: 90 catalogue drapes, 27 real-garment drapes), against two: catalogue
-# steps 6,524 -> 6,375, springs over (all on the large body) 4,920 -> 4,575, small and medium bodies
-# still 60/60 within every limit; real garments at rest 24/27 -> 27/27, steps 3,104 -> 2,040, springs over
-# 7,371 -> 7,412; no penetration either way. None: the small and medium bodies' drapes need 3-7 % more
-# steps and the large body's sleeveless dress M keeps a spring over.
+# came to rest 1-2 cm too low, beyond their limits. One pass rather than two: as accurate on the catalogue
+# and the real garments, with fewer steps to rest (two kept some real garments from rest); none: the
+# drapes need 3-7 % more steps and leave springs over on the large body (`tryon bench --only fit`).
 CONTACT_PASSES = 1
 
 FrameCallback = Callable[[int, np.ndarray], bool]

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from tryon.garment.model import BENDING, SHEAR, STRUCTURAL
+from tryon.garment.springs import BENDING, SHEAR, STRUCTURAL
 from tryon.garment.springs import spring_model
 
 

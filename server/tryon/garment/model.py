@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-STRUCTURAL, SHEAR, BENDING = 0, 1, 2
-SPRING_KINDS = ("structural", "shear", "bending")
+from tryon.garment.springs import BENDING, spring_model
+
 # Version of what preparation makes of a source file; a model saved by another version is prepared again
 # from its kept source (``is_current``). Raise it whenever ingest, simplification or springs change their
 # output. 2: a file's connected pieces are simplified each by its own share.
@@ -89,7 +89,6 @@ class GarmentModel:
         within the cloth's stretch limits where it follows the coarse one (``expand``), whose triangles,
         free to shear and buckle between their springs, stretch the full triangles on them by up to 60 %.
         Computed once per model (10-20 ms for 3,000-5,000 vertices)."""
-        from tryon.garment.springs import spring_model  # springs imports this module's kind constants
 
         pairs, rest, kind = spring_model(self.vertices, self.faces)
         keep = kind != BENDING

@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from tryon.garment.ingest import CleanMesh
-from tryon.garment.model import SPRING_KINDS, GarmentMeta, GarmentModel
+from tryon.garment.model import GarmentMeta, GarmentModel
 from tryon.garment.simplify import attach, collapse_with_parents
-from tryon.garment.springs import spring_model
+from tryon.garment.springs import SPRING_KINDS, spring_model
 
 # Areal density of cotton jersey (T-shirt fabric, 150 g/m^2): the default fabric, kg/m^2.
 DEFAULT_DENSITY = 0.15

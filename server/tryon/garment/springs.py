@@ -22,7 +22,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from tryon.garment.model import BENDING, SHEAR, STRUCTURAL
+# Spring kinds, as stored in a model's ``kind`` (s,) int8, and their names in reports.
+STRUCTURAL, SHEAR, BENDING = 0, 1, 2
+SPRING_KINDS = ("structural", "shear", "bending")
 
 # An angle within 90 +- 15 degrees is "near right" (3DMAX quads are rectangles up to mesh distortion).
 RIGHT_ANGLE_TOLERANCE_DEG = 15.0

@@ -7,7 +7,7 @@ from numba import njit
 
 from scipy.spatial import cKDTree
 
-from tryon.garment.model import SPRING_KINDS
+from tryon.garment.springs import SPRING_KINDS
 from tryon.sim.constraints import spring_strain
 from tryon.sim.pieces import piece_tops
 

@@ -71,7 +71,8 @@ from typing import Callable
 import numpy as np
 
 from tryon.body.types import Body
-from tryon.garment.model import STRUCTURAL, GarmentModel
+from tryon.garment.model import GarmentModel
+from tryon.garment.springs import STRUCTURAL
 from tryon.sim.align import ArmPlan, align_sized, plan_arms
 from tryon.sim.arms import ArmSchedule
 from tryon.sim.bodystate import BodyCollider

@@ -10,7 +10,8 @@ import numpy as np
 
 from tryon.body.maps import build_part_maps
 from tryon.body.types import PART_NAMES, Body
-from tryon.garment.model import BENDING, SHEAR, STRUCTURAL, GarmentMeta, GarmentModel
+from tryon.garment.model import GarmentMeta, GarmentModel
+from tryon.garment.springs import BENDING, SHEAR, STRUCTURAL
 
 # Default collision margin of the synthetic bodies' maps, metres (matches SimSettings' default order).
 MAP_MARGIN = 0.01

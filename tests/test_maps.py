@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tryon.body.maps import build_part_maps
-from tryon.sim.scenes import stick_body
+from tryon.bench.synthetic import stick_body
 
 
 @pytest.fixture(scope="module")
@@ -100,7 +100,7 @@ def test_cell_ids_match_the_layout(body):
 
 def test_theta_wraps_around():
     """A face straddling theta = +-pi is listed in the first and the last sector."""
-    from tryon.sim.scenes import capped_cylinder
+    from tryon.bench.synthetic import capped_cylinder
 
     v, f = capped_cylinder([0, 0, 0], [0, 1, 0], 0.1, n_around=7, n_along=2)
     maps = build_part_maps(v, f, np.zeros(len(f), np.int16), np.array([[[0, 0, 0], [0, 1, 0]]], float), 0.002)

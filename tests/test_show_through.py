@@ -8,7 +8,7 @@ import pytest
 from tryon.sim.bodystate import BodyCollider
 from tryon.sim.collide import relevant_parts
 from tryon.sim.metrics import penetration_metrics
-from tryon.sim.scenes import stick_body
+from tryon.bench.synthetic import stick_body
 from tryon.sim.show_through import PROBE_IN, show_through_depth, show_through_metrics
 
 TORSO_RADIUS = 0.15  # m, stick_body's

@@ -14,7 +14,7 @@ from tryon.sim.constraints import (
 )
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.run import drape
-from tryon.sim.scenes import body_from_parts, cloth_square
+from tryon.bench.synthetic import body_from_parts, cloth_square
 from tryon.sim.settings import SimSettings
 
 LIMITS = np.array([0.10, 0.15, 0.30])

@@ -12,7 +12,7 @@ from tryon.sim.constraints import (
     solve_listed, sweep_downward, sweep_springs, top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, verlet_step
-from tryon.sim.scenes import cloth_square
+from tryon.bench.synthetic import cloth_square
 from tryon.sim.substeps import finish_step
 
 LIMITS = np.array([0.10, 0.15, 0.30])
@@ -190,7 +190,7 @@ def test_spring_visits_count_the_passes_and_sweeps_of_a_step():
     substep, or only in the last; ``passed=1`` leaves out the first substep's passes (the caller's)."""
     import inspect
 
-    from tryon.sim import perf
+    from tryon.bench import perf
 
     names = list(inspect.signature(finish_step.py_func).parameters)
     args = dict.fromkeys(names, 0)

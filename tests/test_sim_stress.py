@@ -9,7 +9,7 @@ import pytest
 
 from tryon.body.params import Measurements, Pose
 from tryon.sim.settings import SimSettings
-from tryon.sim.stress import MAX_ENERGY, MAX_STRETCH, catalogue_models, run_scene, stress
+from tryon.bench.stress import MAX_ENERGY, MAX_STRETCH, catalogue_models, run_scene, stress
 
 
 @pytest.mark.slow

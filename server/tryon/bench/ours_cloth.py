@@ -18,7 +18,7 @@ from tryon.bench.cloth_scene import FRAME_DT, HEIGHT, RADIUS, SIDE, FrameProbe
 # Icosphere subdivisions of the ball mesh: level 3 (1280 faces, ~4.7 cm edges) sits within 1 mm of the
 # true sphere, under the 4 mm collision margin, with ~8 faces per cylinder-map cell.
 SPHERE_SUBDIVISIONS = 3
-# Map margin of the ball body, m (as the synthetic bodies of tryon.sim.scenes).
+# Map margin of the ball body, m (as the synthetic bodies of tryon.bench.synthetic).
 MAP_MARGIN = 0.01
 # m: our scene is lifted by this much (and measured back in the shared frame): our simulation has a
 # floor at y = 0 (a body's feet), which would cut the ball at its equator; the peers have none.
@@ -94,7 +94,7 @@ def timed_drape(body, model, settings, initial=None, steps_per_frame: int = 1, p
 
 def run_sphere(n: int, frames: int, settings=None, substeps: int = 1, max_seconds: float = 1e9) -> dict:
     """Our cloth-on-ball run: ``substeps`` time steps of FRAME_DT / substeps per frame."""
-    from tryon.sim.scenes import cloth_square
+    from tryon.bench.synthetic import cloth_square
     from tryon.sim.settings import SimSettings
 
     t0 = time.perf_counter()

@@ -20,7 +20,7 @@ WARMUP_STEPS = 10  # steps before timing: the tube starts falling and touching t
 
 def tube_model(n_vertices: int, body):
     """A tube ``n_vertices`` strong, 3 cm outside the body's hips, from the waist down to mid-thigh."""
-    from tryon.sim.scenes import cloth_tube
+    from tryon.bench.synthetic import cloth_tube
 
     hips_girth = body.achieved.get("hips", 100.0) / 100.0  # m
     radius = hips_girth / (2 * math.pi) + 0.03

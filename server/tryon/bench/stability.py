@@ -1,4 +1,4 @@
-"""Numerical stability: the stress summary of ``tryon.sim.stress`` (random bodies, garments, time steps,
+"""Numerical stability: the stress summary of ``tryon.bench.stress`` (random bodies, garments, time steps,
 passes and strain limits, checked at every step: scenes, NaNs, worst stretch, worst energy).
 ``tryon bench --stress`` runs the long version."""
 
@@ -12,9 +12,9 @@ SCENES = {"quick": 2, "full": 24, "stress": 200}
 
 def run(ctx: Context, sec: Section) -> None:
     try:
-        from tryon.sim.stress import stress
+        from tryon.bench.stress import stress
     except ImportError as exc:
-        raise SkipSection(f"tryon.sim.stress is not available ({exc})") from exc
+        raise SkipSection(f"tryon.bench.stress is not available ({exc})") from exc
     mode = "stress" if ctx.stress else "quick" if ctx.quick else "full"
     n = SCENES[mode]
     # quick: the main garment only (already prepared); otherwise the whole catalogue

@@ -22,7 +22,7 @@ from numba import njit
 # Angular resolution of the cylinder maps: 48 sectors of 7.5 degrees keep cells at about 2 cm on a
 # torso (radius ~0.15 m). Each cell's face list is grown by the maps' margin (1 cm), so the lists shrink
 # only slowly with the cells (~55 faces per torso cell at 32 x 2.5 cm, ~47 at 48 x 1.8 cm); still the
-# collision per step measured ~20 % faster (``python3 -m tryon.sim.perf``: 2.9 -> 2.3 ms), with the same
+# collision per step measured ~20 % faster (``python3 -m tryon.bench.perf``: 2.9 -> 2.3 ms), with the same
 # drapes bit for bit on the catalogue, for 0.5 M instead of 0.28 M list entries (built in ~9 ms).
 N_THETA = 48
 # Target cell height along the part axis, metres: about the torso's cell width, so cells are squarish.

@@ -239,7 +239,7 @@ def pack_springs(springs: np.ndarray, rest: np.ndarray, kind: np.ndarray, limit:
     """(ends (s, 2) uint32, table (s, 4) float64) for the packed kernels: table rows are (l_max m, rest m,
     compression fraction, 0). One 32-byte row per spring instead of a kind lookup into two tables (and
     squared-length tests, so a spring within its range costs no square root): the passes run ~20 %
-    faster on a draped T-shirt (``python3 -m tryon.sim.perf``)."""
+    faster on a draped T-shirt (``python3 -m tryon.bench.perf``)."""
     # unsigned: numba then indexes without the negative-index wrap-around (the passes ~4 % faster)
     ends = np.ascontiguousarray(springs, dtype=np.uint32)
     kind = np.asarray(kind, dtype=np.int64)
@@ -346,7 +346,7 @@ def limit_stretch_downward(x, x_prev, inv_mass, ends, table, order, touching):
 def pack_sweep(ends, table, order):
     """(ends (q, 2) uint32, l_max (q,) float64) of the springs ``order`` (q,) int64 in that order: what the
     sweep reads, one contiguous row per visit instead of two scattered lookups (the sweep ran ~10 %
-    faster on a draped T-shirt, ``python3 -m tryon.sim.perf``)."""
+    faster on a draped T-shirt, ``python3 -m tryon.bench.perf``)."""
     sweep_ends = np.empty((order.shape[0], 2), dtype=np.uint32)
     sweep_lmax = np.empty(order.shape[0])
     for q in range(order.shape[0]):
@@ -363,7 +363,7 @@ def contact_springs(ends, table, on_body):
     bool), in spring order, stretch only (l0 = 0 and no compression: cloth pressed on the body must stay
     free to buckle, and a compressed spring is not even visited for a zero correction): the contact
     passes' springs. A kernel: the same selection by numpy fancy indexing cost ~0.3 ms per step on the
-    perf T-shirt (``python3 -m tryon.sim.perf``)."""
+    perf T-shirt (``python3 -m tryon.bench.perf``)."""
     n = 0
     for s in range(ends.shape[0]):
         if on_body[ends[s, 0]] and on_body[ends[s, 1]]:

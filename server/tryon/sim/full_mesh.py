@@ -9,7 +9,7 @@ catalogue T-shirt and A-line skirt M and the DiffAvatar T-shirt were over 10 %, 
 (p99 0.23-0.27), while no coarse spring was over its limit. Three rounds of ten stretch passes over the
 full mesh's own springs, each followed by the collision, bring that to p99 0.12-0.14, max 0.19-0.26,
 moving the vertices 4-6 mm (p99) from where the re-attachment put them, for ~11 ms per drape on the
-7,342-vertex perf T-shirt (``python3 -m tryon.sim.perf``'s garment). Where a coarse triangle cuts across a
+7,342-vertex perf T-shirt (``python3 -m tryon.bench.perf``'s garment). Where a coarse triangle cuts across a
 thin part (a hand, a foot), the full mesh pushed out round it still stretches there: collision wins.
 """
 

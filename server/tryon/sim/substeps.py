@@ -2,7 +2,7 @@
 
 A step is ``n_sub`` substeps of about eight kernel calls each; called one by one from Python (~2 us of
 dispatch each with their ten-odd arguments, plus the Python between them) they cost ~0.35 ms per step on
-the perf T-shirt (16 substeps, ``python3 -m tryon.sim.perf``: loop CPU 8.1 -> 7.7 ms per step on a loaded
+the perf T-shirt (16 substeps, ``python3 -m tryon.bench.perf``: loop CPU 8.1 -> 7.7 ms per step on a loaded
 machine). Here the substeps run in one call; what needs Python (the collision, the order refresh,
 growth, the rest test) stays once per step in ``run.drape``.
 """

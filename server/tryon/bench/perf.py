@@ -3,7 +3,7 @@ on its 30 % coarse mesh, a drape to rest well under a second).
 
 ``perf()`` builds a T-shirt of about 7,500 vertices with the catalogue generator (a finer grid
 than the catalogue's own), prepares it at B = 0.3 (~2,250 particles), drapes it on a medium body and
-times every kernel of the loop. Run ``python3 -m tryon.sim.perf``.
+times every kernel of the loop. Run ``python3 -m tryon.bench.perf``.
 
 ``finish_step`` runs 15 of a step's 16 substeps in one call; ``finish_step_ms_near_rest`` splits one such
 call, ten steps before rest, into what its spring passes, contact passes and top-down sweep add (on a

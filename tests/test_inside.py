@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tryon.sim.inside import (
+from tryon.sim.collision.inside import (
     COUNTERS, inside_angle, inside_area, inside_barycentric, inside_barycentric_xyz, inside_triangle,
     inside_triangle_xyz, random_hits,
 )

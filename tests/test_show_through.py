@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tryon.sim.bodystate import BodyCollider
-from tryon.sim.collide import relevant_parts
+from tryon.sim.collision.collider import BodyCollider
+from tryon.sim.collision.collider import relevant_parts
 from tryon.sim.metrics import penetration_metrics
 from tryon.bench.synthetic import stick_body
 from tryon.sim.show_through import PROBE_IN, show_through_depth, show_through_metrics

@@ -7,8 +7,8 @@ import pytest
 
 from tryon.body.build import build_body
 from tryon.body.params import Measurements, Pose
-from tryon.sim.bodystate import BodyCollider
-from tryon.sim.collide import face_boxes
+from tryon.sim.collision.collider import BodyCollider
+from tryon.sim.collision.kernels import face_boxes
 from tryon.sim.constraints import (
     limit_stretch_downward, pack_springs, satisfy_springs, satisfy_springs_numpy, spring_strain, top_down_order,
 )

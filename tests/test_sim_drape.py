@@ -270,7 +270,7 @@ def test_trouser_legs_too_long_for_the_body_start_above_the_feet(catalogue):
     legs are shortened from the crotch down so the hem starts above the feet, and no leg spring starts
     across a foot (before: 136 did, and the drape ended with 22 springs over, caught on the right foot)."""
     from tryon.sim.align import FOOT_CLEARANCE, align_garment, foot_top
-    from tryon.sim.bodystate import BodyCollider
+    from tryon.sim.collision.collider import BodyCollider
 
     small = build_body(Measurements(height=158, chest=86, waist=72, hips=92), Pose())
     model = _model(catalogue, "trousers-m.obj", "bottom")

@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from tryon.sim.collide import points_to_test
+from tryon.sim.collision.contacts import apply_friction, points_to_test, project_listed, project_planes
 from tryon.sim.constraints import (
-    STEEP, apply_friction, contact_springs, pack_springs, pack_sweep, project_listed, project_planes, solve_constraints,
-    solve_listed, sweep_downward, sweep_springs, top_down_order,
+    STEEP, contact_springs, pack_springs, pack_sweep, solve_constraints, solve_listed, sweep_downward, sweep_springs,
+    top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, verlet_step
 from tryon.bench.synthetic import cloth_square

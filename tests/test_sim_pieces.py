@@ -18,7 +18,7 @@ from tryon.sim.align import (
     leg_points, leg_radii, plan_arms,
 )
 from tryon.sim.constraints import spring_strain
-from tryon.sim.bodystate import _rotation
+from tryon.sim.collision.collider import _rotation
 from tryon.sim.pieces import BAND_DEPTH, bottom_mask, hanging_pieces, piece_labels, waistband_mask
 from tryon.sim.run import drape
 from tryon.sim.settings import SimSettings

@@ -209,8 +209,8 @@ def garment_on_body(ctx: Context, sec: Section) -> None:
     alignment), as many simulated seconds as our drape took to reach rest."""
     from tryon.bench.scenes import catalogue_entries, default_body, prepared
     from tryon.sim.align import align_garment
-    from tryon.sim.bodystate import BodyCollider
-    from tryon.sim.collide import relevant_parts
+    from tryon.sim.collision.collider import BodyCollider
+    from tryon.sim.collision.collider import relevant_parts
     from tryon.sim.run import drape
     from tryon.sim.settings import SimSettings
 

@@ -38,8 +38,8 @@ def table_garments(ctx: Context) -> list[dict]:
 def collision_step_ms(body, settings, points: np.ndarray, repeats: int) -> float:
     """Median ms of one collision-detection pass over every point of ``points``: OBB test, cylinder-map
     cell, ray and inside-triangle tests against the offset body (``BodyCollider.depth``)."""
-    from tryon.sim.bodystate import BodyCollider
-    from tryon.sim.collide import relevant_parts
+    from tryon.sim.collision.collider import BodyCollider
+    from tryon.sim.collision.collider import relevant_parts
 
     collider = BodyCollider(body, settings.collision_margin)
     parts = relevant_parts(body.maps, points.min(axis=0), points.max(axis=0), 0.15)
@@ -87,7 +87,7 @@ def table1(ctx: Context, sec: Section) -> None:
 
 
 def table2(ctx: Context, sec: Section) -> None:
-    from tryon.sim import inside
+    from tryon.sim.collision import inside
 
     n = 200_000 if ctx.quick else 2_000_000
     res = inside.benchmark(n=n, seed=0, repeats=3)

@@ -34,7 +34,7 @@ from tryon.body.params import POSE_RANGES
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.garment.topology import boundary_loops, cloth_distance, face_edge_ids
-from tryon.sim.bodystate import _rotation
+from tryon.sim.collision.collider import _rotation
 from tryon.sim.pieces import bottom_mask, section_sides, union_root
 
 # m: the garment's shoulder line is placed this far above the body's (a few mm of air, so the first

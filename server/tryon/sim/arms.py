@@ -22,7 +22,7 @@ import numpy as np
 from tryon.body.types import Body
 from tryon.garment.topology import cloth_distance
 from tryon.sim.align import ArmPlan, arm_joints
-from tryon.sim.bodystate import BodyCollider, _rotation
+from tryon.sim.collision.collider import BodyCollider, _rotation
 
 # Degrees per step the arms are turned back from the sleeve pose (slow enough that the arm surface
 # moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).

@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from tryon.garment.model import GarmentModel
-from tryon.sim.bodystate import BodyCollider
-from tryon.sim.collide import relevant_parts
+from tryon.sim.collision.collider import BodyCollider
+from tryon.sim.collision.collider import relevant_parts
 from tryon.sim.constraints import pack_springs, satisfy_springs, spring_strain
 
 # Rounds of (DISPLAY_PASSES stretch passes over the full mesh's springs, then the collision).

@@ -7,7 +7,7 @@ substeps; every loop over particles or springs is a numba kernel.
 One step (time_step dt) is ``substeps`` substeps of dt / substeps ("small steps": the passes spread over
 substeps converge much further than the same passes on one step). Each substep:
 1. Verlet prediction with gravity and air drag (eq. 1);
-2. first substep only: collision against the offset body (paper 3.3-3.4, ``collide.py``), which pushes
+2. first substep only: collision against the offset body (paper 3.3-3.4, ``collision/``), which pushes
    points out (eq. 4) and leaves a contact plane for each point pushed or within ``NEAR`` of the body;
    contacts still within ``PLANE_REUSE`` of where they touched only reuse their plane (no map query);
    later substeps push onto the planes, with friction on the predicted motion; a point pinched between two
@@ -75,8 +75,9 @@ from tryon.garment.model import GarmentModel
 from tryon.garment.springs import STRUCTURAL
 from tryon.sim.align import ArmPlan, align_sized, plan_arms
 from tryon.sim.arms import ArmSchedule
-from tryon.sim.bodystate import BodyCollider
-from tryon.sim.collide import points_to_test, relevant_parts, reuse_planes
+from tryon.sim.collision.collider import BodyCollider
+from tryon.sim.collision.collider import relevant_parts
+from tryon.sim.collision.contacts import flipped, points_to_test, reuse_planes
 from tryon.sim.full_mesh import display_strain, follow_coarse
 from tryon.sim.show_through import show_through_depth, show_through_metrics
 from tryon.sim.limbs import limb_openings, openings_on_limbs
@@ -170,14 +171,6 @@ CONTACT_WEIGHT = 0.2
 CONTACT_PASSES = 1
 
 FrameCallback = Callable[[int, np.ndarray], bool]
-
-
-def flipped(last: np.ndarray, before: np.ndarray, least: float) -> np.ndarray:
-    """(k,) bool: which points' last move ``last`` (k, 3) m went back against the move before it ``before``
-    (k, 3), both longer than ``least`` m (an angle over 120 degrees between them)."""
-    a = np.linalg.norm(last, axis=1)
-    b = np.linalg.norm(before, axis=1)
-    return (a > least) & (b > least) & (np.einsum("ij,ij->i", last, before) < -0.5 * a * b)
 
 
 @dataclass

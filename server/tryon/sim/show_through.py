@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from tryon.sim.bodystate import BodyCollider
+from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.metrics import PENETRATION_TOLERANCE
 
 # m: how deep under the skin the probe looks for the cloth. The thinnest parts the garments cover (a

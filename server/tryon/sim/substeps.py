@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from numba import njit
 
-from tryon.sim.constraints import apply_friction, project_listed, solve_listed, sweep_downward
+from tryon.sim.collision.contacts import apply_friction, project_listed
+from tryon.sim.constraints import solve_listed, sweep_downward
 from tryon.sim.integrate import keep_above_floor, verlet_step
 
 

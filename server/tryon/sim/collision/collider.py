@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from tryon.body.types import Body
-from tryon.sim.collide import (
+from tryon.sim.collision.kernels import (
     cell_max_radius, collide_points, face_boxes, face_normals, grow_vertices, offset_body, penetration_depth,
     vertex_parts,
 )
@@ -170,3 +170,12 @@ class BodyCollider:
             self.cyl_origin, self.cyl_axes, self.cyl_zrange, self.cyl_shape, self.cell_base, self.cell_start,
             self.cell_faces, rmax, bv, self.faces, fn, self.cover, boxes,
         )
+
+
+def relevant_parts(maps, lo: np.ndarray, hi: np.ndarray, reach: float) -> np.ndarray:
+    """Ids (q,) int64 of the parts whose OBB comes within ``reach`` (m) of the box [lo, hi] (3,) each:
+    the parts a garment in that box can touch (a skirt never tests the head or the arms)."""
+    corners = maps.obb_corners  # (P, 8, 3)
+    keep = np.all(corners.max(axis=1) >= lo - reach, axis=1) & np.all(corners.min(axis=1) <= hi + reach, axis=1)
+    keep &= np.isfinite(maps.obb_offsets).all(axis=1)
+    return np.flatnonzero(keep).astype(np.int64)

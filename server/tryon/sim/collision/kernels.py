@@ -31,8 +31,8 @@ import math
 import numpy as np
 from numba import njit
 
-from tryon.sim.friction import coulomb_cut
-from tryon.sim.inside import inside_triangle_xyz
+from tryon.sim.collision.contacts import coulomb_cut
+from tryon.sim.collision.inside import inside_triangle_xyz
 
 # Below this cosine between the ray and the hit triangle's normal, the radial push is replaced by the
 # nearest-surface push (45 degrees: the radial path is then more than 1.4x the shortest one).
@@ -623,71 +623,3 @@ def penetration_depth(points, parts, obb_normals, obb_offsets, cyl_origin, cyl_a
                     d = min(d, math.sqrt(d2))
                 out[i] = max(out[i], d)
     return out
-
-
-@njit(cache=True, nogil=True)
-def reuse_planes(x, x_prev, has_plane, plane_point, plane_normal, reuse, mu_static, mu_kinetic, contact, reused):
-    """Contacts at rest cost almost nothing: a point with a contact plane from the last step that is still
-    within ``reuse`` (m) of the plane's surface point is only projected onto that plane (with friction,
-    see ``constraints.project_planes``) instead of being queried against the maps again; ``reused`` (k,)
-    bool out marks them, ``contact`` (k,) whether they were pushed. Returns how many were reused.
-
-    The plane is the body's tangent plane where the point last touched it; within 1 cm on a 5 cm arm it
-    lies at most 1 mm off the surface, a quarter of the collision margin.
-    """
-    n = 0
-    for i in range(x.shape[0]):
-        reused[i] = False
-        if not has_plane[i]:
-            continue
-        dx = x[i, 0] - plane_point[i, 0]
-        dy = x[i, 1] - plane_point[i, 1]
-        dz = x[i, 2] - plane_point[i, 2]
-        if dx * dx + dy * dy + dz * dz > reuse * reuse:
-            continue
-        reused[i] = True
-        n += 1
-        nx = plane_normal[i, 0]
-        ny = plane_normal[i, 1]
-        nz = plane_normal[i, 2]
-        d = dx * nx + dy * ny + dz * nz
-        contact[i] = d < 0.0
-        if d >= 0.0:
-            continue
-        x[i, 0] -= d * nx
-        x[i, 1] -= d * ny
-        x[i, 2] -= d * nz
-        cut, tx, ty, tz = coulomb_cut(x[i, 0] - x_prev[i, 0], x[i, 1] - x_prev[i, 1], x[i, 2] - x_prev[i, 2],
-                                      nx, ny, nz, -d, mu_static, mu_kinetic)
-        # friction on the tangential motion, and no velocity along the normal (inelastic)
-        x[i, 0] -= cut * tx
-        x[i, 1] -= cut * ty
-        x[i, 2] -= cut * tz
-        x_prev[i, 0] = x[i, 0] - (1.0 - cut) * tx
-        x_prev[i, 1] = x[i, 1] - (1.0 - cut) * ty
-        x_prev[i, 2] = x[i, 2] - (1.0 - cut) * tz
-    return n
-
-
-@njit(cache=True, nogil=True)
-def points_to_test(x, x_checked, has_plane, reused, rest_move, active):
-    """Which points the step's collision tests, into ``active`` (k,) bool: those that moved more than
-    ``rest_move`` (m) since their last test (``x_checked`` (k, 3)) or have a contact plane, unless their
-    plane was reused (``reused`` (k,) bool, see ``reuse_planes``). Returns how many."""
-    n = 0
-    for i in range(x.shape[0]):
-        dx = x[i, 0] - x_checked[i, 0]
-        dy = x[i, 1] - x_checked[i, 1]
-        dz = x[i, 2] - x_checked[i, 2]
-        active[i] = (dx * dx + dy * dy + dz * dz > rest_move * rest_move or has_plane[i]) and not reused[i]
-        n += active[i]
-    return n
-
-
-def relevant_parts(maps, lo: np.ndarray, hi: np.ndarray, reach: float) -> np.ndarray:
-    """Ids (q,) int64 of the parts whose OBB comes within ``reach`` (m) of the box [lo, hi] (3,) each:
-    the parts a garment in that box can touch (a skirt never tests the head or the arms)."""
-    corners = maps.obb_corners  # (P, 8, 3)
-    keep = np.all(corners.max(axis=1) >= lo - reach, axis=1) & np.all(corners.min(axis=1) <= hi + reach, axis=1)
-    keep &= np.isfinite(maps.obb_offsets).all(axis=1)
-    return np.flatnonzero(keep).astype(np.int64)

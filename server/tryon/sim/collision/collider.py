@@ -12,8 +12,8 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.sim.collision.kernels import (
-    cell_max_radius, collide_points, face_boxes, face_normals, grow_vertices, offset_body, penetration_depth,
-    vertex_parts,
+    BodySurface, cell_max_radius, collide_points, face_boxes, face_normals, grow_vertices, offset_body,
+    penetration_depth, vertex_parts,
 )
 
 
@@ -135,19 +135,16 @@ class BodyCollider:
 
     # ------------------------------------------------------------------ queries
 
-    def collide(self, x, x_prev, inv_mass, active, parts, lam, mu_static, mu_kinetic, contact, x_pred=None,
+    def collide(self, x, x_prev, inv_mass, active, parts, lam, mu_static, mu_kinetic, contact,
                 near=0.0, planes=None, hold_pinched=False, held=None) -> int:
         """Push points ``x`` out of the offset body in place; returns how many moved (see collide_points).
         planes: optional (has_plane (k,), plane_point (k, 3), plane_normal (k, 3)) filled with contact planes;
         hold_pinched, held: see collide_points (only for a body that does not move)."""
         if planes is None:
             planes = (np.zeros(len(x), dtype=np.bool_), np.empty((len(x), 3)), np.empty((len(x), 3)))
-        return collide_points(
-            x, x_prev, x if x_pred is None else x_pred, inv_mass, active, parts, self.obb_normals, self.obb_offsets, self.cyl_origin,
-            self.cyl_axes, self.cyl_zrange, self.cyl_shape, self.cell_base, self.cell_start, self.cell_faces,
-            self.cell_rmax, self.offset, self.faces, self.offset_normals, lam, mu_static, mu_kinetic, contact,
-            self.cover, near, planes[0], planes[1], planes[2], self.offset_boxes, hold_pinched, held,
-        )
+        surface = self._surface(self.offset, self.offset_normals, self.cell_rmax, self.offset_boxes)
+        return collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, mu_kinetic, contact, near,
+                              planes[0], planes[1], planes[2], hold_pinched, held)
 
     def depth(self, points: np.ndarray, parts: np.ndarray, offset: bool = False) -> np.ndarray:
         """Depth (m) of each point (n, 3) inside the body (``offset=False``: the real, un-offset surface of
@@ -165,11 +162,14 @@ class BodyCollider:
             face_boxes(bv, self.faces, self.face_part, self.vertex_part, self.cyl_origin, self.cyl_axes, self.corners,
                        self.plain_boxes)
             fn, rmax, boxes = self.plain_normals, self.plain_rmax, self.plain_boxes
-        return penetration_depth(
-            np.ascontiguousarray(points, dtype=np.float64), parts, self.obb_normals, self.obb_offsets,
-            self.cyl_origin, self.cyl_axes, self.cyl_zrange, self.cyl_shape, self.cell_base, self.cell_start,
-            self.cell_faces, rmax, bv, self.faces, fn, self.cover, boxes,
-        )
+        return penetration_depth(np.ascontiguousarray(points, dtype=np.float64), parts,
+                                 self._surface(bv, fn, rmax, boxes))
+
+    def _surface(self, vertices, face_normals, cell_rmax, boxes) -> BodySurface:
+        """The kernels' view of the offset or the real surface of the current shape."""
+        return BodySurface(self.obb_normals, self.obb_offsets, self.cyl_origin, self.cyl_axes, self.cyl_zrange,
+                           self.cyl_shape, self.cell_base, self.cell_start, self.cell_faces, cell_rmax, vertices,
+                           self.faces, face_normals, boxes, self.cover)
 
 
 def relevant_parts(maps, lo: np.ndarray, hi: np.ndarray, reach: float) -> np.ndarray:

@@ -27,6 +27,7 @@ loop (up to ``ROUNDS`` times) until no part reports the point inside, so it leav
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -49,6 +50,35 @@ SMALL_DEPTH = 0.0005
 MAX_HITS = 32
 # Part-loop repetitions per point: enough for a point in the overlap of two parts (shoulder, hip).
 ROUNDS = 3
+
+
+class BodySurface(NamedTuple):
+    """What the collision kernels read of one body surface (the offset one, or the real one for depths),
+    passed as one argument. The map arrays are ``tryon.body.maps.PartMaps``' (P parts, C cells), possibly
+    moved with a posed arm (``collider.BodyCollider``):
+    obb_normals (P, 6, 3), obb_offsets (P, 6): part k's box is ``obb_normals[k] @ p <= obb_offsets[k]``;
+    cyl_origin (P, 3), cyl_axes (P, 3, 3) rows local x, y, z; cyl_zrange (P, 2); cyl_shape (P, 2) int64
+    (n_theta, n_z); cell_base (P,) int64; cell_start (C + 1,) int64 and cell_faces (K,) int64, the CSR face
+    lists of the cells; cell_rmax (C,) m, each cell's largest face radius (``cell_max_radius``);
+    vertices (n, 3) m and faces (f, 3) int64 of the surface, face_normals (f, 3) unit outward;
+    boxes (f, 4) per-face (theta, z) boxes (``face_boxes``); cover: m, how far beyond its cell a cell's face
+    list reaches around this surface (the maps' margin minus the offset, >= 0)."""
+
+    obb_normals: np.ndarray
+    obb_offsets: np.ndarray
+    cyl_origin: np.ndarray
+    cyl_axes: np.ndarray
+    cyl_zrange: np.ndarray
+    cyl_shape: np.ndarray
+    cell_base: np.ndarray
+    cell_start: np.ndarray
+    cell_faces: np.ndarray
+    cell_rmax: np.ndarray
+    vertices: np.ndarray
+    faces: np.ndarray
+    face_normals: np.ndarray
+    boxes: np.ndarray
+    cover: float
 
 
 @njit(cache=True, nogil=True)
@@ -331,11 +361,9 @@ def _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces,
 # 1.4-1.7 ms, same results. (Inlined, as before, the call with ~25 array arguments is saved but not the
 # atomics.)
 @njit(cache=True, nogil=True, _nrt=False)
-def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape, cell_base,
-               cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal, hit, q, trust, cover, near,
-               tbuf, fbuf, fbox):
-    """Is p (inside part k's OBB: the callers test that first) inside part k of the (offset) body with
-    vertices ``bv`` and face normals ``fn``?
+def part_query(p, k, surface, target, normal, hit, q, trust, near, tbuf, fbuf):
+    """Is p (inside part k's OBB: the callers test that first) inside part k of the (offset) body
+    ``surface`` (a ``BodySurface``)?
 
     Returns the depth (m, > 0 inside, 0 outside); when inside, ``target`` gets the surface point p must
     move to (before adding lambda * normal) and ``normal`` the outward unit normal there.
@@ -344,11 +372,15 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
     in one step than it moved, so a deeper radial depth means it came in through another surface (the
     end of a part, the top of a shoulder, where the ray runs along the surface): then the nearest face
     of the cell (or of the 3 x 3 block) gives the way out if it is shorter.
-    cover: m, how far beyond its cell a cell's face list reaches (the maps' margin minus the offset).
     near: m; a point outside but closer than this to the surface along its ray gets a negative depth
-    (minus its distance) and the surface point and normal, for a contact plane.
-    fbox: (f, 4) from ``face_boxes`` for ``bv``: faces whose box misses the ray are not intersected.
+    (minus its distance) and the surface point and normal, for a contact plane. Faces whose box
+    (``surface.boxes``) misses the ray are not intersected.
     """
+    cyl_origin, cyl_axes, cyl_zrange, cyl_shape = surface.cyl_origin, surface.cyl_axes, surface.cyl_zrange, \
+        surface.cyl_shape
+    cell_base, cell_start, cell_faces, cell_rmax = surface.cell_base, surface.cell_start, surface.cell_faces, \
+        surface.cell_rmax
+    bv, faces, fn, fbox, cover = surface.vertices, surface.faces, surface.face_normals, surface.boxes, surface.cover
     lx, ly, lz = _to_local(p[0], p[1], p[2], cyl_origin, cyl_axes, k)
     n_theta = cyl_shape[k, 0]
     n_z = cyl_shape[k, 1]
@@ -475,18 +507,15 @@ def part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
 
 
 @njit(cache=True, nogil=True)
-def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_offsets, cyl_origin, cyl_axes,
-                   cyl_zrange, cyl_shape, cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, lam,
-                   mu_static, mu_kinetic, contact, cover, near, has_plane, plane_point, plane_normal, fbox,
-                   hold_pinched=False, held=None):
+def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, mu_kinetic, contact, near, has_plane,
+                   plane_point, plane_normal, hold_pinched=False, held=None):
     """Push garment points out of the offset body, in place (paper 3.4, eq. 4 plus the fallbacks above).
 
-    x, x_prev (k, 3) m (x_prev: positions at the start of the step; both updated in place); x_pred (k, 3)
-    unused (kept for the signature); inv_mass (k,) (0 = pinned, skipped); active (k,) bool: points to test (the
-    caller skips points at rest); parts (q,) int64 part ids to test; bv (n, 3) offset body vertices,
-    faces (f, 3), fn (f, 3) their unit normals; cell_rmax (C,) from ``cell_max_radius`` for ``bv``;
+    x, x_prev (k, 3) m (x_prev: positions at the start of the step; both updated in place); inv_mass (k,)
+    (0 = pinned, skipped); active (k,) bool: points to test (the caller skips points at rest); parts (q,)
+    int64 part ids to test; surface: the offset body (``BodySurface``);
     lam m (eq. 4's lambda); mu_static, mu_kinetic: Coulomb friction coefficients (position-based, see
-    the code); the normal velocity is removed (inelastic contact); cover: see ``part_query``.
+    the code); the normal velocity is removed (inelastic contact).
     contact (k,) bool out: whether each point was moved. Returns the number of points moved.
     near: m; has_plane (k,) bool, plane_point (k, 3), plane_normal (k, 3) out: the contact plane of each
     tested point that was pushed or lies within ``near`` of the surface (its last surface point plus
@@ -498,6 +527,7 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
     between two parts still for the step).
     One point at a time, each writing only its own row: safe to split the loop across threads.
     """
+    obb_normals, obb_offsets = surface.obb_normals, surface.obb_offsets
     target = np.empty(3)
     normal = np.empty(3)
     hit = np.empty(3)
@@ -528,9 +558,7 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
                 my = p[1] - x_prev[i, 1]
                 mz = p[2] - x_prev[i, 2]
                 trust = math.sqrt(mx * mx + my * my + mz * mz) + TRUST_SLACK
-                depth = part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange,
-                                   cyl_shape, cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, target,
-                                   normal, hit, q, trust, cover, near, tbuf, fbuf, fbox)
+                depth = part_query(p, k, surface, target, normal, hit, q, trust, near, tbuf, fbuf)
                 if depth < 0.0:
                     if not has_plane[i]:
                         has_plane[i] = True
@@ -586,10 +614,15 @@ def collide_points(x, x_prev, x_pred, inv_mass, active, parts, obb_normals, obb_
 
 
 @njit(cache=True, nogil=True)
-def penetration_depth(points, parts, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape,
-                      cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, cover, fbox):
-    """Depth (m) of each point inside the body surface ``bv`` (0 outside), (n,) float64: the largest
-    depth over the parts (the same inside test as the collision, with the nearest-surface distance)."""
+def penetration_depth(points, parts, surface):
+    """Depth (m) of each point (n, 3) inside the body ``surface`` (a ``BodySurface``; 0 outside), (n,)
+    float64: the largest depth over the parts ``parts`` (q,) int64 (the same inside test as the collision,
+    with the nearest-surface distance)."""
+    obb_normals, obb_offsets, cyl_origin, cyl_axes = surface.obb_normals, surface.obb_offsets, \
+        surface.cyl_origin, surface.cyl_axes
+    cyl_zrange, cyl_shape, cell_base, cell_start, cell_faces = surface.cyl_zrange, surface.cyl_shape, \
+        surface.cell_base, surface.cell_start, surface.cell_faces
+    bv, faces = surface.vertices, surface.faces
     out = np.zeros(points.shape[0])
     target = np.empty(3)
     normal = np.empty(3)
@@ -604,9 +637,7 @@ def penetration_depth(points, parts, obb_normals, obb_offsets, cyl_origin, cyl_a
             k = parts[kk]
             if not _in_obb(p[0], p[1], p[2], obb_normals, obb_offsets, k):
                 continue
-            d = part_query(p, k, obb_normals, obb_offsets, cyl_origin, cyl_axes, cyl_zrange, cyl_shape,
-                           cell_base, cell_start, cell_faces, cell_rmax, bv, faces, fn, target, normal,
-                           hit, query_q, 0.0, cover, 0.0, tbuf, fbuf, fbox)
+            d = part_query(p, k, surface, target, normal, hit, query_q, 0.0, 0.0, tbuf, fbuf)
             if d > 0.0:
                 # the true depth is the distance to the nearest surface point, never more than the
                 # distance to the response point

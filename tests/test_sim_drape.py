@@ -95,7 +95,7 @@ def test_shorts_stay_on_the_hips(catalogue, body):
     assert body.levels["hips"] < top < body.levels["waist"] + 0.03  # held between the hips and the waist
     assert m["max_strain"] < 1.0  # a tight band is stretched, never torn
     assert sorted(o["around"] for o in m["limb_openings"]) == ["thigh_l", "thigh_r"]
-    # the band's springs on the hips get extra passes (run.CONTACT_PASSES): the shorts rest where their
+    # the band's springs on the hips get extra passes (tuning.contact_passes): the shorts rest where their
     # band is within ~10 % of its limit instead of sliding down until it is 30 % over (measured 0.19;
     # 0.32 before); a few springs over the target remain where the band is tight on the hips
     assert m["max_strain"] < 0.25, m["strain_by_kind"]
@@ -309,7 +309,7 @@ def test_a_top_far_too_small_stays_on_the_shoulders(body):
     from tryon.garment.ingest import CleanMesh
     from tryon.garment.prepare import prepare
     from tryon.sim.align import body_landmarks
-    from tryon.sim.run import RELAX_MAX_MOVE
+    from tryon.sim.tuning import TUNING
 
     g = garment_mesh("longsleeve", "S")
     v = np.array(g.vertices, dtype=np.float64)
@@ -320,7 +320,7 @@ def test_a_top_far_too_small_stays_on_the_shoulders(body):
                     source_name="small.obj")
     result = drape(body, model, SimSettings())
     m = result.metrics
-    assert not m["relaxed"] and m["relax_move_mm"][0] > 1000 * RELAX_MAX_MOVE
+    assert not m["relaxed"] and m["relax_move_mm"][0] > 1000 * TUNING.relax_max_move
     assert m["penetrating_vertices"] == 0
     assert sum(k["over"] for k in m["strain_by_kind"].values()) > 1000  # honestly too small
     lm = body_landmarks(body)
@@ -398,14 +398,14 @@ def test_a_guessed_units_top_with_sleeves_is_sized_whole_at_the_chest(body, kind
 
 def test_shorts_far_too_small_are_stretched_no_further_than_the_tear_guard(catalogue):
     """Shorts S (waist 72 cm) on a 100 cm waist: collision wins over the springs during the drape, and the
-    tear guard keeps every spring under TEAR_GUARD x its natural length, also after the last collision
+    tear guard keeps every spring under tear_guard x its natural length, also after the last collision
     (it left one at 2.75 x, max strain 1.75). The springs held over on the body say where: the waist."""
-    from tryon.sim.run import TEAR_GUARD
+    from tryon.sim.tuning import TUNING
 
     large = build_body(Measurements(height=185, chest=112, waist=100, hips=112), Pose())
     model = _model(catalogue, "shorts-s.obj", "bottom")
     m = drape(large, model, SimSettings()).metrics
-    assert np.isfinite(m["max_strain"]) and m["max_strain"] <= TEAR_GUARD - 1.0 + 1e-6
+    assert np.isfinite(m["max_strain"]) and m["max_strain"] <= TUNING.tear_guard - 1.0 + 1e-6
     assert m["max_strain"] > 1.0  # far too small: it is stretched, not fitted
     assert "torso waist" in m["too_tight"]
 

@@ -3,6 +3,8 @@ piece aligned by its own kind, legs over legs, arms turned onto their sleeves in
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import trimesh
@@ -359,7 +361,7 @@ def test_relaxation_kept_for_the_shirt_dropped_for_trousers_it_would_carry_away(
     """An outfit whose trousers are far too small at the seat (0.6 of their girth): a relaxation without
     gravity pulls them down the legs. That piece keeps the loop's drape, on the hips; the shirt, which
     the relaxation barely moves, keeps the relaxed one."""
-    from tryon.sim import run
+    from tryon.sim.tuning import TUNING
 
     shirt, trousers = garment_mesh("tshirt", "M"), garment_mesh("trousers", "M")
     sv, tv = np.array(shirt.vertices, dtype=np.float64), np.array(trousers.vertices, dtype=np.float64)
@@ -369,18 +371,13 @@ def test_relaxation_kept_for_the_shirt_dropped_for_trousers_it_would_carry_away(
     model = _prepared(np.vstack([sv, tv]), faces, "dress")
     result = drape(body, model, SimSettings())
     m = result.metrics
-    assert not m["relaxed"] and m["relax_move_mm"][0] > 1000 * run.RELAX_MAX_MOVE
+    assert not m["relaxed"] and m["relax_move_mm"][0] > 1000 * TUNING.relax_max_move
     assert m["penetrating_vertices"] == 0
     lm = body_landmarks(body)
     legs = np.arange(len(result.vertices)) >= len(sv)
     assert result.vertices[legs, 1].max() > lm.hips_y  # the trousers' top still above the hip line
     # the same drape without the guard: the trousers' top slides below the hips
-    saved = run.RELAX_MAX_MOVE
-    try:
-        run.RELAX_MAX_MOVE = np.inf
-        loose = drape(body, model, SimSettings())
-    finally:
-        run.RELAX_MAX_MOVE = saved
+    loose = drape(body, model, SimSettings(), tuning=replace(TUNING, relax_max_move=np.inf))
     assert loose.metrics["relaxed"]
     assert loose.vertices[legs, 1].max() < result.vertices[legs, 1].max() - 0.1
     shirt_part = ~legs

@@ -8,7 +8,6 @@ of one part (an icosphere) built with ``build_part_maps``.
 from __future__ import annotations
 
 import time
-from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
@@ -47,27 +46,13 @@ def sphere_body(radius: float = RADIUS, center=(0.0, 0.0, 0.0)):
     )
 
 
-@contextmanager
-def reach(metres: float):
-    """Let ``drape`` test body parts up to ``metres`` from the garment's start (it tests only those within
-    ``run.PART_REACH`` of the aligned garment: right for a garment put on a body, too short for a cloth
-    dropped from 30 cm above a ball)."""
-    from tryon.sim import run as sim_run
-
-    saved = sim_run.PART_REACH
-    sim_run.PART_REACH = max(saved, metres)
-    try:
-        yield
-    finally:
-        sim_run.PART_REACH = saved
-
-
 def timed_drape(body, model, settings, initial=None, steps_per_frame: int = 1, probe=None,
-                max_seconds: float = 1e9):
+                max_seconds: float = 1e9, tuning=None):
     """Run ``drape`` for exactly ``settings.max_steps`` steps (no rest stop), timing each frame of
     ``steps_per_frame`` steps between the ``on_frame`` callbacks (the probe's own time excluded).
     Returns (frame seconds list, TryOnResult)."""
     from tryon.sim.run import drape
+    from tryon.sim.tuning import TUNING
 
     settings = replace(settings, min_steps=settings.max_steps + 1)
     frames = []
@@ -88,7 +73,7 @@ def timed_drape(body, model, settings, initial=None, steps_per_frame: int = 1, p
         state["last"] = time.perf_counter()
         return keep_going
 
-    result = drape(body, model, settings, on_frame=on_frame, initial=initial)
+    result = drape(body, model, settings, on_frame=on_frame, initial=initial, tuning=tuning or TUNING)
     return frames, result
 
 
@@ -96,6 +81,7 @@ def run_sphere(n: int, frames: int, settings=None, substeps: int = 1, max_second
     """Our cloth-on-ball run: ``substeps`` time steps of FRAME_DT / substeps per frame."""
     from tryon.bench.synthetic import cloth_square
     from tryon.sim.settings import SimSettings
+    from tryon.sim.tuning import TUNING
 
     t0 = time.perf_counter()
     settings = settings or SimSettings()
@@ -108,9 +94,11 @@ def run_sphere(n: int, frames: int, settings=None, substeps: int = 1, max_second
     order = np.arange(n * n).reshape(n, n).T.ravel()
     setup = time.perf_counter() - t0
     probe = FrameProbe(n)
-    with reach(HEIGHT):
-        times, _ = timed_drape(body, model, settings, initial=model.vertices.copy(), steps_per_frame=substeps,
-                               probe=lambda x: probe(x[order] - lift), max_seconds=max_seconds)
+    # the drape tests the body parts within ``part_reach`` of the garment's start: right for a garment put on
+    # a body, too short for a cloth dropped from above a ball
+    tuning = replace(TUNING, part_reach=max(TUNING.part_reach, HEIGHT))
+    times, _ = timed_drape(body, model, settings, initial=model.vertices.copy(), steps_per_frame=substeps,
+                           probe=lambda x: probe(x[order] - lift), max_seconds=max_seconds, tuning=tuning)
     out = probe.summary(times)
     out.update({
         "engine": "ours", "method": "Verlet + strain-limit passes + cylinder-map collision", "particles": n * n,

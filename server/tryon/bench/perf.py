@@ -37,9 +37,15 @@ from tryon.body.build import build_body
 from tryon.body.params import Measurements, Pose
 from tryon.garment import generate
 from tryon.garment.catalogue import Catalogue
-from tryon.sim import run as run_module
+from tryon.sim.collision.collider import BodyCollider
+from tryon.sim import step as step_module
+from tryon.sim.finish import finish
+from tryon.sim.relax import relax
 from tryon.sim.run import drape
 from tryon.sim.settings import SimSettings
+from tryon.sim.start import start
+from tryon.sim.step import step
+from tryon.sim.substeps import finish_step
 
 # Grid spacing (m) that gives the generator's T-shirt (size M) about 7,500 vertices.
 FINE_SPACING = 0.0106
@@ -63,7 +69,8 @@ def fine_garment(data_dir: Path, kind: str = "tshirt", size: str = "M", spacing:
 
 
 class _Timer:
-    """Wraps the kernels the loop calls (module globals of ``run``) and sums their wall time."""
+    """Wraps the kernels a step calls (``tryon.sim.step``'s names for them) and the body collision, and sums
+    their wall time: a profiler of one loop, put back on exit."""
 
     # finish_step: the first substep's tail (sweep, planes, friction, floor) and the other substeps whole
     NAMES = ("verlet_step", "solve_listed", "finish_step", "reuse_planes", "points_to_test", "contact_springs",
@@ -78,10 +85,10 @@ class _Timer:
 
     def __enter__(self):
         for name in self.NAMES:
-            fn = getattr(run_module, name)
+            fn = getattr(step_module, name)
             self.saved[name] = fn
-            setattr(run_module, name, self._wrap(name, fn))
-        self.saved_collide = run_module.BodyCollider.collide
+            setattr(step_module, name, self._wrap(name, fn))
+        self.saved_collide = BodyCollider.collide
         timer = self
 
         def collide(this, *args, **kwargs):
@@ -90,7 +97,7 @@ class _Timer:
             timer.totals["collide"] = timer.totals.get("collide", 0.0) + time.perf_counter() - t
             return out
 
-        run_module.BodyCollider.collide = collide
+        BodyCollider.collide = collide
         return self
 
     def _wrap(self, name, fn):
@@ -107,8 +114,8 @@ class _Timer:
 
     def __exit__(self, *exc):
         for name, fn in self.saved.items():
-            setattr(run_module, name, fn)
-        run_module.BodyCollider.collide = self.saved_collide
+            setattr(step_module, name, fn)
+        BodyCollider.collide = self.saved_collide
 
 
 # finish_step's parameters that switch its parts off (see ``finish_step_split``)
@@ -117,7 +124,7 @@ _FINISH_PARTS = {"passes": {"per_sub": 0}, "contact_passes": {"contact_passes": 
 
 def finish_step_arguments(args: list) -> dict:
     """``finish_step``'s positional ``args`` by parameter name (in its order)."""
-    return dict(zip(inspect.signature(run_module.finish_step.py_func).parameters, args))
+    return dict(zip(inspect.signature(finish_step.py_func).parameters, args))
 
 
 def finish_step_split(args: list, repeats: int = 15) -> dict:
@@ -129,7 +136,7 @@ def finish_step_split(args: list, repeats: int = 15) -> dict:
         call = finish_step_arguments([a.copy() if hasattr(a, "copy") else a for a in args])
         call.update(off)
         t = time.perf_counter()
-        run_module.finish_step(*call.values())
+        finish_step(*call.values())
         return time.perf_counter() - t
 
     timed()
@@ -172,25 +179,28 @@ def perf(repeats: int = 3, settings: SimSettings = SimSettings()) -> dict:
         if best is None or wall < best[0]:
             best = (wall, result)
     wall, result = best
-    # the loop alone, kernel by kernel: the same drape, the kernels' times summed up to the last step's
-    # frame (what the polish and the full mesh cost after the loop is not counted), and the loop's own
-    # wall time from the first step's frame to the last (kernels plus the Python and numpy between them)
-    saved = run_module.MIN_POLISH_ROUNDS, run_module.MAX_POLISH_ROUNDS
-    run_module.MIN_POLISH_ROUNDS = run_module.MAX_POLISH_ROUNDS = 1
-    frames = []
-    try:
-        with _Timer(capture_step=max(1, result.metrics["steps"] - 10)) as timer:
-            def on_frame(step, x):
-                frames.append((time.perf_counter(), dict(timer.totals)))
-                return True
-
-            loop_result = drape(body, model, settings, on_frame=on_frame)
-    finally:
-        run_module.MIN_POLISH_ROUNDS, run_module.MAX_POLISH_ROUNDS = saved
-    steps = loop_result.metrics["steps"]
-    totals = frames[-1][1]
+    # the same drape phase by phase (start, the step loop, the relaxation, the full mesh and metrics), the
+    # loop kernel by kernel: the kernels' times summed over its steps, and its own wall time per step
+    # (kernels plus the Python and numpy between them)
+    phases = {}
+    t = time.perf_counter()
+    d = start(body, model, settings)
+    phases["start"] = time.perf_counter() - t
+    with _Timer(capture_step=max(1, result.metrics["steps"] - 10)) as timer:
+        t = time.perf_counter()
+        while d.state.step < settings.max_steps and not step(d):
+            pass
+        phases["loop"] = time.perf_counter() - t
+    t = time.perf_counter()
+    relaxation = relax(d)
+    phases["relax"] = time.perf_counter() - t
+    t = time.perf_counter()
+    finish(d, relaxation)
+    phases["finish"] = time.perf_counter() - t
+    steps = d.state.step
+    totals = timer.totals
     loop = sum(totals.values())
-    loop_wall = (frames[-1][0] - frames[0][0]) / max(1, len(frames) - 1)
+    loop_wall = phases["loop"] / max(1, steps)
     split = finish_step_split(timer.captured) if timer.captured else {}
     visits = spring_visits(timer.captured) if timer.captured else {}
     return {
@@ -203,6 +213,7 @@ def perf(repeats: int = 3, settings: SimSettings = SimSettings()) -> dict:
         "rest_reached": result.metrics["rest_reached"],
         "drape_wall_s": round(wall, 3),
         "polish_rounds": result.metrics["polish_rounds"],
+        "phases_ms": {k: round(1000 * v, 1) for k, v in phases.items()},
         "ms_per_step": round(1000 * loop / steps, 3),
         "loop_wall_ms_per_step": round(1000 * loop_wall, 3),
         "ms_per_step_by_kernel": {k: round(1000 * v / steps, 3) for k, v in sorted(totals.items())},

@@ -1,0 +1,69 @@
+"""The end of a drape: the shown (full) mesh rebuilt from the simulated one, and the drape's metrics."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tryon.sim.full_mesh import display_strain, follow_coarse
+from tryon.sim.limbs import openings_on_limbs
+from tryon.sim.metrics import penetration_metrics, slid_metrics, strain_metrics, too_tight_places
+from tryon.sim.relax import Relaxation
+from tryon.sim.show_through import show_through_depth, show_through_metrics
+from tryon.sim.state import Drape
+
+
+@dataclass
+class TryOnResult:
+    """vertices (n, 3) full mesh, m; strain (n,) per full vertex; coarse (k, 3) simulated positions;
+    metrics dict (steps, sim_seconds, wall_seconds, rest_reached, penetrating_vertices,
+    max_penetration_mm, max_strain, strain_by_kind, too_tight (``metrics.too_tight_places``), ...)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    strain: np.ndarray
+    coarse: np.ndarray
+    metrics: dict = field(default_factory=dict)
+
+
+def finish(d: Drape, relaxation: Relaxation, stopped: bool = False) -> TryOnResult:
+    """The full mesh of ``d``'s garment where it is now (it follows the coarse one, its stretch held to the
+    limits, pushed out of the offset body) and the metrics of the drape. ``stopped``: the caller ended the
+    step loop early (a client gone)."""
+    s, st, body, model, plan = d.settings, d.state, d.body, d.model, d.plan
+    x = st.x
+    full, full_parts = follow_coarse(model, x, d.collider, d.limits, s.contact_offset, d.floor_y)
+    depth = d.collider.depth(full, full_parts, offset=False)
+    spring_strain_, per_vertex, by_kind = strain_metrics(x, model, d.limits, on_body=st.has_plane.copy())
+    too_tight = too_tight_places(x, model, spring_strain_, d.limits, st.has_plane, body)
+    on_limbs = openings_on_limbs(x, body, d.openings)
+    metrics = {
+        "steps": int(st.step),
+        "sim_seconds": float(st.step * float(s.time_step)),
+        "wall_seconds": float(time.perf_counter() - d.started),
+        "rest_reached": bool(st.rest_reached),
+        "stopped": bool(stopped),
+        **penetration_metrics(depth),
+        **show_through_metrics(show_through_depth(d.collider, full_parts, full, model.faces)),
+        "max_strain": float(spring_strain_.max()) if len(spring_strain_) else 0.0,
+        "display_max_strain": display_strain(full, model),
+        "strain_by_kind": by_kind,
+        "too_tight": too_tight,
+        "limb_openings": on_limbs,
+        "openings_on_limbs": all(o["ok"] for o in on_limbs) if on_limbs else None,
+        **slid_metrics(d.placed_tops, x, d.piece),
+        "sized_to_body": d.sized,
+        "kinetic_energy_per_kg": float(st.energy),
+        "grown": bool(d.grow_steps),
+        "arm_turn_deg": [float(np.degrees(plan.left)), float(np.degrees(plan.right))],
+        "elbow_turn_deg": [float(np.degrees(plan.left_elbow)), float(np.degrees(plan.right_elbow))],
+        "parts_tested": [body.parts[k] for k in d.parts],
+        "last_step_contacts": int(st.collided),
+        "polish_rounds": int(relaxation.rounds),
+        "relax_move_mm": [float(1000 * relaxation.piece_move.max()), float(1000 * relaxation.relax_move.max())],
+        "relaxed": bool(relaxation.relaxed),
+        "pose": dict(body.pose),
+    }
+    return TryOnResult(vertices=full, faces=model.faces, strain=per_vertex, coarse=x, metrics=metrics)

@@ -1,0 +1,114 @@
+"""The relaxation after the step loop: gravity and friction off, light drag, only over-long springs acting.
+
+See ``run.py``'s doc for why. ``relax`` first makes the body whole (full size, arms in their real pose),
+then runs rounds of one step's substeps each until every spring meets its strain target, progress stalls
+or ``tuning.max_polish_rounds`` is reached; a piece of the file that the relaxation carried away (a garment
+far too small for its body) goes back to where the loop left it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tryon.sim.constraints import cap_stretch, spring_lengths
+from tryon.sim.integrate import verlet_step
+from tryon.sim.limbs import openings_on_limbs
+from tryon.sim.metrics import allowed_length
+from tryon.sim.state import Drape
+from tryon.sim.substeps import finish_relaxation_round
+
+
+@dataclass
+class Relaxation:
+    """What ``relax`` did: rounds run; relax_move (k,) m, how far it moved each coarse point; piece_move
+    (pieces,) m, each piece's ``tuning.relax_move_quantile`` of that; relaxed: whether every piece kept it."""
+
+    rounds: int
+    relax_move: np.ndarray
+    piece_move: np.ndarray
+    relaxed: bool
+
+
+def complete_body(d: Drape) -> None:
+    """The body at full size and in its real pose, the start's pins released (a loop stopped early)."""
+    collider, arms, st = d.collider, d.arms, d.state
+    if collider.scale != 1.0:
+        collider.set_scale(1.0, refresh=not arms.steps)
+    if arms.steps:
+        arms.apply(arms.steps)
+    if d.pinned_until and st.step < d.pinned_until:
+        st.inv_mass[:] = d.saved_inv_mass
+
+
+def relax(d: Drape) -> Relaxation:
+    """Relax ``d``'s garment in place (see the module doc)."""
+    complete_body(d)
+    s, tu, st, collider = d.settings, d.tuning, d.state, d.collider
+    x, x_prev, inv_mass = st.x, st.x_prev, st.inv_mass
+    target = allowed_length(d.rest, d.limits[d.kind])
+    rounds = 0
+    x_prev[:] = x
+    x_loop = x.copy()
+    stretch_only = d.table.copy()
+    # only the over-long springs act: no compression pushes cloth off the body (and with l0 = 0 too a
+    # compressed spring is not even visited for a zero correction: same result, the relaxation's passes skip
+    # the buckled cloth on the body)
+    stretch_only[:, 1:] = 0.0
+    fewest_over, best_round = len(d.springs) + 1, 0
+    for rounds in range(1, tu.max_polish_rounds + 1):
+        # the first substep's prediction and collision here, the rest of the round in one kernel
+        verlet_step(x, x_prev, inv_mass, d.h, 0.0, tu.relax_drag, s.max_speed)
+        st.active[:] = True
+        collider.collide(x, x_prev, inv_mass, st.active, d.parts, s.contact_offset, 0.0, 0.0, st.contact,
+                         near=tu.near, planes=st.planes)
+        touching = np.flatnonzero(st.has_plane)
+        finish_relaxation_round(x, x_prev, inv_mass, d.h, tu.relax_drag, s.max_speed, d.n_sub, d.per_sub, d.ends,
+                                stretch_only, touching, st.plane_point, st.plane_normal, st.push, d.floor_y)
+        cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
+        if rounds >= tu.min_polish_rounds:
+            # judged after the final collision the result gets (between two collision tests a point may
+            # slide past its contact plane, over a sharp edge, and be pushed back out, stretching springs)
+            _collide_all(d)
+            n_over = int(np.count_nonzero(spring_lengths(x, d.springs) > target))
+            if n_over == 0:
+                break
+            if n_over <= tu.polish_progress * fewest_over:
+                fewest_over, best_round = n_over, rounds
+            elif rounds - best_round >= tu.polish_stall_rounds:
+                break  # no progress: a garment too small for the body there (its springs stay over)
+    else:  # out of rounds: the last positions still get their final collision
+        _collide_all(d)
+    relax_move = np.linalg.norm(x - x_loop, axis=1)
+    # each piece of the file on its own (pieces meet only the body, never each other): an outfit's trousers
+    # may be carried down the legs while its shirt barely moves
+    piece_move = np.array([np.quantile(relax_move[d.piece == p], tu.relax_move_quantile)
+                           for p in range(int(d.piece.max()) + 1)])
+    carried = piece_move > tu.relax_max_move
+    # nor may it take a sleeve or trouser leg off its limb (a T-shirt on arms hanging against the torso: the
+    # sleeves, pinched between arm and torso, pulled up off the arms)
+    for (_, _, loop), before, after in zip(d.openings, openings_on_limbs(x_loop, d.body, d.openings),
+                                           openings_on_limbs(x, d.body, d.openings)):
+        if before["ok"] and not after["ok"]:
+            carried[d.piece[loop[0]]] = True
+    relaxed = not carried.any()
+    if not relaxed:
+        # the relaxation carried a piece away: that piece stays where the loop left it, its springs over the
+        # target reported as they are
+        back = carried[d.piece]
+        x[back] = x_loop[back]
+        x_prev[:] = x
+        _collide_all(d)
+    # the tear guard again: the final collision wins over the springs, so a garment far too small for its
+    # body would leave it with springs pushed past the guard (the loop's guard ran before it)
+    cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
+    return Relaxation(rounds=rounds, relax_move=relax_move, piece_move=piece_move, relaxed=relaxed)
+
+
+def _collide_all(d: Drape) -> None:
+    """Every point out of the body, without friction (the relaxation's and the result's final collision)."""
+    st = d.state
+    st.active[:] = True
+    d.collider.collide(st.x, st.x_prev, st.inv_mass, st.active, d.parts, d.settings.contact_offset, 0.0, 0.0,
+                       st.contact)

@@ -1,0 +1,105 @@
+"""The start of a drape: the garment put on the body, its springs packed, a tangled start untangled.
+
+``start`` aligns the garment (or takes given positions), sizes it when its units were guessed, packs its
+springs (a bottom's waistband at the band limit), builds the body collider and the arms' turn back from the
+sleeves' pose, picks the body parts the garment can reach, and decides how a garment that starts inside the
+body gets out: the body grows from ``settings.grow_from`` of its radius (gravity off meanwhile), or, with
+growth off, the points are pushed out and pinned for ``tuning.pin_steps`` steps. See ``run.py``'s doc.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from tryon.body.types import Body
+from tryon.garment.model import GarmentModel
+from tryon.garment.springs import STRUCTURAL
+from tryon.sim.align import ArmPlan, align_sized, plan_arms
+from tryon.sim.arms import ArmSchedule
+from tryon.sim.collision.collider import BodyCollider, relevant_parts
+from tryon.sim.constraints import pack_springs
+from tryon.sim.limbs import limb_openings
+from tryon.sim.pieces import piece_labels, piece_tops, waistband_mask
+from tryon.sim.settings import SimSettings
+from tryon.sim.state import Drape, DrapeState
+from tryon.sim.tuning import TUNING, Tuning
+
+
+def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings(), tuning: Tuning = TUNING,
+          initial: np.ndarray | None = None) -> Drape:
+    """A drape of ``model`` on ``body``, ready for its first step. ``initial`` (k, 3) m replaces the
+    alignment (tests and stress scenes start from given positions)."""
+    started = time.perf_counter()
+    sized = False
+    piece = piece_labels(model.coarse_faces, len(model.mass))  # a file's separate garments (an outfit's)
+    if initial is None:
+        x, shape = align_sized(body, model, piece=piece)
+        sized = shape is not None
+        if sized:  # sized to this body (guessed units): its springs' natural lengths change too
+            model = model.resized(shape)
+        plan = plan_arms(body, x, model.meta.category, model.coarse_faces, model.coarse_loops, piece)
+    else:
+        x = np.array(initial, dtype=np.float64)
+        plan = ArmPlan(0.0, 0.0)
+    limits = settings.limits_array()
+    springs = np.ascontiguousarray(model.springs, dtype=np.int64)
+    rest = np.ascontiguousarray(model.rest, dtype=np.float64)
+    kind = np.ascontiguousarray(model.kind, dtype=np.int64)
+    mass = np.ascontiguousarray(model.mass, dtype=np.float64)
+    inv_mass = np.where(mass > 0, 1.0 / np.where(mass > 0, mass, 1.0), 0.0)
+    ends, table = pack_springs(springs, rest, kind, limits, settings.compression_array())
+    # a bottom's waistband stretches less than its cloth (``band_limit``; its structural springs: the
+    # band's hoop and height). Only the solver holds it so: the metrics judge each spring by its type's
+    # limit, so a band too small for its waist shows springs over where it is stretched past the cloth's.
+    band = waistband_mask(model.coarse_vertices, model.coarse_faces, model.meta.category, model.coarse_loops,
+                          piece)
+    band_springs = (kind == STRUCTURAL) & band[springs[:, 0]] & band[springs[:, 1]]
+    table[band_springs, 0] = rest[band_springs] * (1.0 + settings.band_limit)
+
+    collider = BodyCollider(body, settings.collision_margin)
+    placed_tops = piece_tops(x, piece)  # to tell at the end how far the garment slid down
+    # the sleeves' and trouser legs' openings, to tell at the end whether each is around its limb
+    openings = limb_openings(x, model.coarse_faces, body, model.meta.category, model.coarse_loops, piece)
+    arms = ArmSchedule(body, collider, plan)
+    parts = relevant_parts(body.maps, x.min(axis=0), x.max(axis=0), tuning.part_reach)
+    if arms.steps:
+        arms.apply(0)
+        arms.attach(x, model.coarse_faces)
+        turned = arms.turned_parts()  # the sleeves are around them
+        parts = np.union1d(parts, turned).astype(np.int64)
+
+    # a tangled start: grow the body, or (growth off) push out and pin for a few steps
+    tangled = bool((collider.depth(x, parts, offset=True) > 0).any())
+    grow_steps = settings.grow_steps if tangled else 0
+    if grow_steps:
+        collider.set_scale(settings.grow_from)
+    state = DrapeState.at(x, inv_mass)
+    pinned_until, saved_inv_mass = 0, None
+    if tangled and not grow_steps:
+        collider.collide(x, state.x_prev, inv_mass, state.active, parts, settings.contact_offset, 0.0, 0.0,
+                         state.contact)
+        state.x_prev[:] = x
+        state.x_checked[:] = x
+        state.x_step[:] = x
+        saved_inv_mass = inv_mass.copy()
+        inv_mass[state.contact] = 0.0
+        pinned_until = tuning.pin_steps
+
+    # substeps ("small steps", Macklin et al. 2019): the passes are spread over substeps of the time step,
+    # which converges much further per pass than repeating passes on one large step
+    n_sub = max(1, min(settings.substeps, settings.passes))
+    floor_y = tuning.floor_y
+    if tuning.floor_under_sole:
+        # a floor inside the offset body (the soles are on y = 0, offset down by the margin) would trap a
+        # trouser hem between the floor and the sole's rim, the collision pushing it down and the floor
+        # pushing it back up, stretching its springs without end
+        floor_y = min(floor_y, float(body.vertices[:, 1].min()) - settings.collision_margin
+                      - settings.contact_offset)
+    return Drape(body=body, model=model, settings=settings, tuning=tuning, collider=collider, arms=arms, plan=plan,
+                 parts=parts, piece=piece, springs=springs, rest=rest, kind=kind, mass=mass, limits=limits, ends=ends,
+                 table=table, openings=openings, placed_tops=placed_tops, floor_y=floor_y, n_sub=n_sub,
+                 per_sub=max(1, settings.passes // n_sub), h=float(settings.time_step) / n_sub,
+                 grow_steps=grow_steps, startup=max(grow_steps, arms.steps), pinned_until=pinned_until,
+                 saved_inv_mass=saved_inv_mass, sized=sized, state=state, started=started)

@@ -1,0 +1,129 @@
+"""A drape in progress: the scene ``start`` fixes (``Drape``) and the state each step moves (``DrapeState``).
+
+Struct of arrays over the k simulated (coarse) points of the garment, s springs and q body parts; every
+kernel of the loop reads and writes these arrays in place. ``start`` builds a ``Drape``, ``step`` advances
+its state by one time step, ``relax`` and ``finish`` end it (``run.py`` tells how they fit together).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tryon.body.types import Body
+from tryon.garment.model import GarmentModel
+from tryon.sim.align import ArmPlan
+from tryon.sim.arms import ArmSchedule
+from tryon.sim.collision.collider import BodyCollider
+from tryon.sim.settings import SimSettings
+from tryon.sim.tuning import Tuning
+
+
+@dataclass
+class DrapeState:
+    """What a step changes.
+
+    x, x_prev (k, 3) m: positions now and one step before (Verlet); inv_mass (k,) 1/kg (0 = pinned);
+    contact (k,) bool: pushed out of the body by the last collision; has_plane (k,) bool, plane_point (k, 3) m,
+    plane_normal (k, 3) unit: each point's contact plane, if any; push (k,) m: the pushes summed over a
+    substep's passes (for friction); active (k,) bool: the points the step's collision tests; reused (k,) bool:
+    contacts that only re-projected onto their plane; x_checked (k, 3) m: where each point was last tested;
+    x_step (k, 3) m: positions at the end of the last step; held (k,) bool: held in a pinch between two parts
+    this step; flipping (k,) bool: held, and flipping between the parts (kept still); moves (2, k, 3) m: each
+    point's move in the last step and in the one before.
+    step: steps done; rest_run: consecutive steps under the rest energy; rest_reached; energy J/kg: the last
+    step's kinetic energy per kilogram; collided: how many points the last collision moved.
+    """
+
+    x: np.ndarray
+    x_prev: np.ndarray
+    inv_mass: np.ndarray
+    contact: np.ndarray
+    has_plane: np.ndarray
+    plane_point: np.ndarray
+    plane_normal: np.ndarray
+    push: np.ndarray
+    active: np.ndarray
+    reused: np.ndarray
+    x_checked: np.ndarray
+    x_step: np.ndarray
+    held: np.ndarray
+    flipping: np.ndarray
+    moves: np.ndarray
+    step: int = 0
+    rest_run: int = 0
+    rest_reached: bool = False
+    energy: float = 0.0
+    collided: int = 0
+
+    @classmethod
+    def at(cls, x: np.ndarray, inv_mass: np.ndarray) -> DrapeState:
+        """The state of points at rest at ``x`` (k, 3) m (taken, not copied) with ``inv_mass`` (k,)."""
+        k = len(x)
+        return cls(x=x, x_prev=x.copy(), inv_mass=inv_mass, contact=np.zeros(k, dtype=np.bool_),
+                   has_plane=np.zeros(k, dtype=np.bool_), plane_point=np.zeros((k, 3)), plane_normal=np.zeros((k, 3)),
+                   push=np.zeros(k), active=np.ones(k, dtype=np.bool_), reused=np.zeros(k, dtype=np.bool_),
+                   x_checked=x.copy(), x_step=x.copy(), held=np.zeros(k, dtype=np.bool_),
+                   flipping=np.zeros(k, dtype=np.bool_), moves=np.zeros((2, k, 3)))
+
+    @property
+    def planes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(has_plane, plane_point, plane_normal), as the collision fills them."""
+        return self.has_plane, self.plane_point, self.plane_normal
+
+
+@dataclass
+class Drape:
+    """One drape: what ``start`` fixed, and its ``state``.
+
+    body, model (resized to the body when its units were guessed: ``sized``), settings, tuning.
+    collider: the body as this drape sees it (grows, arms turn); arms: the arms' turn back from the sleeves'
+    pose (``plan``); parts (q,) int64: the body parts tested. piece (k,) int64: which separate piece of the
+    file each point belongs to (an outfit's garments). springs (s, 2) int64, rest (s,) m, kind (s,) int64,
+    mass (k,) kg, limits (3,) strain limits by kind; ends (s, 2) uint32 and table (s, 4): the springs packed
+    for the passes (a waistband's at the band limit). openings: sleeves' and trouser legs' openings;
+    placed_tops: each piece's top at placement (how far it slid). floor_y m; n_sub substeps of h s with
+    per_sub passes each. grow_steps: steps over which the body grows (0: the garment started clear of it);
+    startup: steps before the body is complete (growth, arms turning); pinned_until, saved_inv_mass: points
+    pinned at the start while growth is off. The step's spring subsets, carried between steps: body_ends,
+    body_table (the contact passes' springs, both ends on the body), ordered_ends, ordered_lmax (every
+    spring from the top down, refreshed every ``tuning.order_refresh`` steps) and sweep_ends, sweep_lmax (the
+    hanging springs the top-down sweep visits). started: ``time.perf_counter()`` at the start.
+    """
+
+    body: Body
+    model: GarmentModel
+    settings: SimSettings
+    tuning: Tuning
+    collider: BodyCollider
+    arms: ArmSchedule
+    plan: ArmPlan
+    parts: np.ndarray
+    piece: np.ndarray
+    springs: np.ndarray
+    rest: np.ndarray
+    kind: np.ndarray
+    mass: np.ndarray
+    limits: np.ndarray
+    ends: np.ndarray
+    table: np.ndarray
+    openings: list
+    placed_tops: np.ndarray
+    floor_y: float
+    n_sub: int
+    per_sub: int
+    h: float
+    grow_steps: int
+    startup: int
+    pinned_until: int
+    saved_inv_mass: np.ndarray | None
+    sized: bool
+    state: DrapeState
+    body_ends: np.ndarray = field(default_factory=lambda: np.empty((0, 2), dtype=np.uint32))
+    body_table: np.ndarray = field(default_factory=lambda: np.empty((0, 4)))
+    ordered_ends: np.ndarray = field(default_factory=lambda: np.empty((0, 2), dtype=np.uint32))
+    ordered_lmax: np.ndarray = field(default_factory=lambda: np.empty(0))
+    sweep_ends: np.ndarray = field(default_factory=lambda: np.empty((0, 2), dtype=np.uint32))
+    sweep_lmax: np.ndarray = field(default_factory=lambda: np.empty(0))
+    started: float = 0.0

@@ -1,0 +1,118 @@
+"""One time step of a drape: the body's start-up change, Verlet, collision, the substeps' passes, the guards.
+
+See ``run.py``'s doc for the method. ``step`` advances ``drape.state`` in place and tells whether the
+garment has come to rest; it works from whatever state it is given (a fresh ``start`` or a drape that has
+already run), so a caller may step a drape on for as long as it likes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tryon.sim.collision.contacts import flipped, points_to_test, reuse_planes
+from tryon.sim.constraints import (
+    cap_stretch, contact_springs, pack_sweep, solve_listed, sweep_springs, top_down_order,
+)
+from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
+from tryon.sim.pieces import hanging_pieces
+from tryon.sim.state import Drape
+from tryon.sim.substeps import finish_step
+
+
+def step(d: Drape) -> bool:
+    """Advance ``d.state`` by one time step; True once the garment is at rest (``settings.rest_energy`` for
+    ``settings.rest_steps`` steps, after the start-up and ``settings.min_steps``). Raises FloatingPointError
+    if the simulation diverged."""
+    s, st, tu, collider, arms = d.settings, d.state, d.tuning, d.collider, d.arms
+    x, x_prev, inv_mass = st.x, st.x_prev, st.inv_mass
+    st.step += 1
+    n = st.step
+    changing = n <= d.startup
+    turning = bool(arms.steps) and n <= arms.steps + 1
+    if d.grow_steps and n <= d.grow_steps + 1:
+        scale = s.grow_from + (1.0 - s.grow_from) * min(1.0, n / d.grow_steps)
+        collider.set_scale(scale, refresh=not turning)  # the arms' turn recomputes the surface anyway
+    if turning:
+        arms.apply(n)
+        arms.carry(x, x_prev)
+    if d.pinned_until and n == d.pinned_until:
+        inv_mass[:] = d.saved_inv_mass
+    # no gravity while the body grows / the arms turn back: the garment must not slide off a body that is
+    # not yet its full size (the fit phase); it falls once the body is complete
+    gravity = 0.0 if changing else s.gravity
+    mu_s, mu_k = s.friction_static, s.friction_kinetic
+    # the first substep's prediction, collision and passes here; its tail and the other substeps in one
+    # kernel (``finish_step``)
+    verlet_step(x, x_prev, inv_mass, d.h, gravity, s.air_drag, s.max_speed)
+    # collision (paper 3.3-3.4) on the predicted positions, leaving a contact plane for every point pushed
+    # out or lying within ``near`` of the body; the substeps keep to those planes
+    if changing:
+        st.active[:] = True
+    else:
+        # contacts still near where they touched keep their plane (no map query), points that have not moved
+        # since their last test and touch nothing are not tested at all
+        reuse_planes(x, x_prev, *st.planes, tu.plane_reuse, mu_s, mu_k, st.contact, st.reused)
+        points_to_test(x, st.x_checked, st.has_plane, st.reused, tu.rest_move, st.active)
+        st.active |= st.held
+    st.collided = collider.collide(x, x_prev, inv_mass, st.active, d.parts, s.contact_offset, mu_s, mu_k,
+                                   st.contact, near=tu.near, planes=st.planes, hold_pinched=not changing,
+                                   held=st.held)
+    st.x_checked[st.active] = x[st.active]
+    touching = np.flatnonzero(st.has_plane)  # the points with a contact plane this step
+    # a point flipping in a pinch stays still for the whole step, springs included (``tuning.pinch_flip``)
+    st.flipping &= st.held
+    if st.held.any() and n > d.startup + s.min_steps:
+        st.flipping |= st.held & flipped(st.moves[0], st.moves[1], tu.pinch_flip)
+    step_mass = np.where(st.flipping, 0.0, inv_mass) if st.flipping.any() else inv_mass
+    # points on the body count as heavier in the springs, so hanging cloth hangs from them instead of
+    # dragging them in (mass scaling)
+    w_eff = np.where(st.has_plane, step_mass * tu.contact_weight, step_mass)
+    contact_passes = tu.contact_passes if not changing else 0
+    if contact_passes:
+        d.body_ends, d.body_table = contact_springs(d.ends, d.table, st.has_plane)
+    solve_listed(x, x_prev, w_eff, d.ends, d.table, d.per_sub, touching, st.plane_point, st.plane_normal, 0.0, 0.0,
+                 st.push)
+    if contact_passes:
+        solve_listed(x, x_prev, w_eff, d.body_ends, d.body_table, contact_passes, touching, st.plane_point,
+                     st.plane_normal, 0.0, 0.0, st.push)
+    if n % tu.order_refresh == 1:
+        d.ordered_ends, d.ordered_lmax = pack_sweep(d.ends, d.table, top_down_order(x, d.springs))
+    if not changing:
+        d.sweep_ends, d.sweep_lmax = sweep_springs(d.ordered_ends, d.ordered_lmax, st.has_plane,
+                                                   hanging_pieces(d.piece, st.has_plane | (inv_mass == 0.0)))
+    # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its upward bias would
+    # make a tight garment climb off the body
+    finish_step(x, x_prev, step_mass, w_eff, d.h, gravity, s.air_drag, s.max_speed, d.n_sub, d.per_sub, d.ends,
+                d.table, contact_passes, d.body_ends, d.body_table, touching, st.plane_point, st.plane_normal,
+                st.has_plane, st.push, mu_s, mu_k, not changing, tu.sweep_every_substep, d.sweep_ends, d.sweep_lmax,
+                d.floor_y)
+    # guard: collision wins over the springs within the step, so a garment far too small for its body (a
+    # size S shirt on the largest body) would be stretched without bound; past ``tear_guard`` x its natural
+    # length a spring wins instead (the point may stay inside the body: the metrics report it). Never active
+    # in a normal drape, whose springs stay within their limits.
+    cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
+    return _at_rest(d)
+
+
+def _at_rest(d: Drape) -> bool:
+    """Update the rest test after a step: at rest = the garment's own motion over the last two steps
+    (positions, not the solver's internal velocities, which the strain limits and contact planes keep
+    resetting). Over two steps, because a point caught between the collision and its springs can flip
+    between two places every step, going nowhere (three such points at the armpit of the DiffCloth dress on
+    the large body, 2-3 cm a step, kept it from rest for 400 steps)."""
+    st, s = d.state, d.settings
+    dt = float(s.time_step)
+    st.moves[1] = st.moves[0]
+    np.subtract(st.x, st.x_step, out=st.moves[0])
+    # x_step - moves[1]: where each point was two steps before (at the first step: where it started)
+    st.energy = kinetic_energy_per_kg(st.x, st.x_step - st.moves[1], d.mass, 2 * dt if st.step > 1 else dt)
+    st.x_step[:] = st.x
+    if not np.isfinite(st.energy):
+        raise FloatingPointError(f"simulation diverged at step {st.step}")
+    if st.step > d.startup and st.step >= s.min_steps and st.energy < s.rest_energy:
+        st.rest_run += 1
+        if st.rest_run >= s.rest_steps:
+            st.rest_reached = True
+    else:
+        st.rest_run = 0
+    return st.rest_reached

@@ -1,0 +1,101 @@
+"""The solver's knobs that are not a request's to choose: one frozen object beside ``SimSettings``.
+
+``SimSettings`` holds what a caller may set per try-on (time step, substeps, friction, strain limits, ...).
+``Tuning`` holds how the method itself works: when a point is tested again, how the relaxation decides it is
+done, the guards. Each field carries its unit and why it has its value. ``drape`` takes one (``TUNING`` by
+default); a benchmark or test that needs another passes ``dataclasses.replace(TUNING, ...)`` instead of
+patching module globals. The figures quoted below are from ``tryon bench --only fit`` (90 catalogue drapes)
+and ``--only poses`` unless said otherwise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Tuning:
+    """How the step loop and the relaxation work (``run.py``'s module doc tells the story they belong to).
+
+    rest_move: m. A point that moved less than this since its last collision test (and was not in contact)
+        is not tested again: the body is static, so it is still outside the offset body, i.e. at least
+        margin - 0.1 mm clear of the real one.
+    part_reach: m. How far beyond the aligned garment's bounding box a body part must be to be never tested
+        (the garment can fall or slide a little; a part further than this cannot be reached before rest).
+        A cloth dropped from high above a collider (the bench's ball scene) needs more.
+    pin_steps: steps for which points pushed out at alignment stay pinned when growth is off.
+    min_polish_rounds, max_polish_rounds, polish_stall_rounds, polish_progress: the relaxation after the
+        loop runs at least MIN rounds (one step's substeps each), then until every spring meets the strain
+        target (``metrics.allowed_length``), at most MAX, and gives up when the count of springs over the
+        target has not fallen to PROGRESS x its lowest in STALL rounds (a garment too small for the body
+        there: its springs stay over whatever the rounds). A band that must stretch a little to sit on a
+        large body climbs slowly: the L skirt and shorts on the large body need 81 and 193 rounds; with at
+        most 300 and the stall rule they meet the target, and the drapes that cannot (S / M garments on the
+        large body) stop after 33-67 rounds.
+    relax_drag: 1/s, air drag in the relaxation: light, so the motion the constraints start keeps going (a
+        waistband climbs back up to where it fits in 10-40 rounds instead of hundreds of passes without
+        momentum), yet a cloth pulled up off a table by the springs at its rim comes to a stop (0 and 10/s
+        left bumps of 2 mm and 1.7 cm on the table test at 0.05 s; 20/s: 0.2 mm).
+    relax_move_quantile, relax_max_move: m. The relaxation is kept for each piece of the file that it moved
+        less than ``relax_max_move`` at the ``relax_move_quantile`` of the piece's coarse points. A garment
+        far too small for its body has no nearby place where its springs meet the target, and without
+        gravity the relaxation carries it to wherever they come closest (a MakeHuman blouse on the medium
+        body bunched around the neck, 90 % of its points moved up to 55 cm; MakeHuman trousers down to the
+        knees, 26 cm). The catalogue's drapes move 90 % of their points at most 12 cm, most under 2 cm.
+    order_refresh: steps between re-sorting the springs from the top down for the hanging-stretch sweep
+        (the garment's vertical order changes slowly once it hangs).
+    near: m. Points outside the offset body but closer than this get a contact plane for the step's
+        constraint passes (so the springs cannot pull them in between two collision tests).
+    plane_reuse: m. A contact plane is reused (no map query) while the point stays this close to where it
+        touched (within 1 cm on a 5 cm arm the plane lies at most 1 mm off the surface).
+    pinch_flip: m. A point held in a pinch whose last two steps moved it more than this each, the second
+        back against the first, is flipping between the two parts (the springs moving it through one and
+        back every other step; ~5 cm under the armpit of the long-sleeve M with the arm at 15 degrees, the
+        elbow bent 100, which never came to rest): it is kept still, springs included, for as long as it
+        stays pinched. Only once the garment has fallen (after the start-up and ``min_steps``): holding
+        every pinched point, or flipping ones from the start, left a sleeveless dress's armhole off the arm
+        with the arms hanging; flips over 1 cm left 26 springs over on the T-shirt M with the elbow bent
+        120, over 3 cm the long-sleeve L at 15 degrees still flipping.
+    floor_y: m, the floor the body stands on (its feet are on y = 0); trouser legs and long hems rest on it.
+    floor_under_sole: put the floor under the offset body's soles: a floor inside the offset body would
+        trap a trouser hem between the floor and the sole's rim, stretching its springs without end.
+    sweep_every_substep: the top-down stretch sweep runs after every substep (True) or once per step
+        (half the cost, but bottoms then slide off the hips; after every second substep the 90 catalogue
+        drapes need 17-23 % more steps).
+    tear_guard, tear_passes: the largest spring length / natural length the step's last sweeps allow
+        (issue 5: never beyond 3x), and at most how many such sweeps (they stop as soon as one finds nothing
+        to do). Never active in a normal drape; it keeps a garment far too small for its body from being
+        stretched without bound.
+    contact_weight: inverse-mass factor of points in contact during the constraint passes: points on the
+        body count as heavier, so hanging cloth hangs from them instead of dragging them in.
+    contact_passes: extra Gauss-Seidel passes per substep over the springs with both ends on the body (a
+        waistband around the hips, a bodice over the chest), stretch only: their hoop tension is what holds
+        a garment up; with one pass of the whole cloth per substep it stretched 15-25 % before friction held
+        it, so bottoms came to rest 1-2 cm too low. One pass rather than two: as accurate, with fewer steps
+        to rest; none: 3-7 % more steps and springs left over on the large body.
+    """
+
+    rest_move: float = 1e-4
+    part_reach: float = 0.15
+    pin_steps: int = 5
+    min_polish_rounds: int = 3
+    max_polish_rounds: int = 300
+    polish_stall_rounds: int = 30
+    polish_progress: float = 0.9
+    relax_drag: float = 20.0
+    relax_move_quantile: float = 0.9
+    relax_max_move: float = 0.15
+    order_refresh: int = 20
+    near: float = 0.005
+    plane_reuse: float = 0.01
+    pinch_flip: float = 0.02
+    floor_y: float = 0.001
+    floor_under_sole: bool = True
+    sweep_every_substep: bool = True
+    tear_guard: float = 2.5
+    tear_passes: int = 100
+    contact_weight: float = 0.2
+    contact_passes: int = 1
+
+
+TUNING = Tuning()

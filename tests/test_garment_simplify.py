@@ -10,7 +10,8 @@ import scipy.sparse.csgraph
 from tryon.garment.generate import garment_mesh
 from tryon.garment.ingest import CleanMesh
 from tryon.garment.prepare import prepare, triangle_areas
-from tryon.garment.simplify import _vertex_normals, collapse_faces, collapse_with_parents
+from tryon.garment.simplify import collapse_faces, collapse_with_parents
+from tryon.geometry import vertex_normals
 
 
 def boundary_loops(faces: np.ndarray, n: int) -> list[int]:
@@ -95,7 +96,7 @@ def test_no_degenerate_duplicate_or_flipped_faces(tshirt):
     assert triangle_areas(cv, coarse).min() > 1e-7  # m^2: no zero-area face
     # each face the collapse changed faces the same way as the original surface at its corners (faces
     # it left alone are the source's own; at the sharp A-pose armpit crease a vertex normal is moot)
-    vn = _vertex_normals(v, f)[kept]
+    vn = vertex_normals(v, f)[kept]
     n = np.cross(cv[coarse[:, 1]] - cv[coarse[:, 0]], cv[coarse[:, 2]] - cv[coarse[:, 0]])
     original = {tuple(t) for t in np.sort(f, axis=1)}
     changed = np.array([tuple(t) not in original for t in np.sort(kept[coarse], axis=1)])

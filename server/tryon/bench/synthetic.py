@@ -12,6 +12,7 @@ from tryon.body.maps import build_part_maps
 from tryon.body.types import PART_NAMES, Body
 from tryon.garment.model import GarmentMeta, GarmentModel
 from tryon.garment.springs import BENDING, SHEAR, STRUCTURAL
+from tryon.geometry import face_normals, vertex_normals
 
 # Default collision margin of the synthetic bodies' maps, metres (matches SimSettings' default order).
 MAP_MARGIN = 0.01
@@ -50,16 +51,6 @@ def capped_cylinder(a, b, radius: float, n_around: int = 24, n_along: int = 8):
     return verts, np.asarray(faces, dtype=np.int32)
 
 
-def _normals(vertices, faces):
-    fn = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
-    vn = np.zeros_like(vertices)
-    for c in range(3):
-        np.add.at(vn, faces[:, c], fn)
-    fn /= np.linalg.norm(fn, axis=1, keepdims=True)
-    vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-12)
-    return vn, fn
-
-
 def body_from_parts(segments, radii, n_around: int = 24, cell_along: float = 0.03, margin: float = MAP_MARGIN) -> Body:
     """A ``Body`` of capped cylinders: ``segments`` (P, 2, 3) axis segments, ``radii`` (P,) metres."""
     vs, fs, fp = [], [], []
@@ -74,7 +65,9 @@ def body_from_parts(segments, radii, n_around: int = 24, cell_along: float = 0.0
     vertices = np.vstack(vs)
     faces = np.vstack(fs).astype(np.int32)
     face_part = np.concatenate(fp)
-    vn, fn = _normals(vertices, faces)
+    vn = vertex_normals(vertices, faces)
+    fn = np.empty((len(faces), 3))
+    face_normals(vertices, np.asarray(faces, dtype=np.int64), fn)
     axes = np.asarray(segments, float)
     return Body(
         vertices=vertices, faces=faces, vertex_normals=vn, face_normals=fn, face_part=face_part,

@@ -19,7 +19,8 @@ from functools import lru_cache
 import numpy as np
 
 from tryon.body import nurbs
-from tryon.body.kernels import face_vertex_normals, section_depths
+from tryon.body.kernels import section_depths
+from tryon.geometry import face_vertex_normals
 from tryon.body.maps import build_part_maps
 from tryon.body.measure import horizontal_breadth, horizontal_girth, hull_perimeter, mesh_edges, section_girth
 from tryon.body.params import POSE_RANGES, Measurements, Pose, check_measurements, check_pose, complete

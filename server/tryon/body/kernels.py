@@ -7,46 +7,6 @@ from numba import njit
 
 
 @njit(cache=True)
-def face_vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit face normals (f, 3) and area-weighted unit vertex normals (n, 3) of a triangle mesh
-    (vertices (n, 3) float64, faces (f, 3) int32, counter-clockwise from outside). Serial scatter."""
-    n = vertices.shape[0]
-    f = faces.shape[0]
-    fn = np.empty((f, 3))
-    vn = np.zeros((n, 3))
-    for k in range(f):
-        a, b, c = faces[k, 0], faces[k, 1], faces[k, 2]
-        ux = vertices[b, 0] - vertices[a, 0]
-        uy = vertices[b, 1] - vertices[a, 1]
-        uz = vertices[b, 2] - vertices[a, 2]
-        wx = vertices[c, 0] - vertices[a, 0]
-        wy = vertices[c, 1] - vertices[a, 1]
-        wz = vertices[c, 2] - vertices[a, 2]
-        nx = uy * wz - uz * wy
-        ny = uz * wx - ux * wz
-        nz = ux * wy - uy * wx
-        for v in (a, b, c):
-            vn[v, 0] += nx
-            vn[v, 1] += ny
-            vn[v, 2] += nz
-        length = np.sqrt(nx * nx + ny * ny + nz * nz)
-        if length > 0.0:
-            nx /= length
-            ny /= length
-            nz /= length
-        fn[k, 0] = nx
-        fn[k, 1] = ny
-        fn[k, 2] = nz
-    for v in range(n):
-        length = np.sqrt(vn[v, 0] ** 2 + vn[v, 1] ** 2 + vn[v, 2] ** 2)
-        if length > 0.0:
-            vn[v, 0] /= length
-            vn[v, 1] /= length
-            vn[v, 2] /= length
-    return fn, vn
-
-
-@njit(cache=True)
 def convex_hull_2d(points: np.ndarray) -> np.ndarray:
     """(m, 2) corners of the convex hull of (k, 2) points, counter-clockwise (Andrew's monotone chain);
     empty for fewer than 3 points."""

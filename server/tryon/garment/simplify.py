@@ -35,6 +35,7 @@ import scipy.sparse.csgraph
 from numba import njit
 
 from tryon.garment.topology import vertex_pieces
+from tryon.geometry import vertex_normals
 
 # A collapse may turn a changed face's normal by at most this much (degrees): beyond it the coarse
 # surface folds (90 degrees would be a flip); 60 degrees keeps the sleeves and hem round.
@@ -71,7 +72,7 @@ def collapse_with_parents(faces: np.ndarray, n_vertices: int, B: float, vertices
     fixed, bnext, bprev, loop_id, loop_count, loop_min = _boundary(faces, n_vertices, B, guard)
     piece, piece_kept = _pieces(faces, n_vertices)
     piece_target = np.floor(B * piece_kept).astype(np.int64)
-    vnorm = _vertex_normals(pos, faces) if guard else pos
+    vnorm = vertex_normals(pos, faces) if guard else pos
     fv, alive, parent = _collapse_kernel(
         faces, n_vertices, piece, piece_kept, piece_target, pos, vnorm, guard, vf_start, vf_list, fixed,
         bnext, bprev, loop_id, loop_count, loop_min, math.cos(math.radians(MAX_TURN_DEG)), MIN_ORIGINAL_COS,
@@ -94,17 +95,6 @@ def _pieces(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     piece = np.full(n, -1, dtype=np.int64)
     _, piece[used] = np.unique(label[used], return_inverse=True)
     return piece, np.bincount(piece[used]).astype(np.int64)
-
-
-def _vertex_normals(pos: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(n, 3) area-weighted unit vertex normals of the original mesh (zero where undefined)."""
-    tri = pos[faces]
-    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # length = 2 area: area weighting
-    vn = np.zeros_like(pos)
-    for c in range(3):
-        np.add.at(vn, faces[:, c], fn)
-    length = np.linalg.norm(vn, axis=1, keepdims=True)
-    return np.ascontiguousarray(vn / np.where(length > 0, length, 1.0))
 
 
 def _vertex_faces(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -394,7 +384,9 @@ def attach(vertices: np.ndarray, root: np.ndarray, kept: np.ndarray, coarse_face
 @njit(cache=True, fastmath=True)
 def _closest_sq(V, v, i, j, k):
     """Squared distance from vertex v to triangle (i, j, k) of V (Ericson, Real-Time Collision
-    Detection 5.1.5), in scalars (no temporaries)."""
+    Detection 5.1.5), in scalars (no temporaries). The same point as ``geometry.closest_on_triangle``, but
+    with fastmath and its own rounding: the re-attachment's nearest face is part of every prepared model,
+    and the other rounding picks another face at near-ties (all catalogue drapes then differ slightly)."""
     px, py, pz = V[v, 0], V[v, 1], V[v, 2]
     ax, ay, az = V[i, 0], V[i, 1], V[i, 2]
     abx, aby, abz = V[j, 0] - ax, V[j, 1] - ay, V[j, 2] - az

@@ -12,9 +12,10 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.sim.collision.kernels import (
-    BodySurface, cell_max_radius, collide_points, face_boxes, face_normals, grow_vertices, offset_body,
-    penetration_depth, vertex_parts,
+    BodySurface, cell_max_radius, collide_points, face_boxes, grow_vertices, offset_body, penetration_depth,
+    vertex_parts,
 )
+from tryon.geometry import face_normals
 
 
 def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:

@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 
 from tryon.sim.collision.contacts import coulomb_cut
+from tryon.geometry import closest_on_triangle, face_normals
 from tryon.sim.collision.inside import inside_triangle_xyz
 
 # Below this cosine between the ray and the hit triangle's normal, the radial push is replaced by the
@@ -99,30 +100,6 @@ def offset_body(vertices, vertex_normals, faces, margin, out_vertices, out_norma
         for a in range(3):
             out_vertices[i, a] = vertices[i, a] + margin * vertex_normals[i, a]
     face_normals(out_vertices, faces, out_normals)
-
-
-@njit(cache=True, nogil=True)
-def face_normals(vertices, faces, out):
-    """Unit face normals (f, 3) of a triangle mesh into ``out``."""
-    for f in range(faces.shape[0]):
-        a = faces[f, 0]
-        b = faces[f, 1]
-        c = faces[f, 2]
-        e1x = vertices[b, 0] - vertices[a, 0]
-        e1y = vertices[b, 1] - vertices[a, 1]
-        e1z = vertices[b, 2] - vertices[a, 2]
-        e2x = vertices[c, 0] - vertices[a, 0]
-        e2y = vertices[c, 1] - vertices[a, 1]
-        e2z = vertices[c, 2] - vertices[a, 2]
-        nx = e1y * e2z - e1z * e2y
-        ny = e1z * e2x - e1x * e2z
-        nz = e1x * e2y - e1y * e2x
-        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
-        if ln > 0.0:
-            ln = 1.0 / ln
-        out[f, 0] = nx * ln
-        out[f, 1] = ny * ln
-        out[f, 2] = nz * ln
 
 
 @njit(cache=True, nogil=True)
@@ -257,72 +234,6 @@ def _in_obb(px, py, pz, normals, offsets, k):
     return True
 
 
-@njit(cache=True, nogil=True)
-def _closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
-    """Closest point of triangle a, b, c to p (Ericson, Real-Time Collision Detection 5.1.5): (squared
-    distance, x, y, z). Coordinates, not arrays: passing arrays into a function that branches and returns
-    early pays two atomic reference-count updates per array, and this runs for every face of up to 9
-    cells."""
-    abx = bx - ax
-    aby = by - ay
-    abz = bz - az
-    acx = cx - ax
-    acy = cy - ay
-    acz = cz - az
-    apx = px - ax
-    apy = py - ay
-    apz = pz - az
-    d1 = abx * apx + aby * apy + abz * apz
-    d2 = acx * apx + acy * apy + acz * apz
-    u = 0.0
-    v = 0.0
-    if d1 <= 0.0 and d2 <= 0.0:
-        u = 0.0
-        v = 0.0
-    else:
-        bpx = px - bx
-        bpy = py - by
-        bpz = pz - bz
-        d3 = abx * bpx + aby * bpy + abz * bpz
-        d4 = acx * bpx + acy * bpy + acz * bpz
-        cpx = px - cx
-        cpy = py - cy
-        cpz = pz - cz
-        d5 = abx * cpx + aby * cpy + abz * cpz
-        d6 = acx * cpx + acy * cpy + acz * cpz
-        vc = d1 * d4 - d3 * d2
-        vb = d5 * d2 - d1 * d6
-        va = d3 * d6 - d5 * d4
-        if d3 >= 0.0 and d4 <= d3:
-            u = 1.0
-            v = 0.0
-        elif d6 >= 0.0 and d5 <= d6:
-            u = 0.0
-            v = 1.0
-        elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-            u = d1 / (d1 - d3)
-            v = 0.0
-        elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-            u = 0.0
-            v = d2 / (d2 - d6)
-        elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-            w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-            u = 1.0 - w
-            v = w
-        else:
-            den = 1.0 / (va + vb + vc)
-            u = vb * den
-            v = vc * den
-    qx = ax + u * (bx - ax) + v * (cx - ax)
-    qy = ay + u * (by - ay) + v * (cy - ay)
-    qz = az + u * (bz - az) + v * (cz - az)
-    dd = 0.0
-    dd += (px - qx) ** 2
-    dd += (py - qy) ** 2
-    dd += (pz - qz) ** 2
-    return dd, qx, qy, qz
-
-
 @njit(cache=True, nogil=True, _nrt=False)
 def _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces, bv, faces, q_out, reach=1):
     """Nearest face of part k's offset surface to p among the cells around (it, iz): the
@@ -342,7 +253,7 @@ def _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces,
                 a = faces[f, 0]
                 b = faces[f, 1]
                 c3 = faces[f, 2]
-                d, qx, qy, qz = _closest_on_triangle(p[0], p[1], p[2], bv[a, 0], bv[a, 1], bv[a, 2], bv[b, 0],
+                d, qx, qy, qz = closest_on_triangle(p[0], p[1], p[2], bv[a, 0], bv[a, 1], bv[a, 2], bv[b, 0],
                                                      bv[b, 1], bv[b, 2], bv[c3, 0], bv[c3, 1], bv[c3, 2])
                 if d < best:
                     best = d

@@ -89,11 +89,11 @@ def face_normals(vertices, faces, out):
 
 
 @njit(cache=True, nogil=True)
-def closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
-    """Closest point of triangle a, b, c to p (Ericson, Real-Time Collision Detection 5.1.5): (squared
-    distance, x, y, z). Coordinates, not arrays: passing arrays into a function that branches and returns
-    early pays two atomic reference-count updates per array, and this runs for every face of up to 9
-    cells."""
+def closest_uv_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+    """Where on triangle a, b, c the point closest to p lies (Ericson, Real-Time Collision Detection 5.1.5):
+    (u, v) with closest = a + u (b - a) + v (c - a), u, v >= 0, u + v <= 1. Coordinates, not arrays: passing
+    arrays into a function that branches and returns early pays two atomic reference-count updates per
+    array, and this runs for every face of up to 9 cells."""
     abx = bx - ax
     aby = by - ay
     abz = bz - az
@@ -144,6 +144,13 @@ def closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
             den = 1.0 / (va + vb + vc)
             u = vb * den
             v = vc * den
+    return u, v
+
+
+@njit(cache=True, nogil=True)
+def closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+    """Closest point of triangle a, b, c to p (``closest_uv_on_triangle``): (squared distance, x, y, z)."""
+    u, v = closest_uv_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz)
     qx = ax + u * (bx - ax) + v * (cx - ax)
     qy = ay + u * (by - ay) + v * (cy - ay)
     qz = az + u * (bz - az) + v * (cz - az)

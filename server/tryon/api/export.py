@@ -42,3 +42,15 @@ def mesh_bytes(vertices: np.ndarray, faces: np.ndarray, file_type: str, colors: 
         mesh.visual.vertex_colors = colors
     data = mesh.export(file_type=file_type)
     return data.encode() if isinstance(data, str) else data
+
+
+def scene_bytes(nodes: list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]) -> bytes:
+    """GLB of several meshes, each a node of its own: ``(name, vertices (n, 3) m, faces (f, 3), RGBA uint8
+    colours (n, 4) or None)``, in order."""
+    scene = trimesh.Scene()
+    for name, vertices, faces, colors in nodes:
+        mesh = trimesh.Trimesh(vertices=np.asarray(vertices, float), faces=np.asarray(faces), process=False)
+        if colors is not None:
+            mesh.visual.vertex_colors = colors
+        scene.add_geometry(mesh, node_name=name, geom_name=name)
+    return scene.export(file_type="glb")

@@ -19,9 +19,11 @@ from tryon.api.export import json_bytes, mesh_arrays
 from tryon.api.frames import FLOAT32, FrameCodec
 from tryon.api.pool import CachedTryOn, RunGuard
 from tryon.api.schemas.tryon import TryOnRequest
-from tryon.api.service import body_mesh, prepare_tryon, result_json
+from tryon.api.outfits import OutfitMesh, layered, outfit_models
+from tryon.api.service import body_mesh, prepare_outfit, prepare_tryon, result_json
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
+from tryon.sim.outfit import OutfitResult, drape_outfit
 from tryon.sim.run import TryOnResult, drape
 from tryon.sim.settings import SimSettings
 
@@ -34,22 +36,30 @@ class LiveTryOnRequest(TryOnRequest):
                                "body (half the bytes, ~0.04 mm steps)")
 
 
-def init_message(body: dict, model: GarmentModel, sim_settings: SimSettings) -> dict:
+def _entry(meta) -> dict:
+    return {"id": meta.id, "name": meta.name, "category": meta.category, "size": meta.size,
+            "vertices": meta.vertices, "faces": meta.faces, "coarse_vertices": meta.coarse_vertices}
+
+
+def init_message(body: dict, model: GarmentModel | OutfitMesh, sim_settings: SimSettings) -> dict:
     """The init message without its ``encoding`` (see :func:`with_encoding`): topology, the body (its
-    ``routes.tryon.body_mesh``), the garment's catalogue facts, the run's settings."""
-    meta = model.meta
-    return {
+    ``routes.tryon.body_mesh``), the garment's catalogue facts (an outfit's: each garment's, with its
+    vertex and face ranges, innermost first), the run's settings."""
+    out = {
         "type": "init",
         "vertex_count": int(len(model.vertices)),
         "face_count": int(len(model.faces)),
         "faces": np.ascontiguousarray(model.faces, dtype=np.int32),
         "body": {**mesh_arrays(body["vertices"], body["faces"]), "achieved": body["achieved"]},
-        "garment": {"id": meta.id, "name": meta.name, "category": meta.category, "size": meta.size,
-                    "vertices": meta.vertices, "faces": meta.faces, "coarse_vertices": meta.coarse_vertices},
         "max_steps": int(sim_settings.max_steps),
         "time_step": float(sim_settings.time_step),
         "strain_limit": float(sim_settings.strain_limit[0]),  # structural springs' stretch limit
     }
+    if isinstance(model, OutfitMesh):
+        out["garments"] = [{**_entry(m.meta), **r} for m, r in zip(model.models, model.ranges)]
+    else:
+        out["garment"] = _entry(model.meta)
+    return out
 
 
 def with_encoding(init_text: str, codec: FrameCodec, vertex_count: int) -> str:
@@ -58,18 +68,34 @@ def with_encoding(init_text: str, codec: FrameCodec, vertex_count: int) -> str:
     return init_text[:-1] + ',"encoding":' + json.dumps(codec.describe(vertex_count), separators=(",", ":")) + "}"
 
 
-def done_message(result: TryOnResult, stopped_by: str | None, cached_answer_s: float | None = None) -> dict:
-    """The done message: the same metrics as ``POST /api/tryon``, the per-vertex strain beside them.
-    ``stopped_by``: the run's ``RunGuard.stopped_by``; ``cached_answer_s``: see ``result_json``."""
-    metrics = result_json(result, cached_answer_s)["metrics"]
-    strain = metrics.pop("strain")
+def done_message(result: TryOnResult | OutfitResult, stopped_by: str | None,
+                 cached_answer_s: float | None = None) -> dict:
+    """The done message: the same metrics as ``POST /api/tryon``, the per-vertex strain beside them (an
+    outfit's: its metrics with ``garments``, each garment's metrics, and every garment's strain one after the
+    other). ``stopped_by``: the run's ``RunGuard.stopped_by``; ``cached_answer_s``: see ``result_json``."""
+    answer = result_json(result, cached_answer_s)
+    metrics = answer["metrics"]
+    if isinstance(result, OutfitResult):
+        metrics["garments"] = [{"garment_id": g["garment_id"], "layer": g["layer"], **g["metrics"]}
+                               for g in answer["garments"]]
+        strain = [s for g in metrics["garments"] for s in g.pop("strain")]
+    else:
+        strain = metrics.pop("strain")
     if stopped_by == "wall_limit":
         metrics["timed_out"] = True
     return {"type": "done", "metrics": metrics, "strain": strain, "stopped_by": stopped_by,
             "timed_out": stopped_by == "wall_limit", "cached": cached_answer_s is not None}
 
 
-def replay_parts(run: CachedTryOn, model: GarmentModel) -> tuple[str, np.ndarray]:
+def shown_model(catalogue: Catalogue, request: TryOnRequest, run: CachedTryOn) -> GarmentModel | OutfitMesh:
+    """What a cached try-on's frames show: its garment's model, or the outfit's models in layer order."""
+    simplification = run.settings.simplification
+    if request.outfit:
+        return layered(outfit_models(catalogue, request, simplification), request.tuck)
+    return catalogue.model(request.garment_id, simplification)
+
+
+def replay_parts(run: CachedTryOn, model: GarmentModel | OutfitMesh) -> tuple[str, np.ndarray]:
     """The init message's text without its encoding and the body's bounding box (2, 3) m of a try-on
     (``model``: its garment), made once and kept with it in ``run.extra``: ~0.5 MB of JSON, made on a
     worker, never on the event loop. A try-on first asked for over REST gets them when a stream replays it."""
@@ -87,13 +113,20 @@ def run_live(catalogue: Catalogue, request: LiveTryOnRequest, session: LiveSessi
     guard.start()
     if guard.cancelled.is_set():
         return None
-    body, model, sim_settings = prepare_tryon(catalogue, request)
+    if request.outfit:
+        body, models, sim_settings = prepare_outfit(catalogue, request)
+        shown = layered(models, request.tuck)
+    else:
+        body, shown, sim_settings = prepare_tryon(catalogue, request)
     run = CachedTryOn(result=None, body=body_mesh(body), settings=sim_settings)
     # serialised here, on the worker: the init message carries two meshes (~0.5 MB of JSON), too much
     # work for the event loop
-    init_base, box = replay_parts(run, model)
-    session.offer_init(init_base, model, FrameCodec.around(request.encoding, box))
-    run.result = drape(body, model, sim_settings, guard)
+    init_base, box = replay_parts(run, shown)
+    session.offer_init(init_base, shown, FrameCodec.around(request.encoding, box))
+    if request.outfit:
+        run.result = drape_outfit(body, models, sim_settings, request.tuck, on_frame=guard)
+    else:
+        run.result = drape(body, shown, sim_settings, guard)
     return run, done_message(run.result, guard.stopped_by)
 
 
@@ -102,7 +135,7 @@ def failure_reason(error: BaseException, request: TryOnRequest) -> str:
     if isinstance(error, HTTPException):
         return str(error.detail)
     if isinstance(error, KeyError):
-        return f"no garment with id {request.garment_id!r} in the catalogue (see GET /api/garments)"
+        return f"no garment with id {error.args[0]!r} in the catalogue (see GET /api/garments)"
     if isinstance(error, ValueError):
         return f"cannot run this try-on: {error}"
     return f"the simulation failed ({type(error).__name__}: {error})"

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from tryon.api.export import mesh_json
+from tryon.api.export import mesh_bytes, mesh_json, scene_bytes
+from tryon.api.outfits import outfit_models
 from tryon.api.pool import CachedTryOn
 from tryon.api.schemas.bodies import to_body_params
 from tryon.api.schemas.tryon import TryOnRequest
@@ -15,6 +16,7 @@ from tryon.body.build import build_body
 from tryon.body.types import Body
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
+from tryon.sim.outfit import OutfitResult, drape_outfit
 from tryon.sim.run import FrameCallback, TryOnResult, drape
 from tryon.sim.settings import SimSettings
 
@@ -30,8 +32,9 @@ def prepare_tryon(catalogue: Catalogue, request: TryOnRequest) -> tuple[Body, Ga
     return build_body(measurements, pose), model, settings
 
 
-def run_tryon(catalogue: Catalogue, request: TryOnRequest, on_frame: FrameCallback | None = None) -> TryOnResult:
-    """Prepare and drape one try-on (blocking: call it from a worker thread)."""
+def run_tryon(catalogue: Catalogue, request: TryOnRequest,
+              on_frame: FrameCallback | None = None) -> TryOnResult | OutfitResult:
+    """Prepare and drape one try-on, a garment or an outfit (blocking: call it from a worker thread)."""
     return simulate(catalogue, request, on_frame).result
 
 
@@ -41,16 +44,35 @@ def body_mesh(body: Body) -> dict:
 
 
 def simulate(catalogue: Catalogue, request: TryOnRequest, on_frame: FrameCallback | None = None) -> CachedTryOn:
-    """Prepare and drape one try-on (blocking), kept as the result cache keeps it."""
+    """Prepare and drape one try-on (blocking), kept as the result cache keeps it. An outfit's ``on_frame``
+    gets one coarse array per garment, in layer order."""
+    if request.outfit:
+        body, models, settings = prepare_outfit(catalogue, request)
+        result = drape_outfit(body, models, settings, request.tuck, on_frame=on_frame)
+        return CachedTryOn(result=result, body=body_mesh(body), settings=settings)
     body, model, settings = prepare_tryon(catalogue, request)
     return CachedTryOn(result=drape(body, model, settings, on_frame), body=body_mesh(body), settings=settings)
 
 
-def result_json(result: TryOnResult, cached_answer_s: float | None = None) -> dict:
-    """The JSON answer (``TryOnOut``): the fitted garment and the metrics with the per-vertex strain.
+def prepare_outfit(catalogue: Catalogue, request: TryOnRequest) -> tuple[Body, list[GarmentModel], SimSettings]:
+    """The body, the garment models (request order) and the settings of an outfit request. KeyError for a
+    garment not in the catalogue."""
+    for gid in request.ids:
+        if catalogue.get(gid) is None:
+            raise KeyError(gid)
+    settings = request.settings.to_settings()
+    measurements, pose = to_body_params(request.measurements, request.pose)
+    return build_body(measurements, pose), outfit_models(catalogue, request, settings.simplification), settings
+
+
+def result_json(result: TryOnResult | OutfitResult, cached_answer_s: float | None = None) -> dict:
+    """The JSON answer (``TryOnOut``, or ``OutfitOut`` for an outfit): the fitted garment and the metrics with
+    the per-vertex strain.
 
     cached_answer_s: for a result served from the cache, the seconds this answer took: it becomes
     ``wall_seconds`` (with ``cached: true``), and the run's own time ``simulation_wall_seconds``."""
+    if isinstance(result, OutfitResult):
+        return outfit_json(result, cached_answer_s)
     m = result.metrics
     metrics = {
         "steps": int(m["steps"]),
@@ -76,6 +98,41 @@ def result_json(result: TryOnResult, cached_answer_s: float | None = None) -> di
         "pose": m.get("pose", {}),
     }
     return {"garment": mesh_json(result.vertices, result.faces), "metrics": metrics}
+
+
+def outfit_json(result: OutfitResult, cached_answer_s: float | None = None) -> dict:
+    """An outfit's JSON answer (``OutfitOut``): each garment's mesh and metrics (as ``result_json``'s), in layer
+    order, and the outfit's metrics."""
+    m = result.metrics
+    garments = []
+    for layer, (gid, r) in enumerate(zip(m["layers"], result.results)):
+        one = result_json(r, cached_answer_s)
+        garments.append({"garment_id": gid, "layer": layer, **one["garment"], "metrics": one["metrics"]})
+    metrics = {
+        "steps": int(m["steps"]),
+        "sim_seconds": float(m["sim_seconds"]),
+        "wall_seconds": float(m["wall_seconds"]) if cached_answer_s is None else round(cached_answer_s, 4),
+        "simulation_wall_seconds": float(m["wall_seconds"]),
+        "cached": cached_answer_s is not None,
+        "rest_reached": bool(m["rest_reached"]),
+        "tuck": m["tuck"],
+        "layers": list(m["layers"]),
+        "penetrating_vertices": sum(int(r.metrics["penetrating_vertices"]) for r in result.results),
+        "layer_penetrating_vertices": int(m["layer_penetrating_vertices"]),
+        "max_layer_penetration_mm": float(m["max_layer_penetration_mm"]),
+        "tuck_as_asked": m["tuck_as_asked"],
+    }
+    return {"garments": garments, "metrics": metrics}
+
+
+def result_glb(result: TryOnResult | OutfitResult) -> bytes:
+    """The fitted garment as GLB, vertex colours by strain; an outfit's garments each as a node of their own,
+    named by catalogue id, innermost first."""
+    limit = SimSettings().strain_limit[0]
+    if isinstance(result, OutfitResult):
+        return scene_bytes([(gid, r.vertices, r.faces, strain_colours(r.strain, limit))
+                            for gid, r in zip(result.metrics["layers"], result.results)])
+    return mesh_bytes(result.vertices, result.faces, "glb", strain_colours(result.strain, limit))
 
 
 def strain_colours(strain: np.ndarray, limit: float) -> np.ndarray:

@@ -1,7 +1,7 @@
 """``tryon bench``: the service's speed and accuracy measured on this machine in one run.
 
 Sections (one module each): the paper's tables 1-3 (``tables``), the catalogue's fit on three bodies
-(``fit``) and in other poses (``poses``), run time against error and the default
+(``fit``) and in other poses (``poses``), outfits of a top over a bottom (``outfits``), run time against error and the default
 settings (``pareto``), the paper's simplification against quadric edge collapse (``simplify_compare``),
 peer engines (``peers``: Taichi, Newton), the stability stress summary (``stability``), and scaling
 (``scaling``), fit-table throughput on Ray (``scale``), size advice against the chart on people of a CSV (``sizes``). Each runs isolated: a failure is reported with its reason and the others still run.
@@ -20,7 +20,9 @@ from tryon.bench.report import now, write_report
 
 def sections():
     """(name, title, function) of every section, in report order."""
-    from tryon.bench import fit, pareto, peers, poses, scale, scaling, simplify_compare, sizes, stability, tables
+    from tryon.bench import (
+        fit, outfits, pareto, peers, poses, scale, scaling, simplify_compare, sizes, stability, tables,
+    )
 
     return [
         ("table1", "Paper table 1: simplification and collision time", tables.table1),
@@ -28,6 +30,7 @@ def sections():
         ("table3", "Paper table 3: pipeline stages", tables.table3),
         ("fit", "Catalogue fit on three bodies", fit.run),
         ("poses", "Fit in other poses", poses.run),
+        ("outfits", "Outfits: a top over a bottom", outfits.run),
         ("sizes", "Size advice against the chart", sizes.run),
         ("pareto", "Run time against error", pareto.run),
         ("simplify", "Simplification compared", simplify_compare.run),

@@ -29,12 +29,24 @@ class TryOnResult:
 
 
 def finish(d: Drape, relaxation: Relaxation, stopped: bool = False) -> TryOnResult:
-    """The full mesh of ``d``'s garment where it is now (it follows the coarse one, its stretch held to the
-    limits, pushed out of the offset body) and the metrics of the drape. ``stopped``: the caller ended the
-    step loop early (a client gone)."""
+    """The full mesh of ``d``'s garment where it is now and the metrics of the drape. ``stopped``: the caller
+    ended the step loop early (a client gone)."""
+    full, full_parts = full_mesh(d)
+    return result(d, relaxation, full, full_parts, stopped)
+
+
+def full_mesh(d: Drape) -> tuple[np.ndarray, np.ndarray]:
+    """The shown mesh (n, 3) m of ``d``'s garment: it follows the coarse one, its stretch held to the limits,
+    pushed out of the offset body; and the body parts (q,) int64 it can touch."""
+    return follow_coarse(d.model, d.state.x, d.collider, d.limits, d.settings.contact_offset, d.floor_y)
+
+
+def result(d: Drape, relaxation: Relaxation, full: np.ndarray, full_parts: np.ndarray,
+           stopped: bool = False) -> TryOnResult:
+    """The result of ``d`` with the shown mesh ``full`` (n, 3) m (``full_mesh``, possibly moved since: an
+    outfit's outer layers are pushed off the inner ones) and its metrics."""
     s, st, body, model, plan = d.settings, d.state, d.body, d.model, d.plan
     x = st.x
-    full, full_parts = follow_coarse(model, x, d.collider, d.limits, s.contact_offset, d.floor_y)
     depth = d.collider.depth(full, full_parts, offset=False)
     spring_strain_, per_vertex, by_kind = strain_metrics(x, model, d.limits, on_body=st.has_plane.copy())
     too_tight = too_tight_places(x, model, spring_strain_, d.limits, st.has_plane, body)

@@ -70,7 +70,7 @@ def relax(d: Drape) -> Relaxation:
         if rounds >= tu.min_polish_rounds:
             # judged after the final collision the result gets (between two collision tests a point may
             # slide past its contact plane, over a sharp edge, and be pushed back out, stretching springs)
-            _collide_all(d)
+            collide_all(d)
             n_over = int(np.count_nonzero(spring_lengths(x, d.springs) > target))
             if n_over == 0:
                 break
@@ -79,7 +79,7 @@ def relax(d: Drape) -> Relaxation:
             elif rounds - best_round >= tu.polish_stall_rounds:
                 break  # no progress: a garment too small for the body there (its springs stay over)
     else:  # out of rounds: the last positions still get their final collision
-        _collide_all(d)
+        collide_all(d)
     relax_move = np.linalg.norm(x - x_loop, axis=1)
     # each piece of the file on its own (pieces meet only the body, never each other): an outfit's trousers
     # may be carried down the legs while its shirt barely moves
@@ -99,14 +99,14 @@ def relax(d: Drape) -> Relaxation:
         back = carried[d.piece]
         x[back] = x_loop[back]
         x_prev[:] = x
-        _collide_all(d)
+        collide_all(d)
     # the tear guard again: the final collision wins over the springs, so a garment far too small for its
     # body would leave it with springs pushed past the guard (the loop's guard ran before it)
     cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
     return Relaxation(rounds=rounds, relax_move=relax_move, piece_move=piece_move, relaxed=relaxed)
 
 
-def _collide_all(d: Drape) -> None:
+def collide_all(d: Drape) -> None:
     """Every point out of the body, without friction (the relaxation's and the result's final collision)."""
     st = d.state
     st.active[:] = True

@@ -14,19 +14,20 @@ from fastapi import APIRouter, HTTPException, Query, Request, status
 from fastapi.responses import JSONResponse, Response
 
 from tryon.api.deps import CatalogueDep
-from tryon.api.export import MEDIA_TYPES, mesh_bytes
+from tryon.api.export import MEDIA_TYPES
+from tryon.api.outfits import check_garments
 from tryon.api.pool import PoolFull, busy_response_headers, get_pool, get_result_cache, tryon_key
-from tryon.api.schemas.tryon import MeshFormatTryOn, TryOnOut, TryOnRequest
-from tryon.api.service import result_json, simulate, strain_colours
-from tryon.sim.settings import SimSettings
+from tryon.api.schemas.tryon import MeshFormatTryOn, OutfitOut, TryOnOut, TryOnRequest
+from tryon.api.service import result_glb, result_json, simulate
 
 router = APIRouter(tags=["tryon"])
 
 
 @router.post(
     "/tryon",
-    response_model=TryOnOut,
-    responses={404: {"description": "unknown garment"}, 422: {"description": "a field is out of range"},
+    response_model=TryOnOut | OutfitOut,
+    responses={404: {"description": "unknown garment"},
+               422: {"description": "a field is out of range, or an outfit's garment_ids cannot be worn together"},
                503: {"description": "every simulation worker is busy; retry after Retry-After seconds"},
                200: {"content": {"model/gltf-binary": {}}}},
 )
@@ -37,11 +38,11 @@ async def tryon(
     format: MeshFormatTryOn = Query("json", description="json (mesh + metrics) or glb (the fitted garment, "
                                                          "vertex colours by strain; metrics in X-Tryon-Metrics)"),
 ):
-    """Drape the garment on the body; answer the fitted garment and the fit metrics. A request equal to an
-    earlier one (REST or WebSocket) is answered from the result cache, saying ``cached: true``."""
+    """Drape the garment (or the outfit: ``garment_ids``) on the body; answer the fitted garment(s) and the fit
+    metrics. A request equal to an earlier one (REST or WebSocket) is answered from the result cache, saying
+    ``cached: true``. An outfit's GLB holds each garment as a node of its own."""
     started = time.perf_counter()
-    if catalogue.get(body.garment_id) is None:
-        raise HTTPException(status.HTTP_404_NOT_FOUND, f"no garment with id {body.garment_id!r}")
+    check_garments(catalogue, body)
     pool = get_pool(request.app)
     guard = pool.guard()
     cache, key = get_result_cache(request.app), tryon_key(body)
@@ -50,8 +51,8 @@ async def tryon(
         run = hit if hit is not None else await pool.run(simulate, catalogue, body, guard)
     except PoolFull as exc:
         raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE, str(exc), headers=busy_response_headers(exc))
-    except KeyError:
-        raise HTTPException(status.HTTP_404_NOT_FOUND, f"no garment with id {body.garment_id!r}") from None
+    except KeyError as exc:  # deleted meanwhile
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"no garment with id {exc.args[0]!r}") from None
     except ValueError as exc:
         raise HTTPException(422, f"cannot run this try-on: {exc}") from None
     if hit is None and guard.stopped_by is None:  # cut-short runs are not kept
@@ -61,8 +62,7 @@ async def tryon(
     if guard.stopped_by == "wall_limit":
         out["metrics"]["timed_out"] = True
     if format == "glb":
-        colours = strain_colours(result.strain, SimSettings().strain_limit[0])
-        data = mesh_bytes(result.vertices, result.faces, "glb", colours)
+        data = result_glb(result)
         summary = {k: v for k, v in out["metrics"].items() if k not in ("strain", "strain_by_kind")}
         return Response(content=data, media_type=MEDIA_TYPES["glb"],
                         headers={"X-Tryon-Metrics": json.dumps(summary)})

@@ -6,15 +6,19 @@ Protocol (one try-on per connection):
    ``fps`` (frames per second of wall time it wants, 1-60, default 30) and ``encoding`` (float32 |
    uint16, default float32);
 2. the server answers one JSON ``{"type": "init", ...}``: the garment's full-mesh ``faces`` and
-   ``vertex_count``, the ``body`` mesh, the garment's catalogue entry and the frame ``encoding``;
-3. then binary frames, each the FULL mesh's vertex positions: a 12-byte header (little-endian uint32
+   ``vertex_count``, the ``body`` mesh, the garment's catalogue entry and the frame ``encoding``; for an
+   outfit (``garment_ids``) the faces and vertices of every garment one after the other, and ``garments``:
+   each garment's catalogue entry and its ``vertex_start`` / ``vertex_count`` / ``face_start`` / ``face_count``,
+   innermost first;
+3. then binary frames, each the FULL mesh's vertex positions (an outfit's: all its garments'): a 12-byte header (little-endian uint32
    frame number, counting 0, 1, 2, ... over the frames sent; uint32 simulation step; float32 seconds
    since the request was accepted) followed by ``vertex_count * 3`` little-endian float32 x, y, z in
    metres (``12 + 12 * vertex_count`` bytes). The last frame is the final state. With
    ``"encoding": "uint16"`` in the request the positions are uint16 q instead, position = origin + q *
    scale (metres, per axis; origin and scale in the init message's ``encoding``): half the bytes;
 4. then one JSON ``{"type": "done", "metrics": {...}, "strain": [...], "cached": bool, ...}`` and a
-   normal close (1000).
+   normal close (1000); an outfit's metrics are ``POST /api/tryon``'s outfit metrics, with ``garments``: each
+   garment's own metrics (its strain in ``strain``, every garment's one after the other).
 
 Any failure (not JSON, a bad field, an unknown garment, a failed simulation) is one JSON
 ``{"type": "error", "reason": "..."}`` followed by a normal close. A full server sends the error and
@@ -40,14 +44,15 @@ import logging
 import time
 from concurrent.futures import CancelledError as FutureCancelled
 
-from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+from fastapi import APIRouter, HTTPException, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
 from starlette.websockets import WebSocketState
 
 from tryon.api.deps import get_catalogue
 from tryon.api.frames import FrameCodec, encode_frame
 from tryon.api.live import LiveSession, LiveTryOnRequest, done_message, failure_reason, replay_parts, run_live, \
-    with_encoding
+    shown_model, with_encoding
+from tryon.api.outfits import check_garments
 from tryon.api.pool import CachedTryOn, PoolFull, RunCancelled, get_pool, get_result_cache, tryon_key
 from tryon.garment.catalogue import Catalogue
 
@@ -151,8 +156,7 @@ async def _replay(ws: WebSocket, cached: CachedTryOn, request: LiveTryOnRequest,
     the final frame, done with ``cached: true``."""
     started = time.perf_counter()
     result = cached.result
-    init_base, box = await asyncio.to_thread(
-        lambda: replay_parts(cached, catalogue.model(request.garment_id, cached.settings.simplification)))
+    init_base, box = await asyncio.to_thread(lambda: replay_parts(cached, shown_model(catalogue, request, cached)))
     codec = FrameCodec.around(request.encoding, box)
     await ws.send_text(with_encoding(init_base, codec, len(result.vertices)))
     frame = encode_frame(0, result.metrics.get("steps", 0), result.vertices, codec=codec)
@@ -209,8 +213,10 @@ async def _serve(ws: WebSocket) -> None:
 
     # an unknown (or deleted) garment: said at once, before the result cache (which may still hold a
     # deleted garment's try-on) and without taking a pool slot (a busy server would answer "busy")
-    if get_catalogue(ws).get(request.garment_id) is None:
-        await _send_error(ws, failure_reason(KeyError(request.garment_id), request))
+    try:
+        check_garments(get_catalogue(ws), request)
+    except HTTPException as e:
+        await _send_error(ws, failure_reason(e, request))
         return
 
     cache = get_result_cache(app)

@@ -6,12 +6,13 @@ Measurements and pose are the body's own schemas (``tryon.api.schemas.bodies``).
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, model_validator
 
 from tryon.api.schemas.bodies import MeasurementsIn, PoseIn
 from tryon.sim.metrics import SLID_LIMIT_CM
+from tryon.sim.outfit import MAX_GARMENTS
 from tryon.sim.settings import SimSettings
 
 _DEFAULT = SimSettings()
@@ -52,15 +53,47 @@ class SimSettingsIn(BaseModel):
                            simplification=self.simplification, max_steps=self.max_steps)
 
 
+GarmentId = Annotated[str, StringConstraints(min_length=1, max_length=64)]
+
+
 class TryOnRequest(BaseModel):
-    """``POST /api/tryon``: a catalogue garment on a body built from measurements and pose."""
+    """``POST /api/tryon``: a catalogue garment, or an outfit of up to three, on a body built from
+    measurements and pose."""
 
     model_config = ConfigDict(extra="forbid")
 
-    garment_id: str = Field(min_length=1, max_length=64, description="catalogue id (GET /api/garments)")
+    garment_id: GarmentId | None = Field(None, description="catalogue id (GET /api/garments) of one garment; "
+                                                           "or give garment_ids")
+    garment_ids: list[GarmentId] | None = Field(
+        None, min_length=1, max_length=MAX_GARMENTS,
+        description=f"an outfit: 1 to {MAX_GARMENTS} catalogue ids, innermost first (a T-shirt before the "
+                    "long-sleeve over it), at most one bottom; each garment collides with the body and with the "
+                    "garments under it. The answer then has one mesh per garment (garments)")
+    tuck: Literal["out", "in"] = Field(
+        "out", description="an outfit's top over its bottom: out (the top's hem falls over the waistband) or in "
+                           "(the bottom's band holds the innermost top's hem inside)")
     measurements: MeasurementsIn = Field(description="body measurements, cm")
     pose: PoseIn = Field(default_factory=PoseIn, description="pose angles, degrees")
     settings: SimSettingsIn = Field(default_factory=SimSettingsIn, description="simulation settings")
+
+    @model_validator(mode="after")
+    def _one_garment_or_an_outfit(self) -> "TryOnRequest":
+        if (self.garment_id is None) == (self.garment_ids is None):
+            raise ValueError("give either garment_id (one garment) or garment_ids (an outfit), not "
+                             + ("both" if self.garment_id is not None else "neither"))
+        if self.garment_ids is not None and len(set(self.garment_ids)) < len(self.garment_ids):
+            raise ValueError("garment_ids: each garment at most once")
+        return self
+
+    @property
+    def ids(self) -> list[str]:
+        """The garments asked for, innermost first (one for ``garment_id``)."""
+        return [self.garment_id] if self.garment_ids is None else list(self.garment_ids)
+
+    @property
+    def outfit(self) -> bool:
+        """Whether the answer is an outfit's (``garment_ids`` given, even with one id)."""
+        return self.garment_ids is not None
 
 
 class MeshOut(BaseModel):
@@ -129,3 +162,36 @@ class TryOnMetricsOut(BaseModel):
 class TryOnOut(BaseModel):
     garment: MeshOut
     metrics: TryOnMetricsOut
+
+
+class OutfitGarmentOut(BaseModel):
+    garment_id: str = Field(description="catalogue id")
+    layer: int = Field(description="0 = innermost; each garment lies over the ones with lower layers")
+    vertices: list[list[float]] = Field(description="(n, 3) fitted garment vertices, m")
+    faces: list[list[int]] = Field(description="(f, 3) triangles")
+    metrics: TryOnMetricsOut = Field(description="this garment's fit, as for a single try-on")
+
+
+class OutfitMetricsOut(BaseModel):
+    steps: int = Field(description="time steps simulated (the outfit's loop)")
+    sim_seconds: float = Field(description="simulated time, s")
+    wall_seconds: float = Field(description="wall-clock time of this answer, s (see TryOnMetricsOut)")
+    simulation_wall_seconds: float = Field(0.0, description="wall-clock time of the simulation, s")
+    cached: bool = Field(False, description="true if served from the result cache")
+    rest_reached: bool = Field(description="whether every garment came to rest before the step limit")
+    tuck: str = Field(description="out | in: the top's hem over or under the bottom's band")
+    layers: list[str] = Field(description="garment ids, innermost first, as layered (tuck applied)")
+    penetrating_vertices: int = Field(description="garment vertices inside the body by more than 2 mm, all "
+                                                  "garments")
+    layer_penetrating_vertices: int = Field(description="vertices of an outer garment more than 2 mm on the "
+                                                        "body's side of a garment under it")
+    max_layer_penetration_mm: float = Field(description="the deepest of those, mm")
+    tuck_as_asked: bool | None = Field(None, description="whether the innermost top's cloth at the bottom's band "
+                                                         "lies outside it (tuck out) or inside it (in); null "
+                                                         "without a top and a bottom, or a top ending above "
+                                                         "the band")
+
+
+class OutfitOut(BaseModel):
+    garments: list[OutfitGarmentOut] = Field(description="one mesh per garment, innermost first")
+    metrics: OutfitMetricsOut

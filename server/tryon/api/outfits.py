@@ -1,0 +1,82 @@
+"""Outfits through the API: the garments of a request checked, loaded and layered as one mesh for the stream.
+
+``POST /api/tryon`` and ``WS /ws/tryon`` take ``garment_ids`` (1 to 3, innermost first) and ``tuck``; the
+simulation is ``tryon.sim.outfit.drape_outfit``. What a client gets back is written by ``service.outfit_json``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+from fastapi import HTTPException, status
+
+from tryon.api.schemas.tryon import TryOnRequest
+from tryon.garment.catalogue import Catalogue
+from tryon.garment.model import GarmentModel
+from tryon.sim.outfit import layer_order
+
+
+def check_garments(catalogue: Catalogue, request: TryOnRequest) -> None:
+    """HTTPException for garments a request cannot have: an unknown ``garment_id`` is 404 (as before
+    outfits); in ``garment_ids`` an unknown id, or two bottoms, is 422 naming the field."""
+    if not request.outfit:
+        if catalogue.get(request.garment_id) is None:
+            raise HTTPException(status.HTTP_404_NOT_FOUND, f"no garment with id {request.garment_id!r}")
+        return
+    metas = []
+    for k, gid in enumerate(request.ids):
+        meta = catalogue.get(gid)
+        if meta is None:
+            raise HTTPException(422, f"garment_ids[{k}]: no garment with id {gid!r} in the catalogue "
+                                     "(see GET /api/garments)")
+        metas.append(meta)
+    try:
+        layer_order([m.category for m in metas], request.tuck)
+    except ValueError as e:
+        raise HTTPException(422, f"garment_ids: {e}") from None
+
+
+@dataclass
+class OutfitMesh:
+    """An outfit's garment models in layer order (innermost first) as one mesh: what the stream sends.
+
+    models: the ``GarmentModel`` of each garment, in layer order. ``vertices`` / ``faces``: their full meshes one
+    after the other (faces offset); ``expand`` turns the simulation's coarse positions (one (k_i, 3) array per
+    garment) into that mesh's positions; ``ranges`` says which vertices and faces are whose."""
+
+    models: list[GarmentModel]
+
+    @cached_property
+    def vertices(self) -> np.ndarray:
+        return np.concatenate([m.vertices for m in self.models])
+
+    @cached_property
+    def faces(self) -> np.ndarray:
+        starts = np.cumsum([0] + [len(m.vertices) for m in self.models[:-1]])
+        return np.concatenate([np.asarray(m.faces, dtype=np.int64) + s for m, s in zip(self.models, starts)])
+
+    def expand(self, coarse: list[np.ndarray]) -> np.ndarray:
+        """(n, 3) m: every garment's full mesh from its coarse positions, in layer order."""
+        return np.concatenate([m.expand(c) for m, c in zip(self.models, coarse)])
+
+    @property
+    def ranges(self) -> list[dict]:
+        """Per garment (layer order): its id, layer, and where its vertices and faces are in the one mesh."""
+        out, v, f = [], 0, 0
+        for layer, m in enumerate(self.models):
+            out.append({"garment_id": m.meta.id, "layer": layer, "vertex_start": v, "vertex_count": len(m.vertices),
+                        "face_start": f, "face_count": len(m.faces)})
+            v, f = v + len(m.vertices), f + len(m.faces)
+        return out
+
+
+def outfit_models(catalogue: Catalogue, request: TryOnRequest, simplification: float) -> list[GarmentModel]:
+    """The request's garment models in its order (innermost first, before the tuck)."""
+    return [catalogue.model(gid, simplification) for gid in request.ids]
+
+
+def layered(models: list[GarmentModel], tuck: str) -> OutfitMesh:
+    """``models`` (request order) as the outfit mesh, in layer order."""
+    return OutfitMesh([models[i] for i in layer_order([m.meta.category for m in models], tuck)])

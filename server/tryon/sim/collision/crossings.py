@@ -1,0 +1,95 @@
+"""Where cloth went through cloth, measured: an outer garment on the body's side of an inner one, and a
+garment's own triangles crossed by its own edges (metrics of outfits, issue 29)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from tryon.sim.collision.cloth import build_tri_grid, nearest_over
+
+
+@njit(cache=True, nogil=True)
+def _layer_depths(points, inner_x, inner_faces, normals, grid_lo, grid_cell, grid_shape, cell_start, cell_tris,
+                  reach):
+    out = np.zeros(points.shape[0])
+    for i in range(points.shape[0]):
+        f, s, _, _ = nearest_over(points[i, 0], points[i, 1], points[i, 2], inner_x, inner_faces, normals, grid_lo,
+                                  grid_cell, grid_shape, cell_start, cell_tris, reach)
+        if f >= 0 and s < 0.0:
+            out[i] = -s
+    return out
+
+
+def layer_depths(points: np.ndarray, inner_x: np.ndarray, inner_faces: np.ndarray, normals: np.ndarray,
+                 reach: float) -> np.ndarray:
+    """(n,) m: how far each of ``points`` (n, 3) m lies on the body's side of the inner garment (its points
+    ``inner_x`` (m, 3), triangles ``inner_faces`` (f, 3) int64, outward unit ``normals`` (f, 3)), 0 where it is
+    outside it or over none of its triangles within ``reach`` m (past its hem, beside it)."""
+    grid = build_tri_grid(inner_x, inner_faces, max(reach, 0.01), reach)
+    return _layer_depths(np.ascontiguousarray(points, dtype=np.float64), inner_x, inner_faces, normals, grid.lo,
+                         grid.cell, grid.shape, grid.cell_start, grid.cell_tris, reach)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _segment_crosses(p, q, a, b, c):
+    """Does segment p-q cross triangle a, b, c (Moeller-Trumbore, ends and edges excluded)?"""
+    e1 = b - a
+    e2 = c - a
+    d = q - p
+    h = np.cross(d, e2)
+    det = e1 @ h
+    if abs(det) < 1e-18:
+        return False
+    inv = 1.0 / det
+    s = p - a
+    u = inv * (s @ h)
+    if u <= 0.0 or u >= 1.0:
+        return False
+    k = np.cross(s, e1)
+    v = inv * (d @ k)
+    if v <= 0.0 or u + v >= 1.0:
+        return False
+    t = inv * (e2 @ k)
+    return 0.0 < t < 1.0
+
+
+@njit(cache=True, nogil=True)
+def _count_crossings(x, edges, faces, grid_lo, grid_cell, grid_shape, cell_start, cell_tris):
+    seen = np.full(faces.shape[0], -1, dtype=np.int64)
+    count = 0
+    for e in range(edges.shape[0]):
+        i, j = edges[e, 0], edges[e, 1]
+        lo = np.minimum(x[i], x[j])
+        hi = np.maximum(x[i], x[j])
+        r = np.empty(6, dtype=np.int64)
+        for a in range(3):
+            r[2 * a] = max(0, min(grid_shape[a] - 1, int((lo[a] - grid_lo[a]) / grid_cell)))
+            r[2 * a + 1] = max(0, min(grid_shape[a] - 1, int((hi[a] - grid_lo[a]) / grid_cell)))
+        for ix in range(r[0], r[1] + 1):
+            for iy in range(r[2], r[3] + 1):
+                for iz in range(r[4], r[5] + 1):
+                    c = (ix * grid_shape[1] + iy) * grid_shape[2] + iz
+                    for q in range(cell_start[c], cell_start[c + 1]):
+                        f = cell_tris[q]
+                        if seen[f] == e:
+                            continue
+                        seen[f] = e
+                        a, b, cc = faces[f, 0], faces[f, 1], faces[f, 2]
+                        if i == a or i == b or i == cc or j == a or j == b or j == cc:
+                            continue
+                        if _segment_crosses(x[i], x[j], x[a], x[b], x[cc]):
+                            count += 1
+    return count
+
+
+def self_intersections(vertices: np.ndarray, faces: np.ndarray, cell: float = 0.02) -> int:
+    """How many (edge, triangle) pairs of one mesh (``vertices`` (n, 3) m, ``faces`` (f, 3)) cross, the edge
+    sharing no corner with the triangle: 0 for a garment whose cloth never passes through itself. Each pair
+    is counted once (a triangle met in several cells of an edge's box is tested once)."""
+    x = np.ascontiguousarray(vertices, dtype=np.float64)
+    f = np.ascontiguousarray(faces, dtype=np.int64)
+    pairs = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    edges = np.unique(pairs, axis=0)
+    grid = build_tri_grid(x, f, cell, 0.0)
+    return int(_count_crossings(x, edges, f, grid.lo, grid.cell, grid.shape, grid.cell_start, grid.cell_tris))

@@ -1,0 +1,296 @@
+"""An outfit: up to three garments draped at once, each over the ones under it (issue 29).
+
+Method. Every garment is its own drape (``start``, ``step``, ``relax``: its springs, its contacts with the
+body, its own start-up), stepped in lockstep; after each step the layers collide, innermost first: every
+point of an outer garment that lies less than ``LAYER_GAP`` outside an inner garment's current coarse
+surface (or inside it) is moved to ``LAYER_GAP`` outside it, and the inner triangle takes its share of the
+move by inverse mass (``collision.cloth.push_outside_layer``: the point-triangle constraint of position-based
+dynamics), so a waistband under a shirt's hem carries the hem's weight. Which side is outside is fixed by
+the layer order and the body, not by the files' winding: each inner face's normal is turned away from the
+nearest body axis (``outward_from_body``). A one-sided push with a kept layer order is what Houdini Vellum
+and CLO do for layered garments; it needs no history and cannot tangle two layers that started crossed (an
+outer garment aligned partly inside the inner one ends outside it), which a two-sided (side-keeping) test
+would lock in. The layers collide only once every garment's start-up is over (each drape grows the body
+and turns the arms on its own schedule), on the body all garments share.
+
+Skip what the scene does not need: only the outer points inside an inner garment's box (plus ``LAYER_REACH``)
+are tested, through a grid of the inner triangles; a garment at rest that no layer pushed is not stepped
+(it sleeps until a push moves it by more than ``tuning.rest_move``).
+
+The end: each garment relaxes on its own, the layers collide ``FINAL_LAYER_ROUNDS`` more times with the body
+collision after each (nothing through the body either), then each garment's shown mesh is built and the outer
+shown meshes are pushed ``SHOWN_LAYER_GAP`` outside the inner shown meshes (the inner ones fixed), as the
+body collision does for one garment's shown mesh. ``layer_penetrating_vertices`` counts what is still more
+than ``LAYER_TOLERANCE`` on the body's side of a garment under it.
+
+Tuck: a top and a bottom in one outfit are layered by ``tuck``: ``out`` (the default) puts the bottom under
+every top (the top's hem falls over the waistband), ``in`` puts the bottom right over the innermost top (its
+band holds that top's hem inside; a second top stays over both).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from tryon.body.types import Body
+from tryon.garment.model import GarmentModel
+from tryon.sim.collision.cloth import build_tri_grid, oriented_face_normals, push_layer
+from tryon.sim.collision.crossings import layer_depths
+from tryon.sim.finish import TryOnResult, full_mesh, result
+from tryon.sim.pieces import waistband_mask
+from tryon.sim.relax import collide_all, relax
+from tryon.sim.settings import SimSettings
+from tryon.sim.start import start
+from tryon.sim.state import Drape
+from tryon.sim.step import step
+from tryon.sim.tuning import TUNING, Tuning
+
+# At most this many garments in one outfit (an undershirt, a shirt, a layer over them; or a top and a bottom
+# and a layer).
+MAX_GARMENTS = 3
+# m: how far outside an inner garment's coarse surface an outer garment's coarse points are kept: about two
+# cloth thicknesses. Not more: a waistband over a tucked-in shirt grows by 2 pi x this (1.6 cm on an 82 cm
+# waist at 2.5 mm, 2 % of it: the band's own stretch limit). Where the coarse triangles sag between their
+# points, the shown meshes are pushed apart at the end (``SHOWN_LAYER_GAP``).
+LAYER_GAP = 0.0025
+# m: the most a layer collision moves a point in one step: garments aligned each on its own may start
+# centimetres into each other (a trouser waistband inside a loose shirt's hem); they come apart over a few
+# steps, their springs following, instead of in one jump.
+LAYER_MAX_PUSH = 0.005
+# m: an outer point further than this from every inner triangle is not tested (the grid's reach).
+LAYER_REACH = 0.03
+# m: the inner triangles' grid cell (about the coarse edge length).
+LAYER_CELL = 0.03
+# Layer collisions after the relaxation (each followed by the body collision of every garment): the
+# relaxation moves each garment on its own (a waistband climbing to where it fits).
+FINAL_LAYER_ROUNDS = 4
+# m: how far outside the inner shown meshes the outer shown meshes are put.
+SHOWN_LAYER_GAP = 0.0015
+# Pushes of the outer shown meshes off the inner ones (each moves only the points still too close).
+SHOWN_LAYER_ROUNDS = 3
+# m: a shown vertex of an outer garment more than this on the body's side of a garment under it is a layer
+# penetration (issue 29's tolerance, as for the body).
+LAYER_TOLERANCE = 0.002
+TUCKS = ("out", "in")
+# The share of the top's points near the band that must be on the tuck's side of it for ``tuck_as_asked``.
+TUCK_SHARE = 0.9
+
+OutfitFrameCallback = Callable[[int, list], bool]
+
+
+@dataclass
+class OutfitResult:
+    """results: one ``TryOnResult`` per garment, in layer order (innermost first); order: for each of those,
+    its index in the models given to ``drape_outfit``; metrics: the outfit's (steps, wall_seconds,
+    rest_reached, layer_penetrating_vertices, max_layer_penetration_mm, tuck, layers, tuck_as_asked)."""
+
+    results: list[TryOnResult]
+    order: list[int]
+    metrics: dict = field(default_factory=dict)
+
+    @property
+    def vertices(self) -> np.ndarray:
+        """(n, 3) m: every garment's shown mesh, in layer order, one after the other."""
+        return np.concatenate([r.vertices for r in self.results])
+
+    @property
+    def faces(self) -> np.ndarray:
+        """(f, 3) int64: every garment's triangles, indexing ``vertices``."""
+        starts = np.cumsum([0] + [len(r.vertices) for r in self.results[:-1]])
+        return np.concatenate([np.asarray(r.faces, dtype=np.int64) + s for r, s in zip(self.results, starts)])
+
+    @property
+    def strain(self) -> np.ndarray:
+        """(n,) per vertex of ``vertices``: the largest strain of its springs."""
+        return np.concatenate([r.strain for r in self.results])
+
+
+def gather(d: Drape, pressed: np.ndarray, compression: np.ndarray) -> None:
+    """Cloth pressed between an outer layer and what is under it (``pressed`` (k,) bool, on a contact plane) may
+    shorten: the springs with both ends so squeezed lose their compression correction (``d.table``'s third
+    column; the others get back ``compression`` (s,)). A loose shirt tucked into a waistband gathers into folds
+    finer than the coarse mesh's 2-3 cm triangles can show; kept at their natural lengths its springs would
+    stretch the band over it instead."""
+    squeezed = pressed & d.state.has_plane
+    both = squeezed[d.springs[:, 0]] & squeezed[d.springs[:, 1]]
+    d.table[:, 2] = np.where(both, 0.0, compression)
+
+
+def layer_order(categories: list[str], tuck: str = "out") -> list[int]:
+    """The garments' layer order, innermost first, as indices into ``categories`` (top | bottom | dress, in
+    the order given, innermost first): the tops and dresses keep their order; a bottom goes under them all
+    (tuck ``out``) or right over the first (``in``). ValueError for two bottoms or an unknown tuck."""
+    if tuck not in TUCKS:
+        raise ValueError(f"tuck must be one of {', '.join(TUCKS)}, not {tuck!r}")
+    bottoms = [i for i, c in enumerate(categories) if c == "bottom"]
+    if len(bottoms) > 1:
+        raise ValueError("an outfit has at most one bottom (skirt, trousers or shorts)")
+    tops = [i for i, c in enumerate(categories) if c != "bottom"]
+    if not bottoms:
+        return tops
+    if tuck == "out" or not tops:
+        return bottoms + tops
+    return tops[:1] + bottoms + tops[1:]
+
+
+def outward_from_body(points: np.ndarray, body: Body) -> np.ndarray:
+    """(k, 3) unit directions away from the body at ``points`` (k, 3) m: from the nearest point of the nearest
+    body part's axis segment (``body.part_axes``) to the point."""
+    a, b = body.part_axes[:, 0], body.part_axes[:, 1]  # (P, 3)
+    ab = b - a
+    t = np.einsum("kpj,pj->kp", points[:, None, :] - a[None], ab) / np.maximum(np.einsum("pj,pj->p", ab, ab), 1e-12)
+    closest = a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]  # (k, P, 3)
+    gap = points[:, None, :] - closest
+    dist = np.einsum("kpj,kpj->kp", gap, gap)
+    out = gap[np.arange(len(points)), np.argmin(dist, axis=1)]
+    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
+
+
+def collide_layers(points: list[np.ndarray], prev: list[np.ndarray], inv_mass: list[np.ndarray],
+                   faces: list[np.ndarray], body: Body, gap: float, near: float = 0.0,
+                   planes: list[tuple] | None = None, max_push: float = np.inf,
+                   pressed: list[np.ndarray] | None = None) -> int:
+    """Push every outer layer's points (``points[j]`` (k_j, 3) m, in place, innermost first) ``gap`` m outside
+    each layer under it (its triangles ``faces[i]`` (f_i, 3) int64 over ``points[i]``), the correction shared
+    by inverse mass (``inv_mass``: all zero for a layer that must not move); ``prev``: each layer's previous
+    positions, moved with it; ``planes``: each layer's contact planes (``DrapeState.planes``), where a pushed
+    point, or one within ``near`` m beyond ``gap``, gets the layer's plane; None: none kept. ``max_push`` m: the
+    most a point moves in one call; ``pressed``: per layer (k_i,) bool out, its points an outer layer pressed
+    on. Returns how many were pushed."""
+    pushed = 0
+    for i in range(len(points) - 1):
+        inner = points[i]
+        lo, hi = inner.min(axis=0) - LAYER_REACH, inner.max(axis=0) + LAYER_REACH
+        normals = None
+        for j in range(i + 1, len(points)):
+            active = np.all((points[j] >= lo) & (points[j] <= hi), axis=1)
+            if not active.any():
+                continue
+            if normals is None:
+                normals = oriented_face_normals(inner, faces[i], outward_from_body(inner, body))
+                grid = build_tri_grid(inner, faces[i], LAYER_CELL, LAYER_REACH)
+            pushed += push_layer(points[j], prev[j], inv_mass[j], active, inner, prev[i], inv_mass[i], faces[i],
+                                 normals, grid, gap, LAYER_REACH, near, None if planes is None else planes[j],
+                                 max_push, None if pressed is None else pressed[i])
+    return pushed
+
+
+def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings = SimSettings(),
+                 tuck: str = "out", tuning: Tuning = TUNING,
+                 on_frame: OutfitFrameCallback | None = None) -> OutfitResult:
+    """Drape ``models`` (1 to ``MAX_GARMENTS``, innermost first; see ``layer_order`` for ``tuck``) together on
+    ``body``; see the module doc. ``on_frame(step, [coarse positions (k_i, 3) per garment in layer order])``
+    after each step; False stops the loop."""
+    t_start = time.perf_counter()
+    if not 1 <= len(models) <= MAX_GARMENTS:
+        raise ValueError(f"an outfit has 1 to {MAX_GARMENTS} garments, not {len(models)}")
+    order = layer_order([m.meta.category for m in models], tuck)
+    drapes = [start(body, models[i], settings, tuning) for i in order]
+    faces = [np.ascontiguousarray(d.model.coarse_faces, dtype=np.int64) for d in drapes]
+    layered_from = max(d.startup for d in drapes)  # every body complete: the layers may collide
+    asleep = np.zeros(len(drapes), dtype=np.bool_)
+    compression = [d.table[:, 2].copy() for d in drapes]  # each spring's compression fraction, as packed
+    stopped, n = False, 0
+    for n in range(1, settings.max_steps + 1):
+        for d, sleeping in zip(drapes, asleep):
+            if not sleeping:
+                step(d)
+        if n > layered_from and len(drapes) > 1:
+            before = [d.state.x.copy() for d in drapes]
+            pressed = [np.zeros(len(d.state.x), dtype=np.bool_) for d in drapes]
+            collide_layers([d.state.x for d in drapes], [d.state.x_prev for d in drapes],
+                           [d.state.inv_mass for d in drapes], faces, body, LAYER_GAP, tuning.near,
+                           [d.state.planes for d in drapes], LAYER_MAX_PUSH, pressed)
+            for k, d in enumerate(drapes):
+                gather(d, pressed[k], compression[k])
+                # pushed: awake (the push's move counts in its next step's rest test)
+                if asleep[k] and np.abs(d.state.x - before[k]).max() > tuning.rest_move:
+                    asleep[k] = False
+        for k, d in enumerate(drapes):
+            if n > layered_from and d.state.rest_run >= settings.rest_steps:
+                asleep[k] = True
+        if on_frame is not None and on_frame(n, [d.state.x for d in drapes]) is False:
+            stopped = True
+            break
+        if asleep.all():
+            break
+    relaxations = [relax(d) for d in drapes]
+    if len(drapes) > 1:
+        for _ in range(FINAL_LAYER_ROUNDS):
+            collide_layers([d.state.x for d in drapes], [d.state.x_prev for d in drapes],
+                           [d.state.inv_mass for d in drapes], faces, body, LAYER_GAP)
+            for d in drapes:
+                collide_all(d)
+    shown = [full_mesh(d) for d in drapes]
+    full = [s[0] for s in shown]
+    full_faces = [np.ascontiguousarray(d.model.faces, dtype=np.int64) for d in drapes]
+    fixed = [np.zeros(len(f)) for f in full]
+    for j in range(1, len(drapes)):
+        # each outer shown mesh off every shown mesh under it, those held still
+        for _ in range(SHOWN_LAYER_ROUNDS):
+            moved = collide_layers(full[: j + 1], [f.copy() for f in full[: j + 1]],
+                                   fixed[:j] + [np.ones(len(full[j]))], full_faces[: j + 1], body, SHOWN_LAYER_GAP)
+            if not moved:
+                break
+    results = [result(d, r, f, s[1], stopped) for d, r, f, s in zip(drapes, relaxations, full, shown)]
+    count, deepest = layer_metrics(full, full_faces, body)
+    tops = [k for k, d in enumerate(drapes) if d.model.meta.category != "bottom"]
+    bottoms = [k for k, d in enumerate(drapes) if d.model.meta.category == "bottom"]
+    tucked = None
+    if tops and bottoms:
+        top, bottom = drapes[tops[0]], drapes[bottoms[0]]
+        band = waistband_mask(bottom.state.x, bottom.model.coarse_faces, "bottom", bottom.model.coarse_loops,
+                              bottom.piece)
+        tucked = tuck_as_asked(top.state.x, bottom.state.x[band], body, tuck)
+    metrics = {
+        "steps": int(n),
+        "sim_seconds": float(n * float(settings.time_step)),
+        "wall_seconds": float(time.perf_counter() - t_start),
+        "rest_reached": bool(asleep.all()) and not stopped,
+        "stopped": bool(stopped),
+        "tuck": tuck,
+        "layers": [d.model.meta.id for d in drapes],
+        "layer_penetrating_vertices": int(count),
+        "max_layer_penetration_mm": round(1000.0 * float(deepest), 3),
+        "tuck_as_asked": tucked,
+    }
+    return OutfitResult(results=results, order=order, metrics=metrics)
+
+
+def tuck_as_asked(top: np.ndarray, band: np.ndarray, body: Body, tuck: str) -> bool | None:
+    """Whether the innermost top's points (k, 3) m at the bottom's waistband (its points ``band`` (b, 3) m)
+    lie outside it (tuck ``out``) or inside it (``in``): at least ``TUCK_SHARE`` of the top's points between the
+    band's lowest and highest point and within ``LAYER_REACH`` of a band point, judged along the body's outward
+    direction at that band point. None when no top point is there (a top that ends above the waist)."""
+    if not len(band):
+        return None
+    level = (top[:, 1] >= band[:, 1].min()) & (top[:, 1] <= band[:, 1].max())  # at the band's height
+    top = top[level]
+    gap = top[:, None, :] - band[None, :, :]
+    dist = np.einsum("ijk,ijk->ij", gap, gap)
+    nearest = np.argmin(dist, axis=1) if len(top) else np.zeros(0, dtype=np.int64)
+    near = dist[np.arange(len(top)), nearest] < LAYER_REACH ** 2
+    if not near.any():
+        return None
+    side = np.einsum("ij,ij->i", gap[near, nearest[near]], outward_from_body(band[nearest[near]], body))
+    share = float(np.mean(side > 0.0 if tuck == "out" else side < 0.0))
+    return share >= TUCK_SHARE
+
+
+def layer_metrics(shown: list[np.ndarray], faces: list[np.ndarray], body: Body) -> tuple[int, float]:
+    """Over every outer shown mesh (``shown`` (n_i, 3) m, innermost first, triangles ``faces``) and every
+    garment under it: the vertices more than ``LAYER_TOLERANCE`` on the body's side of the inner one (counted
+    once per vertex) and the deepest, m."""
+    count, deepest = 0, 0.0
+    for j in range(1, len(shown)):
+        worst = np.zeros(len(shown[j]))
+        for i in range(j):
+            normals = oriented_face_normals(shown[i], faces[i], outward_from_body(shown[i], body))
+            worst = np.maximum(worst, layer_depths(shown[j], shown[i], faces[i], normals, LAYER_REACH))
+        count += int(np.count_nonzero(worst > LAYER_TOLERANCE))
+        deepest = max(deepest, float(worst.max()) if len(worst) else 0.0)
+    return count, deepest

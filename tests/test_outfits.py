@@ -1,0 +1,165 @@
+"""Outfits (issue 29): layer order and tuck, layers that start crossed end apart, the API's outfit answers (JSON,
+GLB with a node per garment, the stream) and its refusals (422 naming the field)."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from fastapi.testclient import TestClient
+
+from tryon.api.app import create_app
+from tryon.api.frames import FRAME_HEADER
+from tryon.body.build import build_body
+from tryon.body.params import Measurements, Pose
+from tryon.config import Settings
+from tryon.garment.catalogue import Catalogue
+from tryon.sim.outfit import drape_outfit, layer_order
+
+ROOT = Path(__file__).resolve().parents[1]
+BODY = {"height": 170, "chest": 96, "waist": 82, "hips": 100}
+GARMENTS = {"tshirt": ("tshirt-m.obj", "T-shirt M", "top"), "longsleeve": ("longsleeve-s.obj", "Long-sleeve S", "top"),
+            "trousers": ("trousers-m.obj", "Trousers M", "bottom"), "skirt": ("skirt-m.obj", "Skirt M", "bottom")}
+
+
+@pytest.fixture(scope="module")
+def catalogue_ids(tmp_path_factory):
+    data = tmp_path_factory.mktemp("outfits")
+    catalogue = Catalogue(data)
+    ids = {key: catalogue.ingest(ROOT / "garments" / f, name=n, category=c, units="m").id
+           for key, (f, n, c) in GARMENTS.items()}
+    return data, catalogue, ids
+
+
+@pytest.fixture(scope="module")
+def client(catalogue_ids):
+    data, _, _ = catalogue_ids
+    with TestClient(create_app(Settings(data_dir=data))) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def body():
+    return build_body(Measurements(**BODY), Pose())
+
+
+def test_layer_order_puts_the_bottom_under_the_tops_or_over_the_first():
+    assert layer_order(["top", "bottom"], "out") == [1, 0]
+    assert layer_order(["top", "bottom"], "in") == [0, 1]
+    assert layer_order(["top", "top", "bottom"], "in") == [0, 2, 1]  # the second top stays over both
+    assert layer_order(["top", "top", "bottom"], "out") == [2, 0, 1]
+    assert layer_order(["bottom"], "in") == [0]
+    with pytest.raises(ValueError, match="at most one bottom"):
+        layer_order(["bottom", "bottom"])
+    with pytest.raises(ValueError, match="tuck"):
+        layer_order(["top"], "sideways")
+
+
+def test_an_outer_layer_that_starts_inside_the_inner_one_ends_outside_it(catalogue_ids, body):
+    """A long-sleeve S over a T-shirt M: aligned each on its own, the smaller long-sleeve starts inside the
+    T-shirt over most of the torso; layered, it ends outside it, and neither is in the body."""
+    from tryon.sim.outfit import layer_metrics
+
+    _, catalogue, ids = catalogue_ids
+    inner, outer = catalogue.model(ids["tshirt"]), catalogue.model(ids["longsleeve"])
+    out = drape_outfit(body, [inner, outer])
+    assert out.metrics["layers"] == [ids["tshirt"], ids["longsleeve"]]
+    # at the start: the aligned garments cross (the layer metric on their rest shapes as aligned)
+    from tryon.sim.align import align_sized
+
+    start = [align_sized(body, m)[0] for m in (inner, outer)]
+    crossed, _ = layer_metrics(start, [np.asarray(m.coarse_faces, dtype=np.int64) for m in (inner, outer)], body)
+    assert crossed > 50
+    m = out.metrics
+    assert m["layer_penetrating_vertices"] == 0 and m["max_layer_penetration_mm"] <= 2.0
+    assert all(r.metrics["penetrating_vertices"] == 0 for r in out.results)
+    assert m["rest_reached"]
+
+
+@pytest.mark.parametrize("tuck", ["out", "in"])
+def test_a_tshirt_over_trousers_is_tucked_as_asked(catalogue_ids, body, tuck):
+    _, catalogue, ids = catalogue_ids
+    models = [catalogue.model(ids["tshirt"]), catalogue.model(ids["trousers"])]
+    out = drape_outfit(body, models, tuck=tuck)
+    m = out.metrics
+    assert m["tuck_as_asked"] is True
+    assert m["layer_penetrating_vertices"] == 0
+    assert all(r.metrics["penetrating_vertices"] == 0 for r in out.results)
+    assert all(r.metrics["openings_on_limbs"] for r in out.results)
+    assert m["rest_reached"]
+
+
+def test_the_api_answers_one_mesh_and_metrics_per_garment(client, catalogue_ids):
+    _, _, ids = catalogue_ids
+    r = client.post("/api/tryon", json={"garment_ids": [ids["tshirt"], ids["skirt"]], "measurements": BODY})
+    assert r.status_code == 200, r.text
+    out = r.json()
+    assert [g["garment_id"] for g in out["garments"]] == [ids["skirt"], ids["tshirt"]]  # tuck out: skirt under
+    assert [g["layer"] for g in out["garments"]] == [0, 1]
+    for g in out["garments"]:
+        v, f = np.array(g["vertices"]), np.array(g["faces"])
+        assert v.shape[1] == 3 and f.max() < len(v) and len(g["metrics"]["strain"]) == len(v)
+        assert g["metrics"]["penetrating_vertices"] == 0
+    m = out["metrics"]
+    assert m["layers"] == [ids["skirt"], ids["tshirt"]] and m["tuck"] == "out"
+    assert m["layer_penetrating_vertices"] == 0 and m["penetrating_vertices"] == 0
+    # asked again: the result cache, saying so
+    again = client.post("/api/tryon", json={"garment_ids": [ids["tshirt"], ids["skirt"]], "measurements": BODY})
+    assert again.json()["metrics"]["cached"] is True
+    # the GLB holds each garment as a node of its own, named by id
+    glb = client.post("/api/tryon?format=glb", json={"garment_ids": [ids["tshirt"], ids["skirt"]],
+                                                      "measurements": BODY})
+    assert glb.status_code == 200
+    scene = trimesh.load(io.BytesIO(glb.content), file_type="glb")
+    assert set(scene.geometry) == {ids["skirt"], ids["tshirt"]}
+    assert sum(len(g.vertices) for g in scene.geometry.values()) == sum(len(g["vertices"]) for g in out["garments"])
+    assert json.loads(glb.headers["X-Tryon-Metrics"])["layers"] == m["layers"]
+
+
+@pytest.mark.parametrize("change, field", [
+    ({"garment_ids": ["tshirt", "nope"]}, "garment_ids[1]"),
+    ({"garment_ids": ["tshirt", "trousers", "skirt"]}, "garment_ids"),
+    ({"garment_ids": ["tshirt", "trousers", "skirt", "longsleeve"]}, "garment_ids"),
+    ({"garment_ids": []}, "garment_ids"),
+    ({"garment_ids": ["tshirt", "tshirt"]}, "garment_ids"),
+    ({"garment_ids": ["tshirt"], "garment_id": "tshirt"}, "garment_id"),
+    ({"garment_ids": ["tshirt"], "tuck": "half"}, "tuck"),
+])
+def test_outfits_a_user_cannot_wear_are_refused_naming_the_field(client, catalogue_ids, change, field):
+    _, _, ids = catalogue_ids
+    payload = {"measurements": BODY}
+    for key, value in change.items():
+        payload[key] = [ids.get(v, v) for v in value] if isinstance(value, list) else ids.get(value, value)
+    r = client.post("/api/tryon", json=payload)
+    assert r.status_code == 422, r.text
+    assert field in r.text
+
+
+def test_the_stream_sends_every_garment_with_its_ranges(client, catalogue_ids):
+    _, _, ids = catalogue_ids
+    with client.websocket_connect("/ws/tryon") as ws:
+        ws.send_text(json.dumps({"garment_ids": [ids["tshirt"], ids["trousers"]], "tuck": "in",
+                                 "measurements": BODY, "settings": {"max_steps": 40}}))
+        init = json.loads(ws.receive_text())
+        assert init["type"] == "init", init
+        garments = init["garments"]
+        assert [g["id"] for g in garments] == [ids["tshirt"], ids["trousers"]]  # tuck in: trousers over
+        assert garments[1]["vertex_start"] == garments[0]["vertex_count"]
+        assert sum(g["vertex_count"] for g in garments) == init["vertex_count"]
+        assert sum(g["face_count"] for g in garments) == init["face_count"] == len(init["faces"])
+        frames = 0
+        while True:
+            message = ws.receive()
+            if message.get("bytes") is not None:
+                assert len(message["bytes"]) == FRAME_HEADER.size + 12 * init["vertex_count"]
+                frames += 1
+                continue
+            done = json.loads(message["text"])
+            break
+        assert done["type"] == "done" and frames >= 1
+        assert [g["garment_id"] for g in done["metrics"]["garments"]] == [ids["tshirt"], ids["trousers"]]
+        assert len(done["strain"]) == init["vertex_count"]

@@ -38,7 +38,7 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
-from tryon.sim.collision.cloth import build_tri_grid, oriented_face_normals, push_layer
+from tryon.sim.collision.cloth import build_tri_grid, face_sides, push_layer, signed_face_normals
 from tryon.sim.collision.crossings import layer_depths
 from tryon.sim.finish import TryOnResult, full_mesh, result
 from tryon.sim.pieces import waistband_mask
@@ -63,6 +63,9 @@ LAYER_GAP = 0.0025
 LAYER_MAX_PUSH = 0.005
 # m: an outer point further than this from every inner triangle is not tested (the grid's reach).
 LAYER_REACH = 0.03
+# m: how far outside a bottom's surface a top's point may hang and still be tucked under it (tuck ``in``): a
+# loose shirt hangs a few centimetres off the hips.
+TUCK_REACH = 0.06
 # m: the inner triangles' grid cell (about the coarse edge length).
 LAYER_CELL = 0.03
 # Layer collisions after the relaxation (each followed by the body collision of every garment): the
@@ -71,7 +74,7 @@ FINAL_LAYER_ROUNDS = 4
 # m: how far outside the inner shown meshes the outer shown meshes are put.
 SHOWN_LAYER_GAP = 0.0015
 # Pushes of the outer shown meshes off the inner ones (each moves only the points still too close).
-SHOWN_LAYER_ROUNDS = 3
+SHOWN_LAYER_ROUNDS = 10
 # m: a shown vertex of an outer garment more than this on the body's side of a garment under it is a layer
 # penetration (issue 29's tolerance, as for the body).
 LAYER_TOLERANCE = 0.002
@@ -107,6 +110,21 @@ class OutfitResult:
     def strain(self) -> np.ndarray:
         """(n,) per vertex of ``vertices``: the largest strain of its springs."""
         return np.concatenate([r.strain for r in self.results])
+
+
+def tuck_in(drapes: list[Drape], faces: list[np.ndarray], sides: list[np.ndarray]) -> None:
+    """Put each top under the bottom layered over it before the first step (tuck ``in``): the top's points
+    over the bottom's surface, within ``TUCK_REACH``, go ``LAYER_GAP`` under it, the bottom held still.
+    Aligned each on its own, a shirt's hem hangs over the trousers' hips; pushed in only by the layer
+    collision, step by step, it would be caught half in, half out."""
+    category = [d.model.meta.category for d in drapes]
+    for j, d in enumerate(drapes):
+        if category[j] != "bottom":
+            continue
+        for i in range(j):
+            x = [drapes[i].state.x, d.state.x]
+            collide_layers(x, [drapes[i].state.x_prev, d.state.x_prev], [drapes[i].state.inv_mass, np.zeros(len(x[1]))],
+                           [faces[i], faces[j]], [sides[i], sides[j]], LAYER_GAP, both_ways=True, reach=TUCK_REACH)
 
 
 def gather(d: Drape, pressed: np.ndarray, compression: np.ndarray) -> None:
@@ -151,31 +169,48 @@ def outward_from_body(points: np.ndarray, body: Body) -> np.ndarray:
 
 
 def collide_layers(points: list[np.ndarray], prev: list[np.ndarray], inv_mass: list[np.ndarray],
-                   faces: list[np.ndarray], body: Body, gap: float, near: float = 0.0,
+                   faces: list[np.ndarray], sides: list[np.ndarray], gap: float, near: float = 0.0,
                    planes: list[tuple] | None = None, max_push: float = np.inf,
-                   pressed: list[np.ndarray] | None = None) -> int:
-    """Push every outer layer's points (``points[j]`` (k_j, 3) m, in place, innermost first) ``gap`` m outside
-    each layer under it (its triangles ``faces[i]`` (f_i, 3) int64 over ``points[i]``), the correction shared
-    by inverse mass (``inv_mass``: all zero for a layer that must not move); ``prev``: each layer's previous
-    positions, moved with it; ``planes``: each layer's contact planes (``DrapeState.planes``), where a pushed
-    point, or one within ``near`` m beyond ``gap``, gets the layer's plane; None: none kept. ``max_push`` m: the
-    most a point moves in one call; ``pressed``: per layer (k_i,) bool out, its points an outer layer pressed
-    on. Returns how many were pushed."""
+                   pressed: list[np.ndarray] | None = None, both_ways: bool = False,
+                   reach: float = None) -> int:
+    """Keep the layers (``points[i]`` (k_i, 3) m, in place, innermost first; triangles ``faces[i]`` (f_i, 3)
+    int64, turned outward by ``sides[i]`` (f_i,), ``face_sides``) ``gap`` m apart: every outer layer's points outside each layer under it, and with ``both_ways``
+    also every inner layer's points under each layer over it (a point of the shirt between two points of the
+    trousers over it: vertices against triangles catch only one of the two). Corrections are shared by inverse
+    mass (``inv_mass``: all zero for a layer that must not move); ``prev``: each layer's previous positions,
+    moved with it; ``planes``: each layer's contact planes (``DrapeState.planes``), where an outer point pushed,
+    or within ``near`` m beyond ``gap``, gets the layer's plane (an inner point keeps its plane on the body);
+    None: none kept. ``max_push`` m: the most a point moves in one call; ``pressed``: per layer (k_i,) bool out,
+    its points an outer layer pressed on; ``reach`` m: how far from a layer its grid finds points (default
+    ``LAYER_REACH``). Returns how many points were pushed."""
+    reach = LAYER_REACH if reach is None else reach
+    surfaces: dict[int, tuple] = {}
+
+    def surface(k: int, sign: float):
+        if k not in surfaces:
+            normals = signed_face_normals(points[k], faces[k], sides[k])
+            lo = points[k].min(axis=0) - reach
+            hi = points[k].max(axis=0) + reach
+            surfaces[k] = (normals, build_tri_grid(points[k], faces[k], LAYER_CELL, reach), lo, hi)
+        normals, grid, lo, hi = surfaces[k]
+        return (normals if sign > 0 else -normals), grid, lo, hi
+
+    def push(mover: int, under: int, sign: float, keep_planes: bool) -> int:
+        normals, grid, lo, hi = surface(under, sign)
+        active = np.all((points[mover] >= lo) & (points[mover] <= hi), axis=1)
+        if not active.any():
+            return 0
+        return push_layer(points[mover], prev[mover], inv_mass[mover], active, points[under], prev[under],
+                          inv_mass[under], faces[under], normals, grid, gap, reach, near,
+                          planes[mover] if keep_planes and planes is not None else None, max_push,
+                          pressed[under] if keep_planes and pressed is not None else None)
+
     pushed = 0
     for i in range(len(points) - 1):
-        inner = points[i]
-        lo, hi = inner.min(axis=0) - LAYER_REACH, inner.max(axis=0) + LAYER_REACH
-        normals = None
         for j in range(i + 1, len(points)):
-            active = np.all((points[j] >= lo) & (points[j] <= hi), axis=1)
-            if not active.any():
-                continue
-            if normals is None:
-                normals = oriented_face_normals(inner, faces[i], outward_from_body(inner, body))
-                grid = build_tri_grid(inner, faces[i], LAYER_CELL, LAYER_REACH)
-            pushed += push_layer(points[j], prev[j], inv_mass[j], active, inner, prev[i], inv_mass[i], faces[i],
-                                 normals, grid, gap, LAYER_REACH, near, None if planes is None else planes[j],
-                                 max_push, None if pressed is None else pressed[i])
+            pushed += push(j, i, 1.0, True)  # the outer layer's points outside the inner one
+            if both_ways:
+                pushed += push(i, j, -1.0, False)  # the inner layer's points under the outer one
     return pushed
 
 
@@ -191,6 +226,12 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
     order = layer_order([m.meta.category for m in models], tuck)
     drapes = [start(body, models[i], settings, tuning) for i in order]
     faces = [np.ascontiguousarray(d.model.coarse_faces, dtype=np.int64) for d in drapes]
+
+    def sides():
+        """Which side of each triangle is outside, where the garments are now."""
+        return [face_sides(d.state.x, f, outward_from_body(d.state.x, body)) for d, f in zip(drapes, faces)]
+    if tuck == "in":
+        tuck_in(drapes, faces, sides())
     layered_from = max(d.startup for d in drapes)  # every body complete: the layers may collide
     asleep = np.zeros(len(drapes), dtype=np.bool_)
     compression = [d.table[:, 2].copy() for d in drapes]  # each spring's compression fraction, as packed
@@ -203,8 +244,8 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
             before = [d.state.x.copy() for d in drapes]
             pressed = [np.zeros(len(d.state.x), dtype=np.bool_) for d in drapes]
             collide_layers([d.state.x for d in drapes], [d.state.x_prev for d in drapes],
-                           [d.state.inv_mass for d in drapes], faces, body, LAYER_GAP, tuning.near,
-                           [d.state.planes for d in drapes], LAYER_MAX_PUSH, pressed)
+                           [d.state.inv_mass for d in drapes], faces, sides(), LAYER_GAP, tuning.near,
+                           [d.state.planes for d in drapes], LAYER_MAX_PUSH, pressed, both_ways=True)
             for k, d in enumerate(drapes):
                 gather(d, pressed[k], compression[k])
                 # pushed: awake (the push's move counts in its next step's rest test)
@@ -222,22 +263,25 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
     if len(drapes) > 1:
         for _ in range(FINAL_LAYER_ROUNDS):
             collide_layers([d.state.x for d in drapes], [d.state.x_prev for d in drapes],
-                           [d.state.inv_mass for d in drapes], faces, body, LAYER_GAP)
+                           [d.state.inv_mass for d in drapes], faces, sides(), LAYER_GAP, both_ways=True)
             for d in drapes:
                 collide_all(d)
     shown = [full_mesh(d) for d in drapes]
     full = [s[0] for s in shown]
     full_faces = [np.ascontiguousarray(d.model.faces, dtype=np.int64) for d in drapes]
+    full_sides = [face_sides(v, f, outward_from_body(v, body)) for v, f in zip(full, full_faces)]
     fixed = [np.zeros(len(f)) for f in full]
     for j in range(1, len(drapes)):
         # each outer shown mesh off every shown mesh under it, those held still
         for _ in range(SHOWN_LAYER_ROUNDS):
             moved = collide_layers(full[: j + 1], [f.copy() for f in full[: j + 1]],
-                                   fixed[:j] + [np.ones(len(full[j]))], full_faces[: j + 1], body, SHOWN_LAYER_GAP)
+                                   fixed[:j] + [np.ones(len(full[j]))], full_faces[: j + 1], full_sides[: j + 1],
+                                   SHOWN_LAYER_GAP,
+                                   both_ways=True)
             if not moved:
                 break
     results = [result(d, r, f, s[1], stopped) for d, r, f, s in zip(drapes, relaxations, full, shown)]
-    count, deepest = layer_metrics(full, full_faces, body)
+    count, deepest = layer_metrics(full, full_faces, full_sides)
     tops = [k for k, d in enumerate(drapes) if d.model.meta.category != "bottom"]
     bottoms = [k for k, d in enumerate(drapes) if d.model.meta.category == "bottom"]
     tucked = None
@@ -281,16 +325,21 @@ def tuck_as_asked(top: np.ndarray, band: np.ndarray, body: Body, tuck: str) -> b
     return share >= TUCK_SHARE
 
 
-def layer_metrics(shown: list[np.ndarray], faces: list[np.ndarray], body: Body) -> tuple[int, float]:
-    """Over every outer shown mesh (``shown`` (n_i, 3) m, innermost first, triangles ``faces``) and every
-    garment under it: the vertices more than ``LAYER_TOLERANCE`` on the body's side of the inner one (counted
-    once per vertex) and the deepest, m."""
+def layer_metrics(shown: list[np.ndarray], faces: list[np.ndarray], sides: list[np.ndarray]) -> tuple[int, float]:
+    """Over the shown meshes of the layers (``shown`` (n_i, 3) m, innermost first, triangles ``faces`` turned
+    outward by ``sides``, ``face_sides``): the
+    vertices more than ``LAYER_TOLERANCE`` on the wrong side of another garment where they overlap (an outer
+    garment's on the body's side of one under it, an inner garment's outside one over it), each counted once,
+    and the deepest, m."""
+    normals = [signed_face_normals(s, f, side) for s, f, side in zip(shown, faces, sides)]
     count, deepest = 0, 0.0
-    for j in range(1, len(shown)):
-        worst = np.zeros(len(shown[j]))
-        for i in range(j):
-            normals = oriented_face_normals(shown[i], faces[i], outward_from_body(shown[i], body))
-            worst = np.maximum(worst, layer_depths(shown[j], shown[i], faces[i], normals, LAYER_REACH))
+    for k in range(len(shown)):
+        worst = np.zeros(len(shown[k]))
+        for other in range(len(shown)):
+            if other != k:
+                sign = 1.0 if other < k else -1.0  # under it: stay outside; over it: stay under
+                worst = np.maximum(worst, layer_depths(shown[k], shown[other], faces[other], sign * normals[other],
+                                                       LAYER_REACH))
         count += int(np.count_nonzero(worst > LAYER_TOLERANCE))
         deepest = max(deepest, float(worst.max()) if len(worst) else 0.0)
     return count, deepest

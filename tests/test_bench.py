@@ -15,7 +15,7 @@ import pytest
 
 from tryon.cli import main
 
-SECTIONS = {"table1", "table2", "table3", "fit", "poses", "pareto", "simplify", "peers", "stability", "scaling", "scale", "sizes"}
+SECTIONS = {"table1", "table2", "table3", "fit", "poses", "outfits", "pareto", "simplify", "peers", "stability", "scaling", "scale", "sizes"}
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
@@ -181,3 +181,18 @@ def test_the_figures_page_is_written_from_bench_json(bench, tmp_path, capsys):
     assert "--from needs --page" in capsys.readouterr().err
     assert main(["bench", "--from", str(tmp_path / "none.json"), "--page", str(page)]) == 2
     assert "cannot read" in capsys.readouterr().err
+
+
+def test_outfits_section_drapes_a_top_over_a_bottom(bench):
+    """Quick mode: the T-shirt over the trousers on the medium body, tucked out and in; each row has the
+    outfit's figures and its time against the two single drapes."""
+    _, _, report = bench
+    rows = _section(report, "outfits")["data"]["outfits"]
+    assert [(r["top"], r["bottom"], r["tuck"]) for r in rows] == [("T-shirt M", "Trousers M", "out"),
+                                                                   ("T-shirt M", "Trousers M", "in")]
+    for r in rows:
+        assert r["steps"] > 0 and r["wall_s"] > 0 and r["single_sum_s"] > 0
+        assert r["cost_ratio"] == pytest.approx(r["wall_s"] / r["single_sum_s"])
+        assert r["layer_penetrating"] >= 0 and r["penetrating"] >= 0
+    out = rows[0]
+    assert out["layer_penetrating"] == 0 and out["tuck_as_asked"] is True  # the top's hem over the band

@@ -143,7 +143,8 @@ def test_a_loose_top_is_not_turned_by_its_ease(body):
     """The local turn puts a fitted top's back on the body's back; a top uniformly larger than the body
     (here the torso itself widened by 15 % about its axis at every height, so not tilted at all) hangs
     its ease behind it and is not turned: the paper's construction alone turned it by the ease."""
-    from tryon.sim.align import back_ease, body_landmarks, local_alignment, torso_points
+    from tryon.sim.align import back_ease, local_alignment
+    from tryon.sim.landmarks import body_landmarks, torso_points
 
     torso = torso_points(body)
     lm = body_landmarks(body)
@@ -189,7 +190,7 @@ def test_a_sleeve_a_few_degrees_off_the_arm_is_aimed_through_its_cuff(catalogue,
     Not turned, the hand started across the cuff's rim and ended beside the cuff, out through the side of
     the sleeve (shown-mesh strain 1.7 over the hand); aimed through the cuff, both cuffs end round the
     forearms."""
-    from tryon.sim.align import plan_arms
+    from tryon.sim.arm_plan import plan_arms
 
     model = _model(catalogue, "longsleeve-s.obj", "top")
     plan = plan_arms(body, align_garment(body, model), "top", model.coarse_faces)
@@ -207,7 +208,7 @@ def test_sleeves_made_hanging_beside_the_torso_end_round_the_arms(catalogue, bod
     sleeves. Before, the arms stayed at 30 degrees, cut through the sleeves, and neither cuff ended round
     an arm."""
     from tryon.garment import generate
-    from tryon.sim.align import plan_arms
+    from tryon.sim.arm_plan import plan_arms
 
     monkeypatch.setattr(generate, "ARM_ANGLE_DEG", 3.0)
     text = generate.obj_text(generate.garment_mesh("longsleeve", "M"), "long-sleeve M, sleeves hanging")
@@ -269,7 +270,8 @@ def test_trouser_legs_too_long_for_the_body_start_above_the_feet(catalogue):
     """Trousers M on a 158 cm body reach 5 cm below its soles once their waistband is at its waist: the
     legs are shortened from the crotch down so the hem starts above the feet, and no leg spring starts
     across a foot (before: 136 did, and the drape ended with 22 springs over, caught on the right foot)."""
-    from tryon.sim.align import FOOT_CLEARANCE, align_garment, foot_top
+    from tryon.sim.align import align_garment
+    from tryon.sim.legs import FOOT_CLEARANCE, foot_top
     from tryon.sim.collision.collider import BodyCollider
 
     small = build_body(Measurements(height=158, chest=86, waist=72, hips=92), Pose())
@@ -308,7 +310,7 @@ def test_a_top_far_too_small_stays_on_the_shoulders(body):
     from tryon.garment.generate import garment_mesh
     from tryon.garment.ingest import CleanMesh
     from tryon.garment.prepare import prepare
-    from tryon.sim.align import body_landmarks
+    from tryon.sim.landmarks import body_landmarks
     from tryon.sim.tuning import TUNING
 
     g = garment_mesh("longsleeve", "S")
@@ -338,7 +340,8 @@ def test_a_guessed_units_dress_is_sized_to_the_body_springs_and_all(body):
     from tryon.garment.generate import garment_mesh
     from tryon.garment.ingest import CleanMesh
     from tryon.garment.prepare import prepare
-    from tryon.sim.align import GUESSED_UNITS_EASE, body_landmarks, torso_points
+    from tryon.sim.align import GUESSED_UNITS_EASE
+    from tryon.sim.landmarks import body_landmarks, torso_points
 
     g = garment_mesh("dress", "S")
     v = np.array(g.vertices, dtype=np.float64)

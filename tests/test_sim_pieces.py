@@ -15,12 +15,12 @@ from tryon.garment.generate import garment_mesh
 from tryon.garment.ingest import CleanMesh
 from tryon.garment.prepare import prepare
 from tryon.garment.topology import boundary_loops
-from tryon.sim.align import (
-    LEG_BLEND, LEG_EASE, align_garment, arm_direction, arm_joints, body_landmarks, garment_crotch, leg_axes,
-    leg_points, leg_radii, plan_arms,
-)
+from tryon.sim.align import align_garment
+from tryon.sim.arm_plan import arm_direction, plan_arms
+from tryon.sim.landmarks import arm_joints, body_landmarks
+from tryon.sim.legs import LEG_BLEND, LEG_EASE, garment_crotch, leg_axes, leg_points, leg_radii
 from tryon.sim.constraints import spring_strain
-from tryon.sim.collision.collider import _rotation
+from tryon.geometry import rotation
 from tryon.sim.pieces import BAND_DEPTH, bottom_mask, hanging_pieces, piece_labels, waistband_mask
 from tryon.sim.run import drape
 from tryon.sim.settings import SimSettings
@@ -231,7 +231,7 @@ def test_arms_turn_in_3d_onto_sleeves_in_front_of_them(body):
         assert abs(axis[0]) > 0.3  # part of the turn is about x: the arm swings forward, not only out
         sel = sleeves & (sign * (x[:, 0] - lm.center_x) > 0) & (x[:, 1] > 0.5 * (lm.chest_y + lm.waist_y))
         want = x[sel].mean(axis=0) - joint
-        turned = _rotation(np.asarray(axis), angle) @ arm_direction(body, side)
+        turned = rotation(np.asarray(axis), angle) @ arm_direction(body, side)
         cos = turned @ want / np.linalg.norm(want)
         assert cos > np.cos(np.radians(0.5))
 
@@ -273,7 +273,7 @@ def _bent_sleeve_top(body):
         along = (elbow - joint) / np.linalg.norm(elbow - joint)
         beyond = (sign * (v[:, 0] - lm.center_x) > 1.4 * lm.shoulder_half) & ((v - elbow) @ along > 0)
         axis = np.cross(along, [0.0, 0.0, 1.0])  # forward flexion: the forearm swings towards +z
-        rot = _rotation(axis / np.linalg.norm(axis), np.radians(SLEEVE_BEND))
+        rot = rotation(axis / np.linalg.norm(axis), np.radians(SLEEVE_BEND))
         v[beyond] = elbow + (v[beyond] - elbow) @ rot.T
     return _prepared(v, np.asarray(top.faces), "top")
 
@@ -299,9 +299,9 @@ def test_a_sleeve_bent_at_the_elbow_turns_the_forearm_onto_it(body, bent_top):
             ("r", -1.0, plan.right, plan.right_axis, plan.right_elbow, plan.right_elbow_axis)):
         assert abs(np.degrees(bend) - SLEEVE_BEND) < 10.0, np.degrees(bend)
         joint, elbow, wrist = arm_joints(body, side)
-        rot = _rotation(np.asarray(axis), turn)
+        rot = rotation(np.asarray(axis), turn)
         posed_elbow = joint + rot @ (elbow - joint)
-        fore = _rotation(rot @ np.asarray(bend_axis), bend) @ rot @ (wrist - elbow)
+        fore = rotation(rot @ np.asarray(bend_axis), bend) @ rot @ (wrist - elbow)
         fore /= np.linalg.norm(fore)
         # the turned forearm's axis passes through the cuff's centre (within 1 cm)
         to_cuff = cuffs[sign] - posed_elbow
@@ -311,7 +311,7 @@ def test_a_sleeve_bent_at_the_elbow_turns_the_forearm_onto_it(body, bent_top):
         shoulder_only = plan_arms(body, x, "top", None)
         straight, straight_axis = ((shoulder_only.left, shoulder_only.left_axis) if sign > 0
                                    else (shoulder_only.right, shoulder_only.right_axis))
-        arm = _rotation(np.asarray(straight_axis), straight) @ (wrist - joint)
+        arm = rotation(np.asarray(straight_axis), straight) @ (wrist - joint)
         arm /= np.linalg.norm(arm)
         to_cuff = cuffs[sign] - joint
         assert np.linalg.norm(to_cuff - (to_cuff @ arm) * arm) > 0.05
@@ -385,7 +385,8 @@ def test_relaxation_kept_for_the_shirt_dropped_for_trousers_it_would_carry_away(
 
 
 def test_a_guessed_units_top_is_scaled_around_the_bodice_its_sleeves_moved_out_unscaled(body):
-    from tryon.sim.align import SLEEVE_BLEND, scale_girth_keep_sleeves
+    from tryon.sim.sizing import scale_girth_keep_sleeves
+    from tryon.sim.sleeves import SLEEVE_BLEND
 
     lm = body_landmarks(body)
     scale = 1.5
@@ -428,7 +429,7 @@ def _assert_scaled_without_sleeves(x, y, anchor, scale, lm):
     """``y`` is the top ``x`` (k, 3) scaled by ``scale`` about ``anchor`` in x and z as a top without sleeves
     is: its girth plainly up to the chest line, its width at the shoulder line 1 + (scale - 1) x
     SHOULDER_GRADE (the straps of a strap dress stay on the shoulders)."""
-    from tryon.sim.align import SHOULDER_GRADE
+    from tryon.sim.sizing import SHOULDER_GRADE
 
     assert np.array_equal(y[:, 1], x[:, 1])
     assert np.allclose(y[:, 2], anchor[2] + scale * (x[:, 2] - anchor[2]))
@@ -460,7 +461,8 @@ def test_a_guessed_units_cape_is_scaled_plainly(body):
     """A cape reaches past the shoulders as far as sleeves do, but has no opening out there (its hem runs
     round the body): a guessed-units cape is scaled whole, not kept at its size beyond the shoulders like
     a sleeve (which would leave its sides wide and bend its hem)."""
-    from tryon.sim.align import has_sleeves, scale_girth_keep_sleeves, sleeve_openings
+    from tryon.sim.sizing import scale_girth_keep_sleeves
+    from tryon.sim.sleeves import has_sleeves, sleeve_openings
 
     lm = body_landmarks(body)
     vertices, faces = _cape(0.09, 0.5, 0.3)
@@ -495,7 +497,7 @@ def test_sleeves_are_found_over_the_cloth_from_cuff_to_armpit(body):
     T-shirt at 0.7 of its girth has sleeves within SLEEVE_REACH (by reach it has none). Its armpit lies a
     short sleeve's underside from the cuff, a long sleeve's ~45 cm; a sleeveless dress and a cape have no
     sleeve (their armholes and hem are joined to the bodice below them)."""
-    from tryon.sim.align import find_sleeves, has_sleeves
+    from tryon.sim.sleeves import find_sleeves, has_sleeves
 
     lm = body_landmarks(body)
     for kind, girth, lo, hi in (("tshirt", 1.0, 0.04, 0.12), ("tshirt", 0.7, 0.04, 0.12),
@@ -522,9 +524,8 @@ def test_a_sized_tops_bodice_is_scaled_whole_and_its_sleeves_moved_out_round_the
     was, ``scale_girth_keep_sleeves``); down a sleeve, past SLEEVE_BLEND from the armpit, every point moves
     by one shift (the armhole's) and, with the arms given, each ring round the sleeve is at least LEG_EASE x
     the arm's girth there (the sleeves of a top at 0.65 of its girth are narrower than the arms)."""
-    from tryon.sim.align import (
-        SLEEVE_BLEND, arm_radii, arm_surfaces, find_sleeves, size_top, sleeve_points, sleeve_rings,
-    )
+    from tryon.sim.sizing import size_top
+    from tryon.sim.sleeves import SLEEVE_BLEND, arm_radii, arm_surfaces, find_sleeves, sleeve_points, sleeve_rings
 
     lm = body_landmarks(body)
     model = _shrunk_top("longsleeve", "S", 0.65, False)
@@ -559,7 +560,8 @@ def test_a_guessed_units_tops_sleeves_are_widened_only_when_its_units_were_guess
     """``align_sized``: a long-sleeve at 0.65 of its girth, its units guessed, is sized with sleeves of at
     least LEG_EASE x the arms' girth and returns its sized shape (its springs' natural lengths); in known
     units it is left as it is (no shape) and its sleeves stay narrow."""
-    from tryon.sim.align import SLEEVE_BLEND, align_sized, arm_radii, arm_surfaces, find_sleeves, sleeve_rings
+    from tryon.sim.align import align_sized
+    from tryon.sim.sleeves import SLEEVE_BLEND, arm_radii, arm_surfaces, find_sleeves, sleeve_rings
 
     lm = body_landmarks(body)
     arms = arm_surfaces(body)

@@ -159,3 +159,10 @@ def closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     dd += (py - qy) ** 2
     dd += (pz - qz) ** 2
     return dd, qx, qy, qz
+
+
+def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """3x3 rotation matrix about unit ``axis`` by ``angle`` radians (Rodrigues)."""
+    axis = axis / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)

@@ -21,8 +21,10 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.topology import cloth_distance
-from tryon.sim.align import ArmPlan, arm_joints
-from tryon.sim.collision.collider import BodyCollider, _rotation
+from tryon.sim.arm_plan import ArmPlan
+from tryon.sim.landmarks import arm_joints
+from tryon.geometry import rotation
+from tryon.sim.collision.collider import BodyCollider
 
 # Degrees per step the arms are turned back from the sleeve pose (slow enough that the arm surface
 # moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).
@@ -119,7 +121,7 @@ class ArmSchedule:
         with ``fraction`` of the sleeve pose left."""
         out = {}
         for side, a in self.parts.items():
-            rot = _rotation(a.axis, a.angle * fraction)
+            rot = rotation(a.axis, a.angle * fraction)
             up = (a.joint, rot)
             if a.k_fore is None:
                 out[side] = (up, None)
@@ -128,7 +130,7 @@ class ArmSchedule:
             else:
                 # forearm: v -> e' + R_e (R_s (v - j) + j - e'), e' the turned elbow, R_e about the turned axis
                 posed_elbow = a.joint + rot @ (a.elbow - a.joint)
-                rot_e = _rotation(rot @ a.bend_axis, a.bend * fraction)
+                rot_e = rotation(rot @ a.bend_axis, a.bend * fraction)
                 out[side] = (up, (a.joint, rot_e @ rot, (np.eye(3) - rot_e) @ (posed_elbow - a.joint)))
         return out
 

@@ -21,7 +21,8 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.topology import boundary_loops
-from tryon.sim.align import body_landmarks, part_points, side_opening
+from tryon.sim.landmarks import body_landmarks, part_points
+from tryon.sim.sleeves import side_opening
 from tryon.sim.pieces import bottom_mask
 
 # The parts of each limb, from the body's trunk out.

@@ -16,7 +16,8 @@ import numpy as np
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.garment.springs import STRUCTURAL
-from tryon.sim.align import ArmPlan, align_sized, plan_arms
+from tryon.sim.align import align_sized
+from tryon.sim.arm_plan import ArmPlan, plan_arms
 from tryon.sim.arms import ArmSchedule
 from tryon.sim.collision.collider import BodyCollider, relevant_parts
 from tryon.sim.constraints import pack_springs

@@ -13,7 +13,7 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
-from tryon.sim.align import ArmPlan
+from tryon.sim.arm_plan import ArmPlan
 from tryon.sim.arms import ArmSchedule
 from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.settings import SimSettings

@@ -18,13 +18,6 @@ from tryon.sim.collision.kernels import (
 from tryon.geometry import face_normals
 
 
-def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    """3x3 rotation matrix about unit ``axis`` by ``angle`` radians (Rodrigues)."""
-    axis = axis / np.linalg.norm(axis)
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
-
-
 class BodyCollider:
     """Collision state of one body for one drape.
 

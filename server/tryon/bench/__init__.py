@@ -1,10 +1,12 @@
 """``tryon bench``: the service's speed and accuracy measured on this machine in one run.
 
-Sections (one module each): the paper's tables 1-3 (``tables``), the catalogue's fit on three bodies
-(``fit``) and in other poses (``poses``), outfits of a top over a bottom (``outfits``), run time against error and the default
-settings (``pareto``), the paper's simplification against quadric edge collapse (``simplify_compare``),
-peer engines (``peers``: Taichi, Newton), the stability stress summary (``stability``), and scaling
-(``scaling``), fit-table throughput on Ray (``scale``), size advice against the chart on people of a CSV (``sizes``). Each runs isolated: a failure is reported with its reason and the others still run.
+Sections (one module each): the paper's tables 1-3 (``tables``), the catalogue's fit on three bodies (``fit``)
+and in other poses (``poses``), outfits of a top over a bottom (``outfits``), run time against error and the
+default settings (``pareto``), the paper's simplification against quadric edge collapse
+(``simplify_compare``), peer engines (``peers``: Taichi, Newton), the stability stress summary
+(``stability``), and scaling (``scaling``), fit-table throughput on Ray (``scale``), size advice against the
+chart on people of a CSV (``sizes``). Each runs isolated: a failure is reported with its reason and the others
+still run.
 ``report`` writes bench.json, bench.md and the PNG plots.
 """
 

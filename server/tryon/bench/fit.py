@@ -26,6 +26,7 @@ BODIES = {
 def run(ctx: Context, sec: Section) -> None:
     from tryon.body.build import build_body
     from tryon.body.params import Measurements, Pose
+    from tryon.sim.collision.crossings import self_intersections
     from tryon.sim.metrics import SLID_LIMIT_CM
     from tryon.sim.run import drape
     from tryon.sim.settings import SimSettings
@@ -37,7 +38,8 @@ def run(ctx: Context, sec: Section) -> None:
         body = build_body(Measurements(**measurements), Pose())
         for entry in entries:
             model, _ = prepared(ctx, entry)
-            m = drape(body, model, settings).metrics
+            result = drape(body, model, settings)
+            m = result.metrics
             kinds = m["strain_by_kind"].values()
             d = {"body": body_name, "garment": entry["name"], "steps": m["steps"], "rest": m["rest_reached"],
                  "wall_s": m["wall_seconds"], "penetrating": m["penetrating_vertices"],
@@ -46,18 +48,20 @@ def run(ctx: Context, sec: Section) -> None:
                  "display_max_strain": m["display_max_strain"], "springs": len(model.springs),
                  "on_limbs": m["openings_on_limbs"],
                  "off_limbs": [o["opening"] for o in m["limb_openings"] if not o["ok"]],
-                 "slid_cm": m["slid_cm"], "stays_up": m["stays_up"]}
+                 "slid_cm": m["slid_cm"], "stays_up": m["stays_up"],
+                 "self_intersections": self_intersections(result.vertices, result.faces)}
             data.append(d)
             rows.append([body_name, entry["name"], d["steps"], fmt(d["rest"]), fmt(d["wall_s"]), d["penetrating"],
                          fmt(d["max_penetration_mm"]), d["over"], d["over_on_body"], fmt(d["max_strain"]),
-                         fmt(d["display_max_strain"]), _limbs(d), _stays_up(d)])
+                         fmt(d["display_max_strain"]), _limbs(d), _stays_up(d), d["self_intersections"]])
             ctx.log(f"  fit {body_name} {entry['name']}: over {d['over']}, penetrating {d['penetrating']}")
     sec.data = {"bodies": BODIES, "substeps": settings.substeps, "passes": settings.passes, "drapes": data}
     sec.tables.append(Table(
         "Every garment on three bodies (" + ("default settings" if ctx.substeps is None else
                                              f"{settings.substeps} substeps of one pass a step") + ")",
         ["body", "garment", "steps", "at rest", "wall s", "penetrating", "deepest mm", "springs over",
-         "over on body", "max strain", "shown mesh max strain", "sleeves / legs", "stays up"], rows,
+         "over on body", "max strain", "shown mesh max strain", "sleeves / legs", "stays up", "self-crossings"],
+        rows,
         note="springs over: beyond their type's limit by more than 1 % (0.2 mm for springs under 2 cm); "
              "over on body: of those, both ends touching the body (the garment is too small there); shown "
              "mesh: the full mesh's edges and quad diagonals (where a coarse triangle cuts across a thin "
@@ -66,7 +70,9 @@ def run(ctx: Context, sec: Section) -> None:
              f"that do not, '-' for a garment with none; stays up: whether its top ended within "
              f"{SLID_LIMIT_CM:g} cm of where it was put on, with how far it slid (metrics ``stays_up``, "
              "``slid_cm``: a waistband wider than the hips slides off them, meeting every target where it "
-             "lands)"))
+             "lands); self-crossings: edges of the shown mesh through one of its own triangles "
+             "(``collision.crossings.self_intersections``: cloth through its own folds; the solver has no "
+             "self-collision yet)"))
     per_body = []
     for body_name in BODIES:
         ds = [d for d in data if d["body"] == body_name]
@@ -77,7 +83,8 @@ def run(ctx: Context, sec: Section) -> None:
         f"{label}: {len(data)} drapes, penetrating vertices {sum(d['penetrating'] for d in data)}, at rest "
         f"{sum(d['rest'] for d in data)}/{len(data)}, sleeves and legs around their limbs "
         f"{sum(d['on_limbs'] is not False for d in data)}/{len(data)}, staying up {sum(d['stays_up'] for d in data)}/"
-        f"{len(data)}; meeting every target: " + ", ".join(per_body))
+        f"{len(data)}; meeting every target: " + ", ".join(per_body)
+        + f"; self-crossing edges {sum(d['self_intersections'] for d in data)}")
 
 
 def _stays_up(d: dict) -> str:

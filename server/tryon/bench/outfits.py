@@ -22,6 +22,7 @@ COST_BOUND = 1.5
 def run(ctx: Context, sec: Section) -> None:
     from tryon.body.build import build_body
     from tryon.body.params import Measurements, Pose
+    from tryon.sim.collision.crossings import self_intersections
     from tryon.sim.outfit import drape_outfit
     from tryon.sim.run import drape
     from tryon.sim.settings import SimSettings
@@ -56,24 +57,28 @@ def run(ctx: Context, sec: Section) -> None:
                          "max_layer_mm": m["max_layer_penetration_mm"], "tuck_as_asked": m["tuck_as_asked"],
                          "on_limbs": limbs,
                          "springs_over": sum(k["over"] for r in out.results
-                                             for k in r.metrics["strain_by_kind"].values())}
+                                             for k in r.metrics["strain_by_kind"].values()),
+                         "self_intersections": sum(self_intersections(r.vertices, r.faces) for r in out.results)}
                     d["cost_ratio"] = d["wall_s"] / max(d["single_sum_s"], 1e-9)
                     data.append(d)
                     rows.append([body_name, d["top"], d["bottom"], tuck, d["steps"], fmt(d["rest"]), fmt(wall),
                                  fmt(d["cost_ratio"]), d["penetrating"], d["layer_penetrating"],
-                                 fmt(d["max_layer_mm"]), fmt(d["tuck_as_asked"]), fmt(limbs), d["springs_over"]])
+                                 fmt(d["max_layer_mm"]), fmt(d["tuck_as_asked"]), fmt(limbs), d["springs_over"],
+                                 d["self_intersections"]])
                     ctx.log(f"  outfit {body_name} {top} over {bottom} ({tuck}): layer {d['layer_penetrating']}, "
                             f"{wall:.2f} s")
     sec.data = {"outfits": data, "cost_bound": COST_BOUND}
     sec.tables.append(Table(
         "A top over a bottom (size M), tucked out and in", [
             "body", "top", "bottom", "tuck", "steps", "at rest", "wall s", "x single drapes", "in body",
-            "layer penetrating", "deepest layer mm", "tuck as asked", "sleeves / legs", "springs over"], rows,
+            "layer penetrating", "deepest layer mm", "tuck as asked", "sleeves / legs", "springs over",
+            "self-crossings"], rows,
         note="x single drapes: the outfit's wall time over the sum of its two garments' single drapes on the same "
              f"body (the issue's bound: {COST_BOUND:g}); in body: garment vertices more than 2 mm inside the body; "
              "layer penetrating: outer-garment vertices more than 2 mm on the body's side of the garment under "
              "it; tuck as asked: the top's points at the band's height lie outside the band (out) or inside it "
-             "(in); springs over: both garments' springs beyond their limits"))
+             "(in); springs over: both garments' springs beyond their limits; self-crossings: edges of a garment's "
+             "shown mesh through one of its own triangles"))
     n = len(data)
     sec.headline.append(
         f"outfits: {n} (top over bottom, out and in), at rest {sum(d['rest'] for d in data)}/{n}, in body "

@@ -173,16 +173,16 @@ def collide_layers(points: list[np.ndarray], prev: list[np.ndarray], inv_mass: l
                    planes: list[tuple] | None = None, max_push: float = np.inf,
                    pressed: list[np.ndarray] | None = None, both_ways: bool = False,
                    reach: float = None) -> int:
-    """Keep the layers (``points[i]`` (k_i, 3) m, in place, innermost first; triangles ``faces[i]`` (f_i, 3)
-    int64, turned outward by ``sides[i]`` (f_i,), ``face_sides``) ``gap`` m apart: every outer layer's points outside each layer under it, and with ``both_ways``
-    also every inner layer's points under each layer over it (a point of the shirt between two points of the
-    trousers over it: vertices against triangles catch only one of the two). Corrections are shared by inverse
-    mass (``inv_mass``: all zero for a layer that must not move); ``prev``: each layer's previous positions,
-    moved with it; ``planes``: each layer's contact planes (``DrapeState.planes``), where an outer point pushed,
-    or within ``near`` m beyond ``gap``, gets the layer's plane (an inner point keeps its plane on the body);
-    None: none kept. ``max_push`` m: the most a point moves in one call; ``pressed``: per layer (k_i,) bool out,
-    its points an outer layer pressed on; ``reach`` m: how far from a layer its grid finds points (default
-    ``LAYER_REACH``). Returns how many points were pushed."""
+    """Keep the layers (``points[i]`` (k_i, 3) m, in place, innermost first; triangles ``faces[i]`` (f_i, 3) int64,
+    turned outward by ``sides[i]`` (f_i,), ``face_sides``) ``gap`` m apart: every outer layer's points outside
+    each layer under it, and with ``both_ways`` also every inner layer's points under each layer over it (a point
+    of the shirt between two points of the trousers over it: vertices against triangles catch only one of the
+    two). Corrections are shared by inverse mass (``inv_mass``: all zero for a layer that must not move);
+    ``prev``: each layer's previous positions, moved with it; ``planes``: each layer's contact planes
+    (``DrapeState.planes``), where an outer point pushed, or within ``near`` m beyond ``gap``, gets the layer's
+    plane (an inner point keeps its plane on the body); None: none kept. ``max_push`` m: the most a point moves
+    in one call; ``pressed``: per layer (k_i,) bool out, its points an outer layer pressed on; ``reach`` m: how
+    far from a layer its grid finds points (default ``LAYER_REACH``). Returns how many points were pushed."""
     reach = LAYER_REACH if reach is None else reach
     surfaces: dict[int, tuple] = {}
 

@@ -10,12 +10,12 @@ Protocol (one try-on per connection):
    outfit (``garment_ids``) the faces and vertices of every garment one after the other, and ``garments``:
    each garment's catalogue entry and its ``vertex_start`` / ``vertex_count`` / ``face_start`` / ``face_count``,
    innermost first;
-3. then binary frames, each the FULL mesh's vertex positions (an outfit's: all its garments'): a 12-byte header (little-endian uint32
-   frame number, counting 0, 1, 2, ... over the frames sent; uint32 simulation step; float32 seconds
-   since the request was accepted) followed by ``vertex_count * 3`` little-endian float32 x, y, z in
-   metres (``12 + 12 * vertex_count`` bytes). The last frame is the final state. With
-   ``"encoding": "uint16"`` in the request the positions are uint16 q instead, position = origin + q *
-   scale (metres, per axis; origin and scale in the init message's ``encoding``): half the bytes;
+3. then binary frames, each the FULL mesh's vertex positions (an outfit's: all its garments'): a 12-byte
+   header (little-endian uint32 frame number, counting 0, 1, 2, ... over the frames sent; uint32 simulation
+   step; float32 seconds since the request was accepted) followed by ``vertex_count * 3`` little-endian
+   float32 x, y, z in metres (``12 + 12 * vertex_count`` bytes). The last frame is the final state. With
+   ``"encoding": "uint16"`` in the request the positions are uint16 q instead, position = origin + q * scale
+   (metres, per axis; origin and scale in the init message's ``encoding``): half the bytes;
 4. then one JSON ``{"type": "done", "metrics": {...}, "strain": [...], "cached": bool, ...}`` and a
    normal close (1000); an outfit's metrics are ``POST /api/tryon``'s outfit metrics, with ``garments``: each
    garment's own metrics (its strain in ``strain``, every garment's one after the other).

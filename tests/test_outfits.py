@@ -166,3 +166,31 @@ def test_the_stream_sends_every_garment_with_its_ranges(client, catalogue_ids):
         assert done["type"] == "done" and frames >= 1
         assert [g["garment_id"] for g in done["metrics"]["garments"]] == [ids["tshirt"], ids["trousers"]]
         assert len(done["strain"]) == init["vertex_count"]
+
+
+def test_a_file_of_a_shirt_and_trousers_drapes_its_pieces_as_layers(body):
+    """One file holding a T-shirt and trousers (as MakeHuman's outfits do): its pieces drape as an outfit, the
+    shirt over the trousers, and the answer is still one garment in the file's own vertex order."""
+    from tryon.garment.generate import garment_mesh
+    from tryon.garment.ingest import CleanMesh
+    from tryon.garment.prepare import prepare
+    from tryon.sim.outfit import piece_categories
+    from tryon.sim.run import drape
+
+    shirt, trousers = garment_mesh("tshirt", "M"), garment_mesh("trousers", "M")
+    sv, tv = np.asarray(shirt.vertices, dtype=np.float64), np.asarray(trousers.vertices, dtype=np.float64)
+    faces = np.vstack([np.asarray(shirt.faces), np.asarray(trousers.faces) + len(sv)]).astype(np.int32)
+    mesh = CleanMesh(vertices=np.vstack([sv, tv]), faces=faces, units="m", units_guessed=False)
+    model = prepare(mesh, id="outfit", name="outfit", category="top", size="M", source_sha256="0",
+                    source_name="outfit.obj")
+    assert sorted(piece_categories(model)) == ["bottom", "top"]
+    result = drape(body, model)
+    m = result.metrics
+    assert m["layered_pieces"] == 2
+    assert m["layer_penetrating_vertices"] == 0 and m["penetrating_vertices"] == 0
+    assert m["rest_reached"] and m["openings_on_limbs"]
+    assert result.vertices.shape == model.vertices.shape and np.array_equal(result.faces, model.faces)
+    # the file's first vertices are the shirt's: they stay above the trousers' (which begin at the waist)
+    legs = result.vertices[len(sv):]
+    assert result.vertices[:len(sv), 1].max() > legs[:, 1].max() + 0.2
+    assert legs[:, 1].min() < 0.2  # trouser hems near the floor

@@ -381,7 +381,9 @@ def test_relaxation_kept_for_the_shirt_dropped_for_trousers_it_would_carry_away(
     assert loose.metrics["relaxed"]
     assert loose.vertices[legs, 1].max() < result.vertices[legs, 1].max() - 0.1
     shirt_part = ~legs
-    assert np.abs(loose.vertices[shirt_part] - result.vertices[shirt_part]).max() < 1e-9  # shirt: relaxed in both
+    # the shirt is relaxed in both; it lies over the trousers (the file's pieces are layers), so where their
+    # tops differ it moves with them by a few millimetres at most
+    assert np.abs(loose.vertices[shirt_part] - result.vertices[shirt_part]).max() < 0.01
 
 
 def test_a_guessed_units_top_is_scaled_around_the_bodice_its_sleeves_moved_out_unscaled(body):

@@ -38,10 +38,11 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
+from tryon.garment.split import split_pieces
 from tryon.sim.collision.cloth import build_tri_grid, face_sides, push_layer, signed_face_normals
 from tryon.sim.collision.crossings import layer_depths
 from tryon.sim.finish import TryOnResult, full_mesh, result
-from tryon.sim.pieces import waistband_mask
+from tryon.sim.pieces import bottom_mask, piece_labels, waistband_mask
 from tryon.sim.relax import collide_all, relax
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
@@ -343,3 +344,86 @@ def layer_metrics(shown: list[np.ndarray], faces: list[np.ndarray], sides: list[
         count += int(np.count_nonzero(worst > LAYER_TOLERANCE))
         deepest = max(deepest, float(worst.max()) if len(worst) else 0.0)
     return count, deepest
+
+
+def piece_categories(model: GarmentModel) -> list[str] | None:
+    """For a garment file of separate garments with a bottom among them (a MakeHuman outfit: a shirt and
+    trousers), each piece's category (``bottom`` for the pieces hanging from a waist, ``pieces.bottom_mask``,
+    else the file's); None for a garment of one piece, or of pieces that are not a top and a bottom."""
+    if model.meta.category == "bottom":
+        return None
+    piece = piece_labels(model.coarse_faces, len(model.mass))
+    count = int(piece.max()) + 1 if len(piece) else 0
+    if count < 2:
+        return None
+    bottom = bottom_mask(model.coarse_vertices, model.coarse_faces, model.meta.category, piece)
+    if not bottom.any() or bottom.all():
+        return None
+    return ["bottom" if bottom[piece == p].all() else model.meta.category for p in range(count)]
+
+
+def drape_pieces(body: Body, model: GarmentModel, categories: list[str], settings: SimSettings = SimSettings(),
+                 on_frame: Callable[[int, np.ndarray], bool] | None = None, tuning: Tuning = TUNING) -> TryOnResult:
+    """Drape a file of separate garments (``piece_categories``) as an outfit, its top over its bottom (tuck
+    out), and answer as for one garment: the shown mesh, strain and coarse positions in the file's own order,
+    the metrics of the whole (counts summed, worst values kept) with the outfit's layer figures beside them.
+    ``on_frame(step, coarse (k, 3) in the file's order)`` as for ``drape``."""
+    models, where = split_pieces(model, categories)
+    k = len(model.coarse_index)
+
+    def whole(coarse: list[np.ndarray], order: list[int]) -> np.ndarray:
+        x = np.empty((k, 3))
+        for layer, i in enumerate(order):
+            x[where[i].coarse] = coarse[layer]
+        return x
+
+    order = layer_order(categories, "out")
+
+    def frames(step: int, coarse: list[np.ndarray]) -> bool:
+        return on_frame(step, whole(coarse, order))
+
+    out = drape_outfit(body, models, settings, "out", tuning, None if on_frame is None else frames)
+    vertices = np.empty((len(model.vertices), 3))
+    strain = np.empty(len(model.vertices))
+    for layer, i in enumerate(out.order):
+        vertices[where[i].full] = out.results[layer].vertices
+        strain[where[i].full] = out.results[layer].strain
+    metrics = merged_metrics([r.metrics for r in out.results])
+    metrics.update({key: out.metrics[key] for key in ("steps", "sim_seconds", "wall_seconds", "rest_reached",
+                                                      "stopped", "layer_penetrating_vertices",
+                                                      "max_layer_penetration_mm")})
+    metrics["layered_pieces"] = len(models)
+    return TryOnResult(vertices=vertices, faces=model.faces, strain=strain,
+                       coarse=whole([r.coarse for r in out.results], out.order), metrics=metrics)
+
+
+def merged_metrics(parts: list[dict]) -> dict:
+    """One garment's metrics from its pieces' (``finish.result``'s keys): counts summed, the worst of maxima
+    kept, lists joined, flags all-true (``stays_up``, ``relaxed``, ``openings_on_limbs`` where any piece has
+    openings) or any-true (``sized_to_body``, ``grown``)."""
+    first = parts[0]
+    out = dict(first)
+    for key in ("penetrating_vertices", "body_through_vertices", "last_step_contacts"):
+        out[key] = sum(int(p[key]) for p in parts)
+    for key in ("max_penetration_mm", "max_body_through_mm", "max_strain", "display_max_strain", "slid_cm",
+                "kinetic_energy_per_kg", "polish_rounds"):
+        out[key] = max(p[key] for p in parts)
+    out["strain_by_kind"] = {
+        kind: {"max": max(p["strain_by_kind"][kind]["max"] for p in parts), "limit": v["limit"],
+               **{count: sum(p["strain_by_kind"][kind].get(count, 0) for p in parts)
+                  for count in ("over", "over_on_body") if count in v}}
+        for kind, v in first["strain_by_kind"].items()}
+    tight: dict[str, int] = {}
+    for p in parts:
+        for place, n in p["too_tight"].items():
+            tight[place] = tight.get(place, 0) + n
+    out["too_tight"] = dict(sorted(tight.items(), key=lambda kv: -kv[1]))
+    out["limb_openings"] = [o for p in parts for o in p["limb_openings"]]
+    out["openings_on_limbs"] = all(o["ok"] for o in out["limb_openings"]) if out["limb_openings"] else None
+    out["stays_up"] = all(p["stays_up"] for p in parts)
+    out["relaxed"] = all(p["relaxed"] for p in parts)
+    out["sized_to_body"] = any(p["sized_to_body"] for p in parts)
+    out["grown"] = any(p["grown"] for p in parts)
+    out["parts_tested"] = sorted({name for p in parts for name in p["parts_tested"]})
+    out["relax_move_mm"] = [max(p["relax_move_mm"][0] for p in parts), max(p["relax_move_mm"][1] for p in parts)]
+    return out

@@ -75,6 +75,7 @@ import numpy as np
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.sim.finish import TryOnResult, finish
+from tryon.sim.outfit import drape_pieces, piece_categories
 from tryon.sim.relax import relax
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
@@ -93,6 +94,9 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
           tuning: Tuning = TUNING) -> TryOnResult:
     """Drape ``model`` on ``body``; see the module doc. ``initial`` (k, 3) replaces the alignment (tests and
     stress scenes start from given positions)."""
+    if initial is None and (categories := piece_categories(model)) is not None:
+        # a file of a top and a bottom (a MakeHuman outfit): its pieces as layers, the top over the bottom
+        return drape_pieces(body, model, categories, settings, on_frame, tuning)
     d = start(body, model, settings, tuning, initial)
     stopped = False
     for _ in range(settings.max_steps):

@@ -17,6 +17,7 @@ const state = {
   garments: [],
   styles: [],           // GET /api/styles: each style's sizes in order
   garmentId: null,
+  companionId: null,    // a garment of the other kind worn with it (an outfit), or null
   advice: null,         // the last POST /api/fit answer shown, or null
   fitting: false,
   init: null,
@@ -145,7 +146,38 @@ function selectGarment(id) {
   for (const row of $('size-advice').querySelectorAll('.advice-row')) {
     row.setAttribute('aria-current', String(row.dataset.id === id));
   }
+  renderCompanions();
   updateTryOnButton();
+}
+
+// ---- an outfit: a top with a bottom -----------------------------------------------------------------
+const garmentById = (id) => state.garments.find((g) => g.id === id);
+const isBottom = (g) => g?.category === 'bottom';
+
+/** The "Wear with" choice: the catalogue's garments of the other kind (bottoms for a top or a dress, tops
+ * and dresses for a bottom); the tuck choice only once one is chosen. */
+function renderCompanions() {
+  const chosen = garmentById(state.garmentId);
+  const others = chosen ? state.garments.filter((g) => isBottom(g) !== isBottom(chosen)) : [];
+  const select = $('companion');
+  if (!others.some((g) => g.id === state.companionId)) state.companionId = null;
+  select.replaceChildren(new Option('nothing else', ''));
+  for (const g of others) select.append(new Option(g.name, g.id, false, g.id === state.companionId));
+  $('outfit').hidden = !others.length;
+  $('tuck').hidden = $('tuck-label').hidden = !state.companionId;
+}
+$('companion').addEventListener('change', (e) => {
+  state.companionId = e.target.value || null;
+  renderCompanions();
+});
+
+/** The try-on request: one garment, or the chosen top and bottom as an outfit (top first, then tuck). */
+function tryOnPayload() {
+  if (!state.companionId) return form.tryOnRequest(state.garmentId);
+  const pair = [state.garmentId, state.companionId];
+  const ids = isBottom(garmentById(pair[0])) ? pair.reverse() : pair;
+  const { garment_id: _, ...body } = form.tryOnRequest(ids[0]);
+  return { ...body, garment_ids: ids, tuck: $('tuck').value };
 }
 
 function updateTryOnButton() {
@@ -220,7 +252,7 @@ async function tryOn() {
   if (state.state === 'draping') { live?.cancel(); return; }
   clearNotice();
   // uint16 frames: half the bytes of float32, 0.04 mm steps (far below what a screen shows)
-  const payload = { ...form.tryOnRequest(state.garmentId), fps: 30, encoding: 'uint16' };
+  const payload = { ...tryOnPayload(), fps: 30, encoding: 'uint16' };
   state.state = 'draping';
   state.framesReceived = 0;
   state.done = null;
@@ -238,7 +270,8 @@ async function tryOn() {
         const body = flatMesh(init.body);
         stage.setBody(body.vertices, body.faces);
       }
-      stage.startGarment(init.vertex_count, flatMesh({ vertices: [], faces: init.faces }).faces, init.garment?.category);
+      const category = init.garment?.category ?? init.garments?.at(-1)?.category;  // an outfit: the outermost
+      stage.startGarment(init.vertex_count, flatMesh({ vertices: [], faces: init.faces }).faces, category);
       setProgress(0.02, 'Dressing…');
     },
     onFrame(frameNo, step, positions) {
@@ -298,14 +331,15 @@ function showLimitOnLegend(limit, top) {
   }
 }
 
-/** Fill the fit summary from a done message (`strainLimit`: the init message's, else the default). */
+/** Fill the fit summary from a done message (`strainLimit`: the init message's, else the default). An
+ * outfit's: its own figures (cloth through cloth, the tuck), then each garment's under its name. */
 function showMetrics(done, strainLimit = state.init?.strain_limit ?? DEFAULT_STRAIN_LIMIT) {
-  const rows = metricRows(done.metrics || {}, { strainLimit, stoppedBy: done.stopped_by });
+  const m = done.metrics || {};
   const dl = $('metrics');
   dl.replaceChildren();
-  for (const { name, value, tone, wide } of rows) {
+  const addRow = ({ name, value, tone, wide }, className = wide ? 'wide' : '') => {
     const div = document.createElement('div');
-    if (wide) div.className = 'wide';
+    if (className) div.className = className;
     const dt = document.createElement('dt');
     dt.textContent = name;
     const dd = document.createElement('dd');
@@ -313,9 +347,33 @@ function showMetrics(done, strainLimit = state.init?.strain_limit ?? DEFAULT_STR
     if (tone) dd.className = tone;
     div.append(dt, dd);
     dl.append(div);
+  };
+  if (!Array.isArray(m.garments)) {
+    for (const row of metricRows(m, { strainLimit, stoppedBy: done.stopped_by })) addRow(row);
+    const g = done.garment || state.init?.garment || {};
+    $('result-garment').textContent = [g.name, g.size ? `size ${g.size}` : null].filter(Boolean).join(' · ');
+    return;
   }
-  const g = done.garment || state.init?.garment || {};
-  $('result-garment').textContent = [g.name, g.size ? `size ${g.size}` : null].filter(Boolean).join(' · ');
+  for (const row of outfitRows(m)) addRow(row);
+  const names = new Map((state.init?.garments || []).map((g) => [g.id, g.name]));
+  for (const g of m.garments) {
+    addRow({ name: names.get(g.garment_id) || g.garment_id, value: '' }, 'wide garment-head');
+    for (const row of metricRows(g, { strainLimit, stoppedBy: done.stopped_by })) addRow(row);
+  }
+  const worn = (state.init?.garments || []).map((g) => g.name).reverse().join(' over ');  // outermost first
+  $('result-garment').textContent = `${worn} · ${m.tuck === 'in' ? 'tucked in' : 'hem over the waistband'}`;
+}
+
+/** An outfit's own figures: cloth of one garment through another's, and whether the tuck is as asked. */
+function outfitRows(m) {
+  const n = m.layer_penetrating_vertices;
+  const through = !Number.isFinite(n) ? { value: '—', tone: '' }
+    : (n === 0 ? { value: 'none', tone: 'good' }
+      : { value: `${n} ${n === 1 ? 'point' : 'points'}, up to ${Number(m.max_layer_penetration_mm).toFixed(0)} mm`,
+        tone: 'warn' });
+  const tuck = m.tuck_as_asked === true ? { value: m.tuck === 'in' ? 'tucked in' : 'over the waistband', tone: 'good' }
+    : (m.tuck_as_asked === false ? { value: 'not as asked', tone: 'warn' } : { value: '—', tone: '' });
+  return [{ name: 'Cloth through cloth', ...through, wide: false }, { name: "Top's hem", ...tuck, wide: false }];
 }
 
 state.showMetrics = showMetrics;  // for tests: render a given done message
@@ -471,7 +529,8 @@ async function withBusy(button, work) {
 }
 $('download-garment').addEventListener('click', (e) => withBusy(e.currentTarget, async () => {
   const glb = await stage.garmentGLB();
-  const name = (state.garments.find((g) => g.id === state.garmentId)?.name || 'garment').replace(/\W+/g, '-').toLowerCase();
+  const worn = [state.garmentId, state.companionId].filter(Boolean).map((id) => garmentById(id)?.name || 'garment');
+  const name = worn.join(' with ').replace(/\W+/g, '-').toLowerCase();
   saveBlob(glb, `${name}-fitted.glb`);
 }));
 $('download-body').addEventListener('click', (e) => withBusy(e.currentTarget, async () => {

@@ -1,0 +1,78 @@
+"""Issue 29 on the page: a top and a bottom tried on together, in headless Chromium against a real ``tryon serve``.
+
+The catalogue: a T-shirt M and trousers M. Choose the T-shirt, "Wear with" the trousers, the hem over the
+waistband, Try on: the stream shows both garments as one outfit; the fit summary names both, says whether cloth
+went through cloth and how the hem sits, and gives each garment its own figures. The layout stays within the
+screen at 1366 x 768 and 390 x 844. Screenshots: ``test-artifacts/page-outfit-<w>x<h>.png``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from conftest import serve_process
+from test_page_layout import LAYOUT_PROBLEMS, open_page
+from tryon.garment.catalogue import Catalogue
+from tryon.garment.generate import garment_mesh, obj_text
+
+pytestmark = pytest.mark.e2e
+
+ROOT = Path(__file__).resolve().parents[1]
+ARTIFACTS = ROOT / "test-artifacts"
+DONE = "window.tryon.state === 'done' || window.tryon.state === 'error'"
+FIGURES = """() => [...document.querySelectorAll('#metrics > div')].map((d) => ({
+    name: d.querySelector('dt').textContent, value: d.querySelector('dd').textContent,
+    head: d.classList.contains('garment-head')}))"""
+
+
+@pytest.fixture(scope="module")
+def outfit_shop(tmp_path_factory) -> str:
+    root = tmp_path_factory.mktemp("outfit-shop")
+    catalogue = Catalogue(root / "data")
+    for kind, name, category in (("tshirt", "T-shirt M", "top"), ("trousers", "Trousers M", "bottom")):
+        path = root / f"{kind}-m.obj"
+        path.write_text(obj_text(garment_mesh(kind, "M"), name))
+        catalogue.ingest(path, name=name, category=category, size="M", units="m")
+    with serve_process(root / "data") as url:
+        yield url
+
+
+@pytest.mark.parametrize(("width", "height"), [(1366, 768), (390, 844)], ids=["1366x768", "390x844"])
+def test_a_top_and_a_bottom_worn_together(browser, outfit_shop, width, height):
+    context, page = open_page(browser, outfit_shop, width, height)
+    try:
+        page.get_by_role("radio", name="T-shirt, size M", exact=True).click()
+        assert page.is_visible("#companion") and not page.is_visible("#tuck")
+        assert page.locator("#companion option").all_text_contents() == ["nothing else", "Trousers M"]
+        page.select_option("#companion", label="Trousers M")
+        assert page.is_visible("#tuck")
+        page.select_option("#tuck", "out")
+        page.click("#tryon-button")
+        page.wait_for_function(DONE, timeout=120_000)
+        assert page.evaluate("window.tryon.state") == "done", page.evaluate("window.tryon.lastError")
+        assert [g["name"] for g in page.evaluate("window.tryon.init.garments")] == ["Trousers M", "T-shirt M"]
+        assert page.text_content("#result-garment") == "T-shirt M over Trousers M · hem over the waistband"
+        figures = page.evaluate(FIGURES)
+        assert figures[0] == {"name": "Cloth through cloth", "value": "none", "head": False}
+        assert figures[1] == {"name": "Top's hem", "value": "over the waistband", "head": False}
+        heads = [f["name"] for f in figures if f["head"]]
+        assert heads == ["Trousers M", "T-shirt M"]  # each garment's own figures under its name
+        assert sum(f["name"] == "Cloth in body" for f in figures) == 2
+        # both garments are on the stage, as one mesh of all their vertices
+        assert page.evaluate("window.tryon.stage.garment.geometry.attributes.position.count") == \
+            page.evaluate("window.tryon.init.vertex_count")
+
+        # back to one garment: the request is a single garment's again
+        page.select_option("#companion", "")
+        assert not page.is_visible("#tuck")
+        assert page.evaluate(LAYOUT_PROBLEMS) == []
+        page.select_option("#companion", label="Trousers M")
+        page.mouse.move(width / 2, 10)
+        page.wait_for_timeout(300)
+        ARTIFACTS.mkdir(exist_ok=True)
+        page.screenshot(path=str(ARTIFACTS / f"page-outfit-{width}x{height}.png"))
+        assert page.problems == []
+    finally:
+        context.close()

@@ -1,17 +1,18 @@
 """An outfit: up to three garments draped at once, each over the ones under it (issue 29).
 
 Method. Every garment is its own drape (``start``, ``step``, ``relax``: its springs, its contacts with the
-body, its own start-up), stepped in lockstep; after each step the layers collide, innermost first: every
-point of an outer garment that lies less than ``LAYER_GAP`` outside an inner garment's current coarse
-surface (or inside it) is moved to ``LAYER_GAP`` outside it, and the inner triangle takes its share of the
-move by inverse mass (``collision.cloth.push_outside_layer``: the point-triangle constraint of position-based
-dynamics), so a waistband under a shirt's hem carries the hem's weight. Which side is outside is fixed by
-the layer order and the body, not by the files' winding: each inner face's normal is turned away from the
-nearest body axis (``outward_from_body``). A one-sided push with a kept layer order is what Houdini Vellum
-and CLO do for layered garments; it needs no history and cannot tangle two layers that started crossed (an
-outer garment aligned partly inside the inner one ends outside it), which a two-sided (side-keeping) test
-would lock in. The layers collide only once every garment's start-up is over (each drape grows the body
-and turns the arms on its own schedule), on the body all garments share.
+body, its own start-up), stepped in lockstep; after each step the layers collide, innermost first, both
+ways: every point of an outer garment that lies less than ``LAYER_GAP`` outside an inner garment's current
+coarse surface (or inside it) is moved to ``LAYER_GAP`` outside it, and every point of the inner garment
+through the outer one's surface back under it; the triangle takes its share of each move by inverse mass
+(``collision.cloth.push_outside_layer``: the point-triangle constraint of position-based dynamics), so a
+waistband under a shirt's hem carries the hem's weight. Which side is outside is fixed by the layer order
+and the body, not by the files' winding: each face's normal is turned away from the nearest body axis, by
+its own vote, every step (``outward_from_body``, ``collision.cloth.face_sides``). A one-sided push with a
+kept layer order is what Houdini Vellum and CLO do for layered garments; it needs no history and untangles
+two layers that started crossed (an outer garment aligned partly inside the inner one ends outside it),
+which a side-keeping test would lock in. The layers collide only once every garment's start-up is over
+(each drape grows the body and turns the arms on its own schedule), on the body all garments share.
 
 Skip what the scene does not need: only the outer points inside an inner garment's box (plus ``LAYER_REACH``)
 are tested, through a grid of the inner triangles; a garment at rest that no layer pushed is not stepped
@@ -124,8 +125,9 @@ def tuck_in(drapes: list[Drape], faces: list[np.ndarray], sides: list[np.ndarray
             continue
         for i in range(j):
             x = [drapes[i].state.x, d.state.x]
-            collide_layers(x, [drapes[i].state.x_prev, d.state.x_prev], [drapes[i].state.inv_mass, np.zeros(len(x[1]))],
-                           [faces[i], faces[j]], [sides[i], sides[j]], LAYER_GAP, both_ways=True, reach=TUCK_REACH)
+            collide_layers(x, [drapes[i].state.x_prev, d.state.x_prev],
+                           [drapes[i].state.inv_mass, np.zeros(len(x[1]))], [faces[i], faces[j]], [sides[i], sides[j]],
+                           LAYER_GAP, both_ways=True, reach=TUCK_REACH)
 
 
 def gather(d: Drape, pressed: np.ndarray, compression: np.ndarray) -> None:

@@ -194,3 +194,23 @@ def test_a_file_of_a_shirt_and_trousers_drapes_its_pieces_as_layers(body):
     legs = result.vertices[len(sv):]
     assert result.vertices[:len(sv), 1].max() > legs[:, 1].max() + 0.2
     assert legs[:, 1].min() < 0.2  # trouser hems near the floor
+
+
+def test_an_outfit_asked_for_over_rest_is_replayed_from_the_cache_over_the_stream(client, catalogue_ids):
+    _, _, ids = catalogue_ids
+    request = {"garment_ids": [ids["longsleeve"], ids["trousers"]], "measurements": BODY,
+               "settings": {"max_steps": 40}}
+    first = client.post("/api/tryon", json=request)
+    assert first.status_code == 200, first.text
+    with client.websocket_connect("/ws/tryon") as ws:
+        ws.send_text(json.dumps(request))
+        init = json.loads(ws.receive_text())
+        assert [g["id"] for g in init["garments"]] == [ids["trousers"], ids["longsleeve"]]
+        frame = ws.receive_bytes()
+        assert len(frame) == FRAME_HEADER.size + 12 * init["vertex_count"]
+        done = json.loads(ws.receive_text())
+    assert done["cached"] is True
+    assert [g["garment_id"] for g in done["metrics"]["garments"]] == [ids["trousers"], ids["longsleeve"]]
+    shown = np.frombuffer(frame[FRAME_HEADER.size:], dtype="<f4").reshape(-1, 3)
+    rest = np.concatenate([np.array(g["vertices"]) for g in first.json()["garments"]])
+    assert np.abs(shown - rest).max() < 1e-4  # the same final state, in the same order

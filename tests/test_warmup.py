@@ -59,6 +59,12 @@ FIRST_REQUESTS = textwrap.dedent("""
         result_json(result)
         mesh_bytes(result.vertices, result.faces, "glb", strain_colours(result.strain, 0.1))
         catalogue.model(gid, 0.25).expand(result.coarse)
+    top = next(e.id for e in catalogue.list() if e.category == "top")
+    bottom = next(e.id for e in catalogue.list() if e.category == "bottom")
+    outfit = TryOnRequest(garment_ids=[top, bottom], tuck="in", measurements=measurements, pose=pose,
+                          settings={"substeps": 8, "max_steps": 120})
+    from tryon.api.service import result_glb
+    result_glb(run_tryon(catalogue, outfit))
     request = TryOnRequest(garment_id="-", measurements=measurements, pose=pose)
     body = build_body(*to_body_params(request.measurements, request.pose), 24)
     json_bytes(body_json(body, request.pose.model_dump()))

@@ -166,3 +166,11 @@ def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     axis = axis / np.linalg.norm(axis)
     k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+
+
+def stack_meshes(meshes: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """Several meshes ``(vertices (n_i, 3), faces (f_i, 3))`` as one: the vertices one after the other and the
+    faces (int64) offset to index them."""
+    starts = np.cumsum([0] + [len(v) for v, _ in meshes[:-1]])
+    return (np.concatenate([np.asarray(v) for v, _ in meshes]),
+            np.concatenate([np.asarray(f, dtype=np.int64) + s for (_, f), s in zip(meshes, starts)]))

@@ -15,6 +15,7 @@ from fastapi import HTTPException, status
 from tryon.api.schemas.tryon import TryOnRequest
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
+from tryon.geometry import stack_meshes
 from tryon.sim.outfit import layer_order
 
 
@@ -49,13 +50,16 @@ class OutfitMesh:
     models: list[GarmentModel]
 
     @cached_property
-    def vertices(self) -> np.ndarray:
-        return np.concatenate([m.vertices for m in self.models])
+    def stacked(self) -> tuple[np.ndarray, np.ndarray]:
+        return stack_meshes([(m.vertices, m.faces) for m in self.models])
 
-    @cached_property
+    @property
+    def vertices(self) -> np.ndarray:
+        return self.stacked[0]
+
+    @property
     def faces(self) -> np.ndarray:
-        starts = np.cumsum([0] + [len(m.vertices) for m in self.models[:-1]])
-        return np.concatenate([np.asarray(m.faces, dtype=np.int64) + s for m, s in zip(self.models, starts)])
+        return self.stacked[1]
 
     def expand(self, coarse: list[np.ndarray]) -> np.ndarray:
         """(n, 3) m: every garment's full mesh from its coarse positions, in layer order."""

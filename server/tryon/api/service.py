@@ -75,12 +75,7 @@ def result_json(result: TryOnResult | OutfitResult, cached_answer_s: float | Non
         return outfit_json(result, cached_answer_s)
     m = result.metrics
     metrics = {
-        "steps": int(m["steps"]),
-        "sim_seconds": float(m["sim_seconds"]),
-        "wall_seconds": float(m["wall_seconds"]) if cached_answer_s is None else round(cached_answer_s, 4),
-        "simulation_wall_seconds": float(m["wall_seconds"]),
-        "cached": cached_answer_s is not None,
-        "rest_reached": bool(m["rest_reached"]),
+        **run_metrics(m, cached_answer_s),
         "penetrating_vertices": int(m["penetrating_vertices"]),
         "max_penetration_mm": round(float(m["max_penetration_mm"]), 3),
         "body_through_vertices": int(m["body_through_vertices"]),
@@ -97,7 +92,23 @@ def result_json(result: TryOnResult | OutfitResult, cached_answer_s: float | Non
         "sized_to_body": bool(m.get("sized_to_body", False)),
         "pose": m.get("pose", {}),
     }
+    if "layer_penetrating_vertices" in m:  # a file of a top and a bottom, draped as layers
+        metrics["layer_penetrating_vertices"] = int(m["layer_penetrating_vertices"])
+        metrics["max_layer_penetration_mm"] = float(m["max_layer_penetration_mm"])
     return {"garment": mesh_json(result.vertices, result.faces), "metrics": metrics}
+
+
+def run_metrics(m: dict, cached_answer_s: float | None) -> dict:
+    """What every answer says of its run: steps, simulated and wall seconds (see ``result_json``), whether it
+    came from the cache, whether it reached rest."""
+    return {
+        "steps": int(m["steps"]),
+        "sim_seconds": float(m["sim_seconds"]),
+        "wall_seconds": float(m["wall_seconds"]) if cached_answer_s is None else round(cached_answer_s, 4),
+        "simulation_wall_seconds": float(m["wall_seconds"]),
+        "cached": cached_answer_s is not None,
+        "rest_reached": bool(m["rest_reached"]),
+    }
 
 
 def outfit_json(result: OutfitResult, cached_answer_s: float | None = None) -> dict:
@@ -109,12 +120,7 @@ def outfit_json(result: OutfitResult, cached_answer_s: float | None = None) -> d
         one = result_json(r, cached_answer_s)
         garments.append({"garment_id": gid, "layer": layer, **one["garment"], "metrics": one["metrics"]})
     metrics = {
-        "steps": int(m["steps"]),
-        "sim_seconds": float(m["sim_seconds"]),
-        "wall_seconds": float(m["wall_seconds"]) if cached_answer_s is None else round(cached_answer_s, 4),
-        "simulation_wall_seconds": float(m["wall_seconds"]),
-        "cached": cached_answer_s is not None,
-        "rest_reached": bool(m["rest_reached"]),
+        **run_metrics(m, cached_answer_s),
         "tuck": m["tuck"],
         "layers": list(m["layers"]),
         "penetrating_vertices": sum(int(r.metrics["penetrating_vertices"]) for r in result.results),

@@ -53,7 +53,7 @@ def _exercise() -> None:
     # what the warm-up warms
     from tryon.api.export import json_bytes, mesh_bytes
     from tryon.api.routes.bodies import body_glb, body_json
-    from tryon.api.service import result_json, run_tryon, strain_colours
+    from tryon.api.service import result_glb, result_json, run_tryon, strain_colours
     from tryon.api.schemas.bodies import to_body_params
     from tryon.api.schemas.tryon import TryOnRequest
     from tryon.body.build import build_body
@@ -66,13 +66,21 @@ def _exercise() -> None:
     body_glb(body)
     with tempfile.TemporaryDirectory(prefix="tryon-warmup-") as tmp:
         catalogue = Catalogue(Path(tmp) / "data")
+        ids = []
         for kind, category in WARM_GARMENTS:
             path = Path(tmp) / f"{kind}.obj"
             path.write_text(obj_text(garment_mesh(kind, "S"), kind))
             entry = catalogue.ingest(path, name=kind, category=category, size="S", units="m")
+            ids.append(entry.id)
             result = run_tryon(catalogue, request.model_copy(update={"garment_id": entry.id}))
             result_json(result)
             mesh_bytes(result.vertices, result.faces, "glb", strain_colours(result.strain, 0.1))
+        # an outfit, tucked in and out (the layers' kernels, the outfit's answers)
+        for tuck in ("out", "in"):
+            outfit = run_tryon(catalogue, request.model_copy(update={"garment_id": None, "garment_ids": ids,
+                                                                     "tuck": tuck}))
+            result_json(outfit)
+            result_glb(outfit)
 
 
 class WarmUp:

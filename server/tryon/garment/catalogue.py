@@ -154,6 +154,21 @@ class IngestPlan:
     preparation: Preparation | None = None
 
 
+def _write_ahead(db: sqlite3.Connection) -> None:
+    """Switch the index to write-ahead logging. Two processes opening a new catalogue at once both ask; the
+    switch needs the database to itself and sqlite answers "database is locked" at once instead of waiting
+    for the connection's timeout, so it is asked again for up to SQLITE_TIMEOUT_S."""
+    deadline = time.monotonic() + SQLITE_TIMEOUT_S
+    while True:
+        try:
+            db.execute("PRAGMA journal_mode=WAL")
+            return
+        except sqlite3.OperationalError as exc:
+            if "locked" not in str(exc) or time.monotonic() > deadline:
+                raise
+            time.sleep(0.05)
+
+
 class Catalogue:
     """Garments prepared once and cached under ``data_dir`` (see the module docstring)."""
 
@@ -169,7 +184,7 @@ class Catalogue:
         self._cache_size = cache_size
         self._lock = threading.Lock()
         with self._connect() as db:
-            db.execute("PRAGMA journal_mode=WAL")
+            _write_ahead(db)
             db.execute(_SCHEMA)
             have = {r[1] for r in db.execute("PRAGMA table_info(garments)")}
             for column, kind in _ADDED_COLUMNS:

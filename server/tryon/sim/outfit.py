@@ -40,6 +40,7 @@ import numpy as np
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.garment.split import split_pieces
+from tryon.geometry import stack_meshes
 from tryon.sim.collision.cloth import build_tri_grid, face_sides, push_layer, signed_face_normals
 from tryon.sim.collision.crossings import layer_depths
 from tryon.sim.finish import TryOnResult, full_mesh, result
@@ -100,13 +101,12 @@ class OutfitResult:
     @property
     def vertices(self) -> np.ndarray:
         """(n, 3) m: every garment's shown mesh, in layer order, one after the other."""
-        return np.concatenate([r.vertices for r in self.results])
+        return stack_meshes([(r.vertices, r.faces) for r in self.results])[0]
 
     @property
     def faces(self) -> np.ndarray:
         """(f, 3) int64: every garment's triangles, indexing ``vertices``."""
-        starts = np.cumsum([0] + [len(r.vertices) for r in self.results[:-1]])
-        return np.concatenate([np.asarray(r.faces, dtype=np.int64) + s for r, s in zip(self.results, starts)])
+        return stack_meshes([(r.vertices, r.faces) for r in self.results])[1]
 
     @property
     def strain(self) -> np.ndarray:

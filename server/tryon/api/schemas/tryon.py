@@ -153,6 +153,11 @@ class TryOnMetricsOut(BaseModel):
                                                    "this body (its chest girth 1.15 x the body's, a bottom's "
                                                    "waistband the body's waist): its fit then says nothing of "
                                                    "the size it was made in")
+    layer_penetrating_vertices: int | None = Field(None, description="a garment file of a top and a bottom (draped "
+                                                                     "as layers, the top over the bottom): vertices of "
+                                                                     "one piece more than 2 mm on the wrong side of the "
+                                                                     "other; absent for a garment of one piece")
+    max_layer_penetration_mm: float | None = Field(None, description="the deepest of those, mm")
     pose: dict[str, float] = Field(default_factory=dict,
                                    description="pose angles of the body draped on, degrees: as asked, except an arm "
                                                "angle too low for the arm to clear the torso, raised to where the "

@@ -271,7 +271,8 @@ async function tryOn() {
         stage.setBody(body.vertices, body.faces);
       }
       const category = init.garment?.category ?? init.garments?.at(-1)?.category;  // an outfit: the outermost
-      stage.startGarment(init.vertex_count, flatMesh({ vertices: [], faces: init.faces }).faces, category);
+      stage.startGarment(init.vertex_count, flatMesh({ vertices: [], faces: init.faces }).faces, category,
+        init.garments);
       setProgress(0.02, 'Dressing…');
     },
     onFrame(frameNo, step, positions) {

@@ -174,8 +174,10 @@ export class Stage {
   }
 
   // ---- garment ------------------------------------------------------------------------------
-  /** A fresh garment geometry for `vertexCount` vertices and its faces (f*3 ints); allocated once. */
-  startGarment(vertexCount, faces, category) {
+  /** A fresh garment geometry for `vertexCount` vertices and its faces (f*3 ints); allocated once. An outfit
+   * gives `parts` (init.garments: each garment's category and `face_start` / `face_count`): each garment is
+   * drawn in its own kind's colour, so a shirt over trousers does not look like one suit. */
+  startGarment(vertexCount, faces, category, parts = null) {
     this.clearGarment();
     const geometry = new THREE.BufferGeometry();
     const position = new THREE.BufferAttribute(new Float32Array(vertexCount * 3), 3);
@@ -185,7 +187,16 @@ export class Stage {
     geometry.setAttribute('color', color);
     geometry.setIndex(new THREE.BufferAttribute(new Uint32Array(faces), 1));
     this.cloth.color.setHex(GARMENT_COLORS[category] ?? 0x8a6f5a);
-    const mesh = new THREE.Mesh(geometry, this.fitmapOn && this.strain ? this.fitmapMaterial : this.cloth);
+    this.outfitCloths = null;
+    if (parts?.length > 1) {
+      this.outfitCloths = parts.map((part, i) => {
+        geometry.addGroup(3 * part.face_start, 3 * part.face_count, i);
+        const cloth = this.cloth.clone();
+        cloth.color.setHex(GARMENT_COLORS[part.category] ?? 0x8a6f5a);
+        return cloth;
+      });
+    }
+    const mesh = new THREE.Mesh(geometry, this.fitmapOn && this.strain ? this.fitmapMaterial : this.clothOf());
     mesh.name = 'garment';
     mesh.castShadow = true;
     mesh.receiveShadow = true;
@@ -216,6 +227,8 @@ export class Stage {
       this.garment.geometry.dispose();
       this.garment = null;
     }
+    for (const cloth of this.outfitCloths ?? []) cloth.dispose();
+    this.outfitCloths = null;
     this.strain = null;
     this.requestRender();
   }
@@ -236,15 +249,18 @@ export class Stage {
 
   setFitMap(on) {
     this.fitmapOn = on;
-    if (this.garment) this.garment.material = on && this.strain ? this.fitmapMaterial : this.cloth;
+    if (this.garment) this.garment.material = on && this.strain ? this.fitmapMaterial : this.clothOf();
     this.requestRender();
   }
+
+  /** The garment's cloth: one material, or an outfit's one per garment (drawn by the geometry's groups). */
+  clothOf() { return this.outfitCloths ?? this.cloth; }
 
   /** The fitted garment as GLB bytes (ArrayBuffer), with fit-map colours as COLOR_0 when known. */
   async garmentGLB() {
     if (!this.garment) throw new Error('there is no fitted garment yet');
     const mesh = this.garment.clone();
-    mesh.material = this.fitmapOn && this.strain ? this.fitmapMaterial : this.cloth;
+    mesh.material = this.fitmapOn && this.strain ? this.fitmapMaterial : this.clothOf();
     const exporter = new GLTFExporter();
     return exporter.parseAsync(mesh, { binary: true });
   }

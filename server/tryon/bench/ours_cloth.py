@@ -77,8 +77,9 @@ def timed_drape(body, model, settings, initial=None, steps_per_frame: int = 1, p
     return frames, result
 
 
-def run_sphere(n: int, frames: int, settings=None, substeps: int = 1, max_seconds: float = 1e9) -> dict:
-    """Our cloth-on-ball run: ``substeps`` time steps of FRAME_DT / substeps per frame."""
+def run_sphere(n: int, frames: int, settings=None, substeps: int = 1, max_seconds: float = 1e9, tuning=None) -> dict:
+    """Our cloth-on-ball run: ``substeps`` time steps of FRAME_DT / substeps per frame (``tuning``: the method's
+    knobs, default ``TUNING``)."""
     from tryon.bench.synthetic import cloth_square
     from tryon.sim.settings import SimSettings
     from tryon.sim.tuning import TUNING
@@ -96,7 +97,8 @@ def run_sphere(n: int, frames: int, settings=None, substeps: int = 1, max_second
     probe = FrameProbe(n)
     # the drape tests the body parts within ``part_reach`` of the garment's start: right for a garment put on
     # a body, too short for a cloth dropped from above a ball
-    tuning = replace(TUNING, part_reach=max(TUNING.part_reach, HEIGHT))
+    tuning = tuning or TUNING
+    tuning = replace(tuning, part_reach=max(tuning.part_reach, HEIGHT))
     times, _ = timed_drape(body, model, settings, initial=model.vertices.copy(), steps_per_frame=substeps,
                            probe=lambda x: probe(x[order] - lift), max_seconds=max_seconds, tuning=tuning)
     out = probe.summary(times)

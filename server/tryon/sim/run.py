@@ -17,7 +17,10 @@ substeps converge much further than the same passes on one step). Each substep:
    later substeps push onto the planes, with friction on the predicted motion; a point pinched between two
    parts (pushed out of each into the other: cloth between touching thighs) is held where the step began
    (``hold_pinched``, once the body no longer grows or turns), and one flipping between the parts is kept
-   still through the step's substeps too (``pinch_flip``);
+   still through the step's substeps too (``pinch_flip``); in later substeps, a point without a plane that
+   has moved more than the margin plus ``frame_depth`` since its test (cloth landing fast, a point the
+   springs pull in) is tested again the same way (``collision/movers.py``), so no frame has cloth more than
+   ``frame_depth`` inside the body;
 3. the strain-limited springs (eq. 2-3), ``passes / substeps`` Gauss-Seidel passes, each followed by the
    contact planes (springs and contacts converge together);
 4. the top-down sweep for hanging cloth (``sweep_downward``: a sagging free end follows the point above

@@ -31,7 +31,8 @@ class DrapeState:
     contacts that only re-projected onto their plane; x_checked (k, 3) m: where each point was last tested;
     x_step (k, 3) m: positions at the end of the last step; held (k,) bool: held in a pinch between two parts
     this step; flipping (k,) bool: held, and flipping between the parts (kept still); moves (2, k, 3) m: each
-    point's move in the last step and in the one before.
+    point's move in the last step and in the one before; movers (k,) bool: work space of the within-step
+    test (``collision.movers``).
     step: steps done; rest_run: consecutive steps under the rest energy; rest_reached; energy J/kg: the last
     step's kinetic energy per kilogram; collided: how many points the last collision moved.
     """
@@ -51,6 +52,7 @@ class DrapeState:
     held: np.ndarray
     flipping: np.ndarray
     moves: np.ndarray
+    movers: np.ndarray
     step: int = 0
     rest_run: int = 0
     rest_reached: bool = False
@@ -65,7 +67,8 @@ class DrapeState:
                    has_plane=np.zeros(k, dtype=np.bool_), plane_point=np.zeros((k, 3)), plane_normal=np.zeros((k, 3)),
                    push=np.zeros(k), active=np.ones(k, dtype=np.bool_), reused=np.zeros(k, dtype=np.bool_),
                    x_checked=x.copy(), x_step=x.copy(), held=np.zeros(k, dtype=np.bool_),
-                   flipping=np.zeros(k, dtype=np.bool_), moves=np.zeros((2, k, 3)))
+                   flipping=np.zeros(k, dtype=np.bool_), moves=np.zeros((2, k, 3)),
+                   movers=np.zeros(k, dtype=np.bool_))
 
     @property
     def planes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -9,9 +9,11 @@ growth, the rest test) stays once per step in ``run.drape``.
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from tryon.sim.collision.contacts import apply_friction, project_listed
+from tryon.sim.collision.movers import collide_movers
 from tryon.sim.constraints import solve_listed, sweep_downward
 from tryon.sim.integrate import keep_above_floor, verlet_step
 
@@ -19,7 +21,7 @@ from tryon.sim.integrate import keep_above_floor, verlet_step
 @njit(cache=True, nogil=True)
 def finish_step(x, x_prev, inv_mass, w_eff, h, gravity, air_drag, max_speed, n_sub, per_sub, ends, table,
                 contact_passes, body_ends, body_table, touching, plane_point, plane_normal, has_plane, push,
-                mu_static, mu_kinetic, sweep, sweep_every_substep, sweep_ends, sweep_lmax, floor_y):
+                mu_static, mu_kinetic, sweep, sweep_every_substep, sweep_ends, sweep_lmax, floor_y, movers):
     """The rest of a step whose first substep has been predicted, collided and passed over (the caller's
     part: ``verlet_step``, the collision, then ``solve_listed`` over ``ends`` / ``table`` and, if
     ``contact_passes``, over ``body_ends`` / ``body_table``), in place.
@@ -31,11 +33,16 @@ def finish_step(x, x_prev, inv_mass, w_eff, h, gravity, air_drag, max_speed, n_s
     runs on every substep if ``sweep_every_substep``, else on the last only. x, x_prev (k, 3) m;
     plane_point, plane_normal (k, 3) and has_plane (k,) bool from the collision; push (k,) the summed
     pushes for friction (zero on return); sweep_ends (q, 2) uint32 / sweep_lmax (q,) m from
-    ``sweep_springs``; floor_y m.
+    ``sweep_springs``; floor_y m; movers: the points without a plane that moved far since their collision test
+    are tested again after each further substep's prediction (``collision.movers``), and join ``touching``
+    if they get a plane.
     """
     for sub in range(n_sub):
         if sub > 0:
             verlet_step(x, x_prev, inv_mass, h, gravity, air_drag, max_speed)
+            if collide_movers(x, x_prev, inv_mass, movers, mu_static, mu_kinetic, has_plane, plane_point,
+                              plane_normal):
+                touching = np.flatnonzero(has_plane)
             # friction acts on the inertial motion only (x - x_prev right after the prediction), never on
             # the springs' corrections (which stand for the cloth's tension)
             project_listed(x, x_prev, touching, plane_point, plane_normal, mu_static, mu_kinetic)

@@ -66,6 +66,9 @@ class Tuning:
         (issue 5: never beyond 3x), and at most how many such sweeps (they stop as soon as one finds nothing
         to do). Never active in a normal drape; it keeps a garment far too small for its body from being
         stretched without bound.
+    frame_depth: m, how deep a point may get into the body within a step: a point without a contact plane
+        that moved more than the collision margin plus this since its collision test is tested again after
+        the next substep's prediction (``collision.movers``). Issue 26's bound for any streamed frame: 2 mm.
     contact_weight: inverse-mass factor of points in contact during the constraint passes: points on the
         body count as heavier, so hanging cloth hangs from them instead of dragging them in.
     contact_passes: extra Gauss-Seidel passes per substep over the springs with both ends on the body (a
@@ -94,6 +97,7 @@ class Tuning:
     sweep_every_substep: bool = True
     tear_guard: float = 2.5
     tear_passes: int = 100
+    frame_depth: float = 0.002
     contact_weight: float = 0.2
     contact_passes: int = 1
 

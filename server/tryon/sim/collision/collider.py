@@ -15,6 +15,7 @@ from tryon.sim.collision.kernels import (
     BodySurface, cell_max_radius, collide_points, face_boxes, grow_vertices, offset_body, penetration_depth,
     vertex_parts,
 )
+from tryon.sim.collision.movers import Movers
 from tryon.geometry import face_normals
 
 
@@ -139,6 +140,12 @@ class BodyCollider:
         surface = self._surface(self.offset, self.offset_normals, self.cell_rmax, self.offset_boxes)
         return collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, mu_kinetic, contact, near,
                               planes[0], planes[1], planes[2], hold_pinched, held)
+
+    def movers(self, state, parts, lam, near, reach, hold_pinched) -> Movers:
+        """The within-step test's argument (``collision.movers``) for a drape's ``state`` (a ``DrapeState``)."""
+        surface = self._surface(self.offset, self.offset_normals, self.cell_rmax, self.offset_boxes)
+        return Movers(surface, parts, state.x_checked, state.contact, state.held, state.movers, float(reach),
+                      float(lam), float(near), bool(hold_pinched))
 
     def depth(self, points: np.ndarray, parts: np.ndarray, offset: bool = False) -> np.ndarray:
         """Depth (m) of each point (n, 3) inside the body (``offset=False``: the real, un-offset surface of

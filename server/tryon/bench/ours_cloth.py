@@ -99,9 +99,14 @@ def run_sphere(n: int, frames: int, settings=None, substeps: int = 1, max_second
     # a body, too short for a cloth dropped from above a ball
     tuning = tuning or TUNING
     tuning = replace(tuning, part_reach=max(tuning.part_reach, HEIGHT))
-    times, _ = timed_drape(body, model, settings, initial=model.vertices.copy(), steps_per_frame=substeps,
-                           probe=lambda x: probe(x[order] - lift), max_seconds=max_seconds, tuning=tuning)
+    times, result = timed_drape(body, model, settings, initial=model.vertices.copy(), steps_per_frame=substeps,
+                                probe=lambda x: probe(x[order] - lift), max_seconds=max_seconds, tuning=tuning)
     out = probe.summary(times)
+    # what a try-on answers: the last frame relaxed (``sim/relax.py``), the figures a caller gets
+    answer = FrameProbe(n)
+    answer(result.coarse[order] - lift)
+    out["answer_stretch"] = answer.final_stretch
+    out["answer_penetration_mm"] = answer.final_penetration * 1e3
     out.update({
         "engine": "ours", "method": "Verlet + strain-limit passes + cylinder-map collision", "particles": n * n,
         "substeps": substeps, "setup_s": setup,

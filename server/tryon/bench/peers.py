@@ -106,6 +106,9 @@ def headline_ratio(rows: list[dict]) -> dict | None:
     if same is not None:
         out.update({"same_threads_peer": same["engine"], "same_threads_frame_ms": same["frame_ms_median"],
                     "same_threads_speedup": same["frame_ms_median"] / ours["frame_ms_median"],
+                    "same_threads_stretch": same["max_stretch"],
+                    "same_threads_penetration_mm": same["max_penetration_mm"],
+                    "ours_penetration_mm": ours["max_penetration_mm"],
                     "same_threads_quality_ok": bool(ours["max_stretch"] <= same["max_stretch"] + 1e-9 and
                                                     ours["max_penetration_mm"] <= same["max_penetration_mm"] + 1e-9)})
     if best is not None:
@@ -183,22 +186,32 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
               "Taichi with 1 and with 2, ours and Warp's CPU kernels one. Newton runs within a wall-time budget, so "
               "on the larger cloths its figures cover only the frames it reached (see 'frames run')."),
     ))
-    for h in ratios:
-        text = f"cloth on ball, {h['particles']} particles: ours {fmt(h['ours_frame_ms'])} ms/frame"
-        if not h["ours_stable"]:
-            text += f" but UNSTABLE (ended {h['ours_outcome']})"
-        if h["peer"]:
-            text += (f"; vs the fastest peer at equal or higher stretch, {h['peer']} {fmt(h['peer_frame_ms'])} ms: "
-                     f"{_speed_words(h['speedup'])} (stretch {fmt(h['ours_stretch'])} vs {fmt(h['peer_stretch'])})")
-        if h.get("same_threads_peer"):
-            text += (f"; vs {h['same_threads_peer']} (our thread count) {fmt(h['same_threads_frame_ms'])} ms: "
-                     f"{_speed_words(h['same_threads_speedup'])}, our quality "
-                     f"{'no worse' if h['same_threads_quality_ok'] else 'WORSE'} (stretch, penetration)")
-        if h["fastest_peer"] != h["peer"]:
-            text += (f"; vs the fastest peer, {h['fastest_peer']} {fmt(h['fastest_peer_frame_ms'])} ms: "
-                     f"{_speed_words(h['speedup_vs_fastest'])} (its stretch {fmt(h['fastest_peer_stretch'])}, "
-                     f"ours {fmt(h['ours_stretch'])})")
-        sec.headline.append(text)
+    sec.headline.extend(ball_headline(h) for h in ratios)
+
+
+def ball_headline(h: dict) -> str:
+    """One cloth size's headline line from ``headline_ratio``'s figures."""
+    text = f"cloth on ball, {h['particles']} particles: ours {fmt(h['ours_frame_ms'])} ms/frame"
+    if not h["ours_stable"]:
+        text += f" but UNSTABLE (ended {h['ours_outcome']})"
+    if h["peer"]:
+        text += (f"; vs the fastest peer at equal or higher stretch, {h['peer']} {fmt(h['peer_frame_ms'])} ms: "
+                 f"{_speed_words(h['speedup'])} (stretch {fmt(h['ours_stretch'])} vs {fmt(h['peer_stretch'])})")
+    if h.get("same_threads_peer"):
+        text += (f"; vs {h['same_threads_peer']} (our thread count) {fmt(h['same_threads_frame_ms'])} ms: "
+                 f"{_speed_words(h['same_threads_speedup'])}, our quality "
+                 f"{'no worse' if h['same_threads_quality_ok'] else 'WORSE'}")
+        if "same_threads_stretch" in h:
+            worse = lambda ours, its: "worse" if ours > its + 1e-9 else "no worse"  # noqa: E731
+            text += (f" (max stretch {fmt(h['ours_stretch'])} vs {fmt(h['same_threads_stretch'])}: "
+                     f"{worse(h['ours_stretch'], h['same_threads_stretch'])}; max penetration "
+                     f"{fmt(h['ours_penetration_mm'])} vs {fmt(h['same_threads_penetration_mm'])} mm: "
+                     f"{worse(h['ours_penetration_mm'], h['same_threads_penetration_mm'])})")
+    if h["fastest_peer"] != h["peer"]:
+        text += (f"; vs the fastest peer, {h['fastest_peer']} {fmt(h['fastest_peer_frame_ms'])} ms: "
+                 f"{_speed_words(h['speedup_vs_fastest'])} (its stretch {fmt(h['fastest_peer_stretch'])}, "
+                 f"ours {fmt(h['ours_stretch'])})")
+    return text
 
 
 # Garments of scene (b): the skirt starts clear of the body but for its waistband; the T-shirt's sleeves

@@ -62,7 +62,7 @@ def _exercise() -> None:
 
     request = TryOnRequest(garment_id="-", measurements=WARM_MEASUREMENTS)
     body = build_body(*to_body_params(request.measurements, request.pose))  # POST /api/bodies
-    json_bytes(body_json(body, request.pose.model_dump()))
+    json_bytes(body_json(body, request.pose.angles()))
     body_glb(body)
     with tempfile.TemporaryDirectory(prefix="tryon-warmup-") as tmp:
         catalogue = Catalogue(Path(tmp) / "data")

@@ -127,7 +127,7 @@ def run_scene(model: GarmentModel, settings: SimSettings, measurements: Measurem
         "time_step": round(settings.time_step, 4), "passes": settings.passes, "substeps": settings.substeps,
         "structural_limit": round(settings.strain_limit[0], 4),
         "measurements": {k: round(v, 1) for k, v in measurements.as_dict().items() if v is not None},
-        "arm_angle": round(pose.arm_angle, 1),
+        "arm_angle": round(pose.arm_angle_left, 1),
     }
 
 

@@ -73,7 +73,9 @@ class TryOnRequest(BaseModel):
         "out", description="an outfit's top over its bottom: out (the top's hem falls over the waistband) or in "
                            "(the bottom's band holds the innermost top's hem inside)")
     measurements: MeasurementsIn = Field(description="body measurements, cm")
-    pose: PoseIn = Field(default_factory=PoseIn, description="pose angles, degrees")
+    pose: PoseIn = Field(default_factory=PoseIn, description="pose angles, degrees (each side its own, or the "
+                                                             "shorthand for both), or a named pose: see GET "
+                                                             "/api/bodies/ranges")
     settings: SimSettingsIn = Field(default_factory=SimSettingsIn, description="simulation settings")
 
     @model_validator(mode="after")

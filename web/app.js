@@ -193,6 +193,11 @@ function updateTryOnButton() {
 }
 
 // ---- body preview ---------------------------------------------------------------------------------
+// A pose change: re-posed live on the garment when a live session is open (live re-posing), else a body.
+function poseChanged() {
+  scheduleBody();
+}
+
 function scheduleBody() {
   clearTimeout(bodyTimer);
   if (state.advice) clearAdvice();  // the advice was for the old measurements
@@ -233,10 +238,13 @@ function describeBody(body) {
   const parts = ['chest', 'waist', 'hips'].filter((k) => Number.isFinite(a[k])).map((k) => `${k} ${a[k].toFixed(1)}`);
   let text = parts.length ? `Your body as built: ${parts.join(' · ')} cm` : '';
   // an arm angle too low for the arm to clear the torso is raised to where the arm rests against it
-  const asked = body.pose?.requested?.arm_angle;
-  const built = body.pose?.achieved?.arm_angle;
-  if (Number.isFinite(asked) && Number.isFinite(built) && built > asked + 0.05) {
-    text += `${text ? '. ' : ''}Arms at ${built.toFixed(1)}°: lower, they would pass into the torso`;
+  const raised = ['left', 'right'].filter((side) => {
+    const asked = body.pose?.requested?.[`arm_angle_${side}`];
+    const built = body.pose?.achieved?.[`arm_angle_${side}`];
+    return Number.isFinite(asked) && Number.isFinite(built) && built > asked + 0.05;
+  }).map((side) => `${side} arm out ${body.pose.achieved[`arm_angle_${side}`].toFixed(1)}°`);
+  if (raised.length) {
+    text += `${text ? '. ' : ''}${raised.join(', ')}: lower, it would pass into the torso`;
   }
   return text;
 }
@@ -549,7 +557,7 @@ async function start() {
     state.styles = Array.isArray(styles) ? styles : [];
     form = new MeasurementForm(normaliseRanges(ranges), {
       required: $('measurements'), optional: $('more-measurements'), pose: $('pose'),
-    }, scheduleBody);
+    }, scheduleBody, ranges, poseChanged);
     state.garments = Array.isArray(garments) ? garments : (garments.garments || garments.items || []);
     renderGarments(state.garments);
     if (state.garments.length) {

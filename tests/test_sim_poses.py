@@ -50,3 +50,33 @@ def test_trousers_follow_each_leg_in_its_own_spread(catalogue):
     assert m["rest_reached"] and m["penetrating_vertices"] == 0 and m["stays_up"]
     assert sorted(o["around"] for o in m["limb_openings"]) == ["shin_l", "shin_r"]
     assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0
+
+
+def test_a_drape_reposed_three_times_carries_the_garment_with_the_body(catalogue):
+    """The T-shirt M at rest on the medium body in the A-pose, then re-posed (``sim.repose``) three times,
+    each time from where the last left it: the garment moves with the limbs and comes to rest in each new
+    pose with nothing inside the body, each sleeve still round its own arm, no spring over its limit."""
+    from tryon.sim.finish import finish
+    from tryon.sim.relax import relax
+    from tryon.sim.repose import repose
+    from tryon.sim.start import start
+    from tryon.sim.step import step
+
+    def settle(d):
+        for _ in range(d.settings.max_steps):
+            if step(d):
+                break
+        return finish(d, relax(d))
+
+    model = _model(catalogue, "tshirt-m.obj", "top")
+    d = start(build_body(MEDIUM), model, SimSettings())
+    settle(d)
+    for pose in (pose_from("arms_raised"), ASYMMETRIC, pose_from("arms_down")):
+        body = build_body(MEDIUM, pose)
+        d = repose(d, body)
+        assert d.arms.steps > 10  # the body moved over steps, not at once
+        m = settle(d).metrics
+        assert m["rest_reached"] and m["penetrating_vertices"] == 0, (pose, m)
+        assert sorted(o["around"] for o in m["limb_openings"]) == ["upper_arm_l", "upper_arm_r"], pose
+        assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, (pose, m["strain_by_kind"])
+        assert m["pose"] == body.pose

@@ -132,6 +132,10 @@ class PoseTransition:
         self.collider.pose_arms({k: (np.zeros(3), moves[k, :3, :3], moves[k, :3, 3]) for k in self.turned_parts()})
         self._last, self._moves = self._moves, moves
 
+    def current(self) -> np.ndarray:
+        """(P, 4, 4) the motion of every part from the new pose as last applied (the body's shape now)."""
+        return self._moves
+
     def attach(self, x: np.ndarray, faces: np.ndarray) -> None:
         """Weigh the garment points x (k, 3) on the old body's parts (``faces`` unused: the weights are by
         distance, not over the cloth); call after ``apply(0)``."""

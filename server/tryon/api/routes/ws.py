@@ -50,8 +50,9 @@ from starlette.websockets import WebSocketState
 
 from tryon.api.deps import get_catalogue
 from tryon.api.frames import FrameCodec, encode_frame
-from tryon.api.live import LiveSession, LiveTryOnRequest, done_message, failure_reason, replay_parts, run_live, \
-    shown_model, with_encoding
+from tryon.api.live import LiveSession, LiveTryOnRequest, PoseUpdate, done_message, failure_reason, replay_parts, \
+    run_live, shown_model, with_encoding
+from tryon.body.params import Pose
 from tryon.api.outfits import check_garments
 from tryon.api.pool import CachedTryOn, PoolFull, RunCancelled, get_pool, get_result_cache, tryon_key
 from tryon.garment.catalogue import Catalogue
@@ -112,16 +113,100 @@ async def _sender(ws: WebSocket, session: LiveSession) -> None:
         session.stop()
 
 
-async def _watch_disconnect(ws: WebSocket, session: LiveSession) -> None:
-    """Read until the client goes away, then stop the simulation (messages after the request are ignored)."""
+async def _watch_disconnect(ws: WebSocket, session: LiveSession, live: bool = False) -> None:
+    """Read until the client goes away, then stop the simulation. Messages after the request are ignored,
+    except a live session's pose updates (``live``): each goes into the session's pose slot (latest wins);
+    one that is not a valid update gets an error message, and the session goes on."""
     try:
         while True:
             message = await ws.receive()
             if message["type"] == "websocket.disconnect":
                 break
+            if live and message.get("text") is not None:
+                _pose_update(session, message["text"])
     except (WebSocketDisconnect, RuntimeError, OSError):
         pass
     session.stop()
+
+
+def _pose_update(session: LiveSession, text: str) -> None:
+    """A live session's message: a valid pose update into the slot, anything else an error message."""
+    try:
+        update = PoseUpdate.model_validate_json(text)
+    except ValidationError as e:
+        session.post_text(json.dumps({"type": "error", "reason": validation_reason(e).replace(
+            "invalid request", "invalid pose update"), "fatal": False}))
+        return
+    session.offer_pose(Pose(**update.pose.angles()))
+
+
+async def _live_sender(ws: WebSocket, session: LiveSession) -> None:
+    """A live session's sender after the first done: the outbox in order, each frame no sooner than 1 / fps
+    after the one before, a frame's body motion (``body_pose``) right before it when it changed."""
+    last_sent = -1e9
+    last_motion = None
+    try:
+        while not session.cancelled.is_set():
+            await session.wake.wait()
+            session.wake.clear()
+            while session.outbox and not session.cancelled.is_set():
+                item = session.outbox.popleft()
+                if item[0] == "text":
+                    await ws.send_text(item[1])
+                    continue
+                _, step, payload, motion = item
+                while (wait := last_sent + session.interval_s - time.monotonic()) > 0:
+                    await asyncio.sleep(wait)
+                if motion is not None and motion != last_motion:
+                    await ws.send_text(motion)
+                    last_motion = motion
+                now = time.monotonic()
+                data = encode_frame(session.frames_sent, step, payload, now - session.started_at)
+                await ws.send_bytes(data)
+                last_sent = now
+                session.frames_sent += 1
+                session.bytes_sent += len(data)
+    except (WebSocketDisconnect, RuntimeError, OSError):
+        session.stop()
+
+
+async def _live(ws: WebSocket, session: LiveSession) -> None:
+    """A live session after its first done: each pose update taken from the slot (the latest, when the last
+    one is settled or has given way) is re-posed and settled on the pool, its done queued after its frames;
+    until the client goes away."""
+    pool = get_pool(ws.app)
+    session.live = True
+    sender = asyncio.create_task(_live_sender(ws, session))
+    running = None
+    try:
+        while not session.cancelled.is_set():
+            taken = session.take_pose()
+            if taken is None:
+                session.pose_arrived.clear()
+                await session.pose_arrived.wait()
+                continue
+            update, pose, received_at = taken
+            guard = pool.guard(cancelled=session.cancelled, on_frame=session.on_frame)
+            try:
+                running = pool.submit(session.reposing.repose_to, update, pose, received_at, guard)
+            except PoolFull as e:
+                session.post_text(json.dumps({"type": "error", "reason": str(e), "update": update, "fatal": False}))
+                continue
+            try:
+                done = await asyncio.wrap_future(running)
+            except (asyncio.CancelledError, FutureCancelled, RunCancelled):
+                return
+            except Exception as e:  # this pose failed: say so, keep the session
+                session.post_text(json.dumps({"type": "error", "reason": failure_reason(e, None), "update": update,
+                                              "fatal": False}))
+                continue
+            if done is not None:
+                session.post_text(json.dumps(done, separators=(",", ":")))
+    finally:
+        session.stop()
+        if running is not None:
+            running.cancel()
+        sender.cancel()
 
 
 def close_reason(reason: str) -> str:
@@ -221,7 +306,7 @@ async def _serve(ws: WebSocket) -> None:
 
     cache = get_result_cache(app)
     key = tryon_key(request)
-    cached = cache.get(key)
+    cached = cache.get(key) if not request.live else None  # a live session re-poses its own drape
     if cached is not None:
         try:
             await _replay(ws, cached, request, get_catalogue(ws))
@@ -240,7 +325,7 @@ async def _serve(ws: WebSocket) -> None:
     session.future = future
 
     sender = asyncio.create_task(_sender(ws, session))
-    watcher = asyncio.create_task(_watch_disconnect(ws, session))
+    watcher = asyncio.create_task(_watch_disconnect(ws, session, live=request.live))
     try:
         try:
             outcome = await asyncio.wrap_future(future)
@@ -267,8 +352,11 @@ async def _serve(ws: WebSocket) -> None:
         if guard.stopped_by is None:
             cache.put(key, run)
         try:
-            await ws.send_text(json.dumps(done, separators=(",", ":")))
+            await ws.send_text(json.dumps({**done, "update": 0} if request.live else done, separators=(",", ":")))
         except (WebSocketDisconnect, RuntimeError, OSError):
+            return
+        if request.live and session.reposing is not None:
+            await _live(ws, session)
             return
         await _close(ws)
     finally:

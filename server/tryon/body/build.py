@@ -52,6 +52,11 @@ ARM_PRESS = 0.015
 # Beyond it, an arm raised forwards or a hand on the hip counts wherever it is (an arm swung forwards at 0
 # degrees would otherwise cross the chest).
 SHOULDER_REACH = 0.5
+# A hand rests on the body rather than sinking into it like the flesh of the upper arm: it may press at most
+# this far (m) into the torso (hands on the hips: with 1.5 cm the hand sank into the hip where the shirt
+# lies, and the shirt caught under it came out of the next pose with a sleeve off the arm). Hanging arms
+# are unchanged by it: their hands never reach the torso, the upper arm rests against it first.
+HAND_PRESS = 0.004
 ARM_ANGLE_PRECISION = 0.25
 SECTION_STEP = 0.005
 # Margin (m) the OBBs and cylinder cells are grown by: the collision offset of the body surface is
@@ -245,23 +250,24 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
     torso = (shape_points["torso", "left"], g.part_edges[PART_NAMES.index("torso")])
     chest_y = layouts["left"].landmarks["levels"]["chest"]
 
-    def press(side: str) -> float:
+    def pressing(side: str) -> bool:
         arm = np.concatenate([shape_points["upper_arm", side], shape_points["forearm", side]])
         lm = layouts[side].landmarks
-        return arm_press(arm, lm["shoulder_joint"], lm["elbow"], torso, chest_y)
+        arm_depth, hand_depth = arm_press(arm, lm["shoulder_joint"], lm["elbow"], lm["wrist"], torso, chest_y)
+        return arm_depth > ARM_PRESS or hand_depth > HAND_PRESS
 
     def pose_arm(side: str, angle: float) -> None:
         layouts[side] = body_layout(full, replace(pose, **{f"arm_angle_{side}": angle}), leg_scale[side], side)
         evaluate(("upper_arm", "forearm"), side)
 
     for side in sides:
-        if press(side) <= ARM_PRESS:
+        if not pressing(side):
             continue
         lo, hi = getattr(pose, f"arm_angle_{side}"), POSE_RANGES[f"arm_angle_{side}"][1]
         while hi - lo > ARM_ANGLE_PRECISION:
             mid = 0.5 * (lo + hi)
             pose_arm(side, mid)
-            lo, hi = (mid, hi) if press(side) > ARM_PRESS else (lo, mid)
+            lo, hi = (mid, hi) if pressing(side) else (lo, mid)
         pose = replace(pose, **{f"arm_angle_{side}": hi})
         pose_arm(side, hi)
     layout = layouts["left"]
@@ -320,15 +326,19 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
     )
 
 
-def arm_press(arm: np.ndarray, joint: np.ndarray, elbow: np.ndarray, torso: tuple, chest_y: float) -> float:
+def arm_press(arm: np.ndarray, joint: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, torso: tuple,
+              chest_y: float) -> tuple[float, float]:
     """How far (m) an arm's points ``arm`` (n, 3) go into the torso (its vertices and edge list ``torso``):
-    the deepest of them inside the torso's horizontal section at its height. Counted: every point below
-    ``chest_y`` and, above it, those farther than ``SHOULDER_REACH`` x the upper arm's length from the
-    shoulder ``joint`` (3,) (``elbow`` (3,)): the top of the arm is inside the shoulder where the parts
-    meet, and an arm hanging at the side may touch the torso at the armpit."""
+    the deepest of them inside the torso's horizontal section at its height, (the arm's, the hand's). The
+    hand: the points farther from the ``elbow`` than the ``wrist`` joint is (3,) each. Counted: every point
+    below ``chest_y`` and, above it, those farther than ``SHOULDER_REACH`` x the upper arm's length from the
+    shoulder ``joint`` (3,): the top of the arm is inside the shoulder where the parts meet, and an arm
+    hanging at the side may touch the torso at the armpit."""
     reach = SHOULDER_REACH * float(np.linalg.norm(elbow - joint))
     counted = arm[(arm[:, 1] < chest_y) | (np.linalg.norm(arm - joint, axis=1) > reach)]
-    return float(section_depths(counted, *torso, SECTION_STEP).max(initial=0.0))
+    depth = section_depths(counted, *torso, SECTION_STEP)
+    hand = np.linalg.norm(counted - elbow, axis=1) > np.linalg.norm(wrist - elbow)
+    return float(depth[~hand].max(initial=0.0)), float(depth[hand].max(initial=0.0))
 
 
 def _part_mesh(vertices: np.ndarray, g: Grid, name: str) -> tuple[np.ndarray, np.ndarray]:

@@ -181,7 +181,7 @@ def _named(**angles: float) -> dict[str, float]:
 NAMED_POSES: dict[str, dict[str, float]] = {
     "a_pose": _named(),
     "arms_down": _named(arm_angle=0.0, leg_spread=1.0),
-    "hands_on_hips": _named(arm_angle=38.0, arm_rotation=90.0, elbow_bend=100.0, wrist_bend=-90.0),
+    "hands_on_hips": _named(arm_angle=38.0, arm_rotation=80.0, elbow_bend=100.0, wrist_bend=-90.0),
     "arms_raised": _named(arm_angle=90.0, arm_rotation=-90.0, elbow_bend=90.0),
     "stride": _named(arm_angle_left=20.0, arm_angle_right=25.0, arm_forward_left=35.0, elbow_bend_left=20.0,
                      elbow_bend_right=10.0, leg_spread_left=14.0, leg_spread_right=10.0),

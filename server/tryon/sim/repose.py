@@ -9,11 +9,12 @@ measurements and resolution: the same mesh topology, each part's vertices in the
 2. the body moved from the old pose to the new over the first steps (``PoseTransition``, in the place of
    the arms' turn back from the sleeves, ``arms.ArmSchedule``: gravity off, every point tested), each limb
    turned about its joint a few degrees a step;
-3. every garment point carried by the parts near it each of those steps (``carry_weights``: linear blend
-   skinning, each part weighted by the inverse fourth power of the point's distance to it, so a sleeve
-   moves with its arm, the bodice stays with the torso and the armhole between them blends), as
-   ``arms.py`` carries a sleeve: cloth near a moving limb moves with it, so it is neither left behind nor
-   pushed through by it, and the collision and the springs settle the rest each step.
+3. every garment point carried by the parts near it each of those steps (``PoseTransition.weights``:
+   linear blend skinning, each part weighted by the inverse fourth power of the point's distance to it
+   where the part is that step, so a sleeve moves with its arm, the bodice stays with the torso, the
+   armhole between them blends, and a shirt a hand leaves behind stops following the hand), as ``arms.py``
+   carries a sleeve: cloth near a moving limb moves with it, so it is neither left behind nor pushed
+   through by it, and the collision and the springs settle the rest each step.
 
 ``start`` builds the new drape on the new body (the springs packed again, its collider, no alignment); then
 ``step`` continues as usual and ``relax`` and ``finish`` end it with the new pose's metrics.
@@ -66,18 +67,6 @@ def part_motions(old: Body, new: Body) -> np.ndarray:
     return out
 
 
-def carry_weights(body: Body, x: np.ndarray) -> np.ndarray:
-    """(k, P) weights, each row summing to 1, of the body's parts on the garment points x (k, 3):
-    ``(distance to the part + CARRY_SOFTEN) ** -CARRY_POWER``, normalised (distance to the part's nearest
-    vertex, m)."""
-    w = np.empty((len(x), len(body.parts)))
-    for k in range(len(body.parts)):
-        ids = np.unique(body.faces[body.face_part == k])
-        dist, _ = cKDTree(body.vertices[ids]).query(x)
-        w[:, k] = (dist + CARRY_SOFTEN) ** -CARRY_POWER
-    return w / w.sum(axis=1, keepdims=True)
-
-
 class PoseTransition:
     """The body moved from an old pose to its own (new) pose over ``steps`` steps, carrying the garment:
     the drape's ``arms`` in place of an ``arms.ArmSchedule`` (the same three calls: ``apply``, ``attach``,
@@ -86,10 +75,10 @@ class PoseTransition:
     Each limb is turned about its proximal joint (shoulder, elbow, hip, knee) by the fraction of its
     rotation from the new pose back to the old one still left, the joint carried by the limb above it (so
     forearm and upper arm stay joined all the way); torso and head do not move. Garment points move with
-    the parts by ``carry_weights`` taken on the old body."""
+    the parts near them (``weights``)."""
 
     def __init__(self, old: Body, new: Body, collider: BodyCollider):
-        self.old, self.new, self.collider = old, new, collider
+        self.new, self.collider = new, collider
         back = part_motions(new, old)  # (P, 4, 4): new pose -> old pose, per part
         self.back_rot = Rotation.from_matrix(back[:, :3, :3]).as_rotvec()  # (P, 3) radians
         self.chains = []  # (part, parent part | None, joint of the new body (3,))
@@ -110,7 +99,11 @@ class PoseTransition:
         self.steps = int(np.ceil(biggest)) if biggest > REPOSE_MIN_CHANGE else 0
         self._last: np.ndarray | None = None
         self._moves = np.tile(np.eye(4), (len(new.parts), 1, 1))
-        self._weights: np.ndarray | None = None
+        self._attached = False
+        # each part's vertices in the new body's pose (the collider's rest), in a tree: a garment point is
+        # weighed against the parts where they are now, by taking it into each part's rest frame
+        self._trees = [cKDTree(new.vertices[np.unique(new.faces[new.face_part == k])])
+                       for k in range(len(new.parts))]
 
     def turned_parts(self) -> list[int]:
         return [k for k, _, _, _ in self.chains]
@@ -137,20 +130,33 @@ class PoseTransition:
         return self._moves
 
     def attach(self, x: np.ndarray, faces: np.ndarray) -> None:
-        """Weigh the garment points x (k, 3) on the old body's parts (``faces`` unused: the weights are by
-        distance, not over the cloth); call after ``apply(0)``."""
-        self._weights = carry_weights(self.old, x)
+        """Start carrying the garment (``faces`` unused: the weights are by distance, not over the cloth);
+        call after ``apply(0)``."""
+        self._attached = True
+
+    def weights(self, x: np.ndarray, moves: np.ndarray) -> np.ndarray:
+        """(k, P) weights, each row summing to 1, of the body's parts on the garment points x (k, 3), the body
+        posed by ``moves`` (P, 4, 4): ``(distance to the part + CARRY_SOFTEN) ** -CARRY_POWER``, normalised
+        (distance to the part's nearest vertex, m). Taken again every step, so cloth a hand leaves behind (a
+        shirt under a hand lifted off the hip) stops following it; taken once, the shirt was dragged along
+        and came out of the next pose with a sleeve off the arm."""
+        w = np.empty((len(x), len(self._trees)))
+        for k, tree in enumerate(self._trees):
+            rot, shift = moves[k, :3, :3], moves[k, :3, 3]
+            dist, _ = tree.query((x - shift) @ rot)  # into the part's rest frame: R^T (x - t)
+            w[:, k] = (dist + CARRY_SOFTEN) ** -CARRY_POWER
+        return w / w.sum(axis=1, keepdims=True)
 
     def carry(self, x: np.ndarray, x_prev: np.ndarray) -> None:
         """Move the garment points (x and x_prev (k, 3), in place) by the parts' motions between the last two
-        ``apply`` calls, blended by their weights."""
-        if self._weights is None or self._last is None:
+        ``apply`` calls, blended by their weights on the body as it was before this motion."""
+        if not self._attached or self._last is None:
             return
         step = self._moves @ np.linalg.inv(self._last)  # (P, 4, 4)
         moving = np.flatnonzero(np.abs(step - np.eye(4)).max(axis=(1, 2)) > 1e-12)
         if not len(moving):
             return
-        w = self._weights[:, moving]  # (k, m)
+        w = self.weights(x, self._last)[:, moving]  # (k, m)
         for p in (x, x_prev):
             moved = np.einsum("mij,kj->kmi", step[moving, :3, :3], p) + step[moving, :3, 3][None]  # (k, m, 3)
             p += np.einsum("km,kmi->ki", w, moved - p[:, None, :])

@@ -20,6 +20,10 @@ Protocol (one try-on per connection):
    normal close (1000); an outfit's metrics are ``POST /api/tryon``'s outfit metrics, with ``garments``: each
    garment's own metrics (its strain in ``strain``, every garment's one after the other).
 
+5. with ``"live": true`` (one garment) the connection stays open after done: ``{"type": "pose", "pose": ...}``
+   messages re-pose the body with the garment on it; each taken update gets a ``body`` message, frames
+   (with ``body_pose`` motions while the body moves) and its own done (docs/live-tryon.md, *Live re-posing*).
+
 Any failure (not JSON, a bad field, an unknown garment, a failed simulation) is one JSON
 ``{"type": "error", "reason": "..."}`` followed by a normal close. A full server sends the error and
 closes with 1013 (try again later).

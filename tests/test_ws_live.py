@@ -150,3 +150,43 @@ def test_live_is_one_garment(server):
         ws.send(json.dumps({"garment_ids": [gid], "measurements": MEDIUM, "live": True}))
         error = json.loads(ws.recv(timeout=10))
     assert error["type"] == "error" and "live re-posing takes one garment" in error["reason"]
+
+
+def test_measure_pose_updates(server):
+    """The figures of docs/live-tryon.md (measured, not judged): six poses in a row, three times, uint16 frames;
+    from each update's send to its first frame and to its done, client side. Written to
+    ``test-artifacts/live-pose-figures.json``; every settle ends with nothing inside the body and the sleeves on
+    the arms."""
+    import statistics
+
+    url, gid = server
+    poses = ["hands_on_hips", ASYMMETRIC, "arms_raised", "stride", "arms_down", "a_pose"]
+    rows = []
+    with connect(url, max_size=None, open_timeout=10) as ws:
+        ws.send(json.dumps({"garment_id": gid, "measurements": MEDIUM, "live": True, "encoding": "uint16"}))
+        while not (isinstance(m := ws.recv(timeout=60), str) and json.loads(m)["type"] == "done"):
+            pass
+        for _ in range(3):
+            for pose in poses:
+                t0, first = time.monotonic(), None
+                ws.send(json.dumps({"type": "pose", "pose": pose}))
+                while True:
+                    m = ws.recv(timeout=60)
+                    if isinstance(m, bytes):
+                        first = first or time.monotonic() - t0
+                        continue
+                    d = json.loads(m)
+                    if d["type"] == "done":
+                        break
+                metrics = d["metrics"]
+                assert metrics["penetrating_vertices"] == 0 and metrics["openings_on_limbs"] is True, \
+                    (pose, len(rows), metrics["penetrating_vertices"], metrics["limb_openings"])
+                rows.append({"pose": pose if isinstance(pose, str) else "asymmetric", "first_frame_s": round(first, 4),
+                             "done_s": round(time.monotonic() - t0, 4), "steps": metrics["steps"],
+                             "transition_steps": d["transition_steps"]})
+    first, done = [r["first_frame_s"] for r in rows], [r["done_s"] for r in rows]
+    summary = {"first_frame_s": {"median": statistics.median(first), "min": min(first), "max": max(first)},
+               "done_s": {"median": statistics.median(done), "min": min(done), "max": max(done)}, "rows": rows}
+    (ROOT / "test-artifacts").mkdir(exist_ok=True)
+    (ROOT / "test-artifacts" / "live-pose-figures.json").write_text(json.dumps(summary, indent=1))
+    print("\nlive re-posing:", {k: v for k, v in summary.items() if k != "rows"})

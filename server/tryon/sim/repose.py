@@ -139,7 +139,9 @@ class PoseTransition:
         posed by ``moves`` (P, 4, 4): ``(distance to the part + CARRY_SOFTEN) ** -CARRY_POWER``, normalised
         (distance to the part's nearest vertex, m). Taken again every step, so cloth a hand leaves behind (a
         shirt under a hand lifted off the hip) stops following it; taken once, the shirt was dragged along
-        and came out of the next pose with a sleeve off the arm."""
+        and came out of the next pose with a sleeve off the arm. Every step, not every few: they cost ~8 ms
+        for the T-shirt's 874 points (twice a step's work), but taken every 2 or 4 steps, or with the queries
+        bounded to 15 cm, the shirt came off an arm somewhere in 18 re-poses in a row where it did not so."""
         w = np.empty((len(x), len(self._trees)))
         for k, tree in enumerate(self._trees):
             rot, shift = moves[k, :3, :3], moves[k, :3, 3]

@@ -70,10 +70,9 @@ FIRST_REQUESTS = textwrap.dedent("""
     json_bytes(body_json(body, request.pose.angles()))
     body_glb(body)
     # a live session's re-poses, unlike the warm-up's: another garment, body and poses
-    from tryon.api.live import settle
     from tryon.api.pool import RunGuard
     from tryon.body.params import Measurements, pose_from
-    from tryon.sim.repose import repose
+    from tryon.sim.repose import repose, settle
     from tryon.sim.start import start
     d = start(body, catalogue.model(top, 0.25))
     settle(d, RunGuard(60.0))

@@ -27,15 +27,12 @@ from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
 from tryon.body.build import build_body
 from tryon.body.params import Measurements, Pose
-from tryon.sim.finish import finish
 from tryon.sim.outfit import OutfitResult, drape_outfit, piece_categories
-from tryon.sim.relax import relax
-from tryon.sim.repose import repose
+from tryon.sim.repose import repose, settle
 from tryon.sim.run import TryOnResult, drape
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
 from tryon.sim.state import Drape
-from tryon.sim.step import step as step_drape
 
 class LiveTryOnRequest(TryOnRequest):
     """``POST /api/tryon``'s body plus the frame rate the client wants, and whether the connection stays open
@@ -53,6 +50,9 @@ class LiveTryOnRequest(TryOnRequest):
     def _live_is_one_garment(self) -> "LiveTryOnRequest":
         if self.live and self.garment_ids is not None:
             raise ValueError("live re-posing takes one garment (garment_id), not an outfit (garment_ids)")
+        if self.poses is not None:
+            raise ValueError("poses (a motion) is for POST /api/tryon; over the stream send pose updates "
+                             "(\"live\": true)")
         return self
 
 
@@ -163,23 +163,6 @@ def run_live(catalogue: Catalogue, request: LiveTryOnRequest, session: LiveSessi
     else:
         run.result = drape(body, shown, sim_settings, guard)
     return run, done_message(run.result, guard.stopped_by)
-
-
-def settle(d: Drape, guard: RunGuard, give_way=None) -> tuple[TryOnResult | None, bool]:
-    """Step ``d`` until it is at rest (or ``settings.max_steps``, or the guard stops it), then relax and
-    finish it: (the result, False). ``give_way()``: asked after every step once the body's start-up motion is
-    over; True ends the settle there without a result: (None, True)."""
-    stopped = False
-    for _ in range(d.settings.max_steps):
-        at_rest = step_drape(d)
-        if guard(d.state.step, d.state.x) is False:
-            stopped = True
-            break
-        if at_rest:
-            break
-        if give_way is not None and d.state.step > d.startup and give_way():
-            return None, True
-    return finish(d, relax(d), stopped), False
 
 
 class LiveReposing:

@@ -88,11 +88,10 @@ def _exercise() -> None:
 def _repose(body, model) -> None:
     """A drape of ``model`` on ``body`` re-posed as a live session does (``api.live.LiveReposing``): to an
     asymmetric pose with a hand turned at the wrist (every body kernel's posed path), settled to rest."""
-    from tryon.api.live import settle
     from tryon.api.pool import RunGuard
     from tryon.body.build import build_body
     from tryon.body.params import Measurements, Pose, pose_from
-    from tryon.sim.repose import repose
+    from tryon.sim.repose import repose, settle
     from tryon.sim.start import start
 
     d = start(body, model)

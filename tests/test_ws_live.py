@@ -175,9 +175,9 @@ def test_live_is_one_garment(server):
 
 def test_measure_pose_updates(server):
     """The figures of docs/live-tryon.md (measured, not judged): six poses in a row, three times, uint16 frames;
-    from each update's send to its first frame and to its done, client side. Written to
-    ``test-artifacts/live-pose-figures.json``; every settle ends with nothing inside the body and the sleeves on
-    the arms."""
+    from each update's send to its first frame and to its done, client side, and how many were draped afresh
+    (``redraped``: carried, a sleeve had come off). Written to ``test-artifacts/live-pose-figures.json``; every
+    settle ends with nothing inside the body and both sleeves on the arms."""
     import statistics
 
     url, gid = server
@@ -204,10 +204,15 @@ def test_measure_pose_updates(server):
                     (pose, len(rows), metrics["penetrating_vertices"], metrics["limb_openings"])
                 rows.append({"pose": pose if isinstance(pose, str) else "asymmetric", "first_frame_s": round(first, 4),
                              "done_s": round(time.monotonic() - t0, 4), "steps": metrics["steps"],
-                             "transition_steps": d["transition_steps"]})
+                             "transition_steps": d["transition_steps"], "sleeves_on": metrics["openings_on_limbs"],
+                             "redraped": d["redraped"],
+                             "springs_over": sum(k["over"] for k in metrics["strain_by_kind"].values()),
+                             "display_max_strain": metrics["display_max_strain"]})
     first, done = [r["first_frame_s"] for r in rows], [r["done_s"] for r in rows]
     summary = {"first_frame_s": {"median": statistics.median(first), "min": min(first), "max": max(first)},
-               "done_s": {"median": statistics.median(done), "min": min(done), "max": max(done)}, "rows": rows}
+               "done_s": {"median": statistics.median(done), "min": min(done), "max": max(done)},
+               "sleeves_on": sum(r["sleeves_on"] is True for r in rows), "settles": len(rows),
+               "redraped": sum(r["redraped"] for r in rows), "rows": rows}
     (ROOT / "test-artifacts").mkdir(exist_ok=True)
     (ROOT / "test-artifacts" / "live-pose-figures.json").write_text(json.dumps(summary, indent=1))
     print("\nlive re-posing:", {k: v for k, v in summary.items() if k != "rows"})

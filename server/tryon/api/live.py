@@ -28,7 +28,7 @@ from tryon.garment.model import GarmentModel
 from tryon.body.build import build_body
 from tryon.body.params import Measurements, Pose
 from tryon.sim.outfit import OutfitResult, drape_outfit, piece_categories
-from tryon.sim.repose import repose, settle
+from tryon.sim.repose import redrape_if_off, repose, settle
 from tryon.sim.run import TryOnResult, drape
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
@@ -204,8 +204,10 @@ class LiveReposing:
                 self.drape = d
         if gave_way:
             return None
+        d, result, redraped = redrape_if_off(d, result, guard)
+        self.drape = d
         session.post_final(d.state.step, result.vertices)
-        done = {**done_message(result, guard.stopped_by), "update": update}
+        done = {**done_message(result, guard.stopped_by), "update": update, "redraped": redraped}
         first = session.update_first_frame_at
         done["metrics"]["wall_seconds"] = round(time.monotonic() - received_at, 4)
         done["time_to_first_frame_s"] = None if first is None else round(first - received_at, 4)

@@ -18,7 +18,7 @@ from tryon.body.types import Body
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
 from tryon.sim.outfit import OutfitResult, drape_outfit, piece_categories
-from tryon.sim.repose import repose, settle
+from tryon.sim.repose import redrape_if_off, repose, settle
 from tryon.sim.run import FrameCallback, TryOnResult, drape
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
@@ -75,8 +75,13 @@ def simulate_motion(catalogue: Catalogue, request: TryOnRequest, on_frame: Frame
     d = None
     for pose in request.poses:
         body = build_body(measurements, Pose(**pose.angles()))
-        d = start(body, model, settings) if d is None else repose(d, body)
-        result, _ = settle(d, on_frame)
+        if d is None:
+            d = start(body, model, settings)
+            result, _ = settle(d, on_frame)
+        else:
+            d = repose(d, body)
+            result, _ = settle(d, on_frame)
+            d, result, _ = redrape_if_off(d, result, on_frame)
         motion.append((result, body.vertices))
         bodies.append(body)
     run = CachedTryOn(result=motion[0][0], body=body_mesh(bodies[0]), settings=settings)

@@ -52,11 +52,12 @@ ARM_PRESS = 0.015
 # Beyond it, an arm raised forwards or a hand on the hip counts wherever it is (an arm swung forwards at 0
 # degrees would otherwise cross the chest).
 SHOULDER_REACH = 0.5
-# A hand rests on the body rather than sinking into it like the flesh of the upper arm: it may press at most
-# this far (m) into the torso (hands on the hips: with 1.5 cm the hand sank into the hip where the shirt
-# lies, and the shirt caught under it came out of the next pose with a sleeve off the arm). Hanging arms
-# are unchanged by it: their hands never reach the torso, the upper arm rests against it first.
-HAND_PRESS = 0.004
+# A hand rests on the clothes, not in the body: it keeps this far (m) off the torso, room for a layer of cloth
+# between them (the simulation keeps cloth 4 mm off every part, so 2 x 4 mm and 1 mm of cloth). Pressing
+# 1.5 cm into the hip as an arm may, the hand pinched the shirt there: the shown shirt stretched 270 % round
+# the hand, the hand showed through it, and the next pose came out with a sleeve off the arm. Hanging arms
+# are unchanged by it: their hands never come near the torso, the upper arm rests against it first.
+HAND_GAP = 0.009
 ARM_ANGLE_PRECISION = 0.25
 SECTION_STEP = 0.005
 # Margin (m) the OBBs and cylinder cells are grown by: the collision offset of the body surface is
@@ -248,13 +249,17 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
     # Arms no lower than where they rest against the torso (``ARM_PRESS``), each side on its own; the torso
     # does not depend on the arms, so only the arms are evaluated again.
     torso = (shape_points["torso", "left"], g.part_edges[PART_NAMES.index("torso")])
+    start, stop = g.part_faces[PART_NAMES.index("torso")]
+    torso_faces = g.faces[start:stop] - g.part_vertices[PART_NAMES.index("torso")][0]
+    grown = (torso[0] + HAND_GAP * face_vertex_normals(torso[0], torso_faces)[1], torso[1])
     chest_y = layouts["left"].landmarks["levels"]["chest"]
 
     def pressing(side: str) -> bool:
         arm = np.concatenate([shape_points["upper_arm", side], shape_points["forearm", side]])
         lm = layouts[side].landmarks
-        arm_depth, hand_depth = arm_press(arm, lm["shoulder_joint"], lm["elbow"], lm["wrist"], torso, chest_y)
-        return arm_depth > ARM_PRESS or hand_depth > HAND_PRESS
+        arm_depth, _ = arm_press(arm, lm["shoulder_joint"], lm["elbow"], lm["wrist"], torso, chest_y)
+        _, hand_depth = arm_press(arm, lm["shoulder_joint"], lm["elbow"], lm["wrist"], grown, chest_y)
+        return arm_depth > ARM_PRESS or hand_depth > 0.0
 
     def pose_arm(side: str, angle: float) -> None:
         layouts[side] = body_layout(full, replace(pose, **{f"arm_angle_{side}": angle}), leg_scale[side], side)
@@ -328,7 +333,8 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
 
 def arm_press(arm: np.ndarray, joint: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, torso: tuple,
               chest_y: float) -> tuple[float, float]:
-    """How far (m) an arm's points ``arm`` (n, 3) go into the torso (its vertices and edge list ``torso``):
+    """How far (m) an arm's points ``arm`` (n, 3) go into the torso (its vertices and edge list ``torso``; for
+    the hand, the torso grown by ``HAND_GAP``):
     the deepest of them inside the torso's horizontal section at its height, (the arm's, the hand's). The
     hand: the points farther from the ``elbow`` than the ``wrist`` joint is (3,) each. Counted: every point
     below ``chest_y`` and, above it, those farther than ``SHOULDER_REACH`` x the upper arm's length from the

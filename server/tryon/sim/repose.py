@@ -191,3 +191,18 @@ def settle(d: Drape, on_frame=None, give_way=None) -> tuple[TryOnResult | None, 
         if give_way is not None and d.state.step > d.startup and give_way():
             return None, True
     return finish(d, relax(d), stopped), False
+
+
+def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape, TryOnResult, bool]:
+    """A re-posed drape that came to rest with a sleeve or a trouser leg off its limb (``openings_on_limbs``
+    False) draped afresh in the same pose (aligned, as a new try-on) when that puts them on: (the drape, its
+    result, whether it was draped afresh). Carried through many poses in a row the cloth can end caught on
+    the way (the T-shirt M, six poses three times over: a sleeve came off at the tenth and stayed off), and a
+    later pose would start from there. A garment sized to the body (guessed units) is left as it is."""
+    if result is None or result.metrics.get("openings_on_limbs") is not False or d.sized:
+        return d, result, False
+    fresh = start(d.body, d.model, d.settings, d.tuning)
+    again, _ = settle(fresh, on_frame)
+    if again.metrics.get("openings_on_limbs") is False:
+        return d, result, False
+    return fresh, again, True

@@ -10,7 +10,6 @@ import trimesh
 from test_body import SPREAD, part_faces, winding_number
 from tryon.body.build import ARM_PRESS, SHOULDER_REACH, build_body
 from tryon.body.params import NAMED_POSES, POSE_RANGES, POSE_SHORTHAND, Measurements, Pose, pose_from
-from tryon.body.types import PART_NAMES
 
 MEDIUM = Measurements(height=170, chest=96, waist=82, hips=100)  # the drape tests' medium body
 # How far (m) an arm point may be inside the torso: the arm rests against it pressing at most ARM_PRESS (soft

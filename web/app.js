@@ -196,10 +196,11 @@ function updateTryOnButton() {
 }
 
 // ---- body preview ---------------------------------------------------------------------------------
-// A pose change: with a garment on (a live session open after its done) the body is re-posed with the
-// garment on it, over the same connection; else the body alone is rebuilt.
+// A pose change: with a garment on or going on (a live session open) the body is re-posed with the garment
+// on it, over the same connection (during the first drape the server keeps it for after); else the body
+// alone is rebuilt.
 function poseChanged() {
-  if (state.live?.open && state.state === 'done' && form.valid()) {
+  if (state.live?.open && (state.state === 'done' || state.state === 'draping') && form.valid()) {
     state.live.sendPose(form.poseValues());
     state.poseUpdates++;
     setProgress(0.05, 'Moving…');

@@ -162,14 +162,16 @@ def test_hanging_arms_rest_against_the_torso_instead_of_passing_into_it(m):
     torso: below the chest they press at most ARM_PRESS into it (the medium body's went 40 mm into the chest
     and its hand 26 mm into the hip), and a degree lower they would press deeper. The built pose says so."""
     body = build_body(m, Pose(arm_angle=0.0), resolution=16)
-    raised = body.pose["arm_angle"]
-    assert 0.0 < raised < 30.0
-    assert body.pose["elbow_bend"] == 0.0 and body.pose["leg_spread"] == Pose().leg_spread
+    raised = body.pose["arm_angle_left"]
+    assert 0.0 < raised < 30.0 and body.pose["arm_angle_right"] == raised
+    assert body.pose == {**Pose().as_dict(), "arm_angle_left": raised, "arm_angle_right": raised}
     assert arm_press_mm(body) <= 1000.0 * ARM_PRESS + 1.0
     lower = build_body(m, Pose(arm_angle=raised - 1.0), resolution=16)
-    assert lower.pose["arm_angle"] == pytest.approx(raised, abs=0.5)  # raised again to the same angle
+    assert lower.pose["arm_angle_left"] == pytest.approx(raised, abs=0.5)  # raised again to the same angle
     # the default A-pose is not raised for these bodies
-    assert build_body(m, resolution=16).pose == {"arm_angle": 30.0, "elbow_bend": 0.0, "leg_spread": 3.0}
+    assert build_body(m, resolution=16).pose == Pose().as_dict() == {
+        **{f"arm_angle_{s}": 30.0 for s in ("left", "right")}, **{f"leg_spread_{s}": 3.0 for s in ("left", "right")},
+        **{f"{j}_{s}": 0.0 for j in ("arm_forward", "arm_rotation", "elbow_bend", "wrist_bend") for s in ("left", "right")}}
 
 
 def test_optional_measurements_are_honoured():
@@ -455,10 +457,11 @@ def test_api_builds_a_body(client):
     assert set(meas["levels"]) == {"chest", "waist", "hips"}
     assert 1.2 < meas["levels"]["chest"] < 1.3
     assert set(meas["estimated"]) == set(OPTIONAL)
-    assert data["pose"]["requested"] == data["pose"]["achieved"] == {"arm_angle": 35, "elbow_bend": 0,
-                                                                      "leg_spread": Pose().leg_spread}
+    # the shorthand sets both sides; the answer gives every side field
+    assert data["pose"]["requested"] == data["pose"]["achieved"] == Pose(arm_angle=35.0).as_dict()
     hanging = client.post("/api/bodies", json={"measurements": AVERAGE, "pose": {"arm_angle": 0}}).json()["pose"]
-    assert hanging["requested"]["arm_angle"] == 0 and 5.0 < hanging["achieved"]["arm_angle"] < 30.0
+    for side in ("left", "right"):
+        assert hanging["requested"][f"arm_angle_{side}"] == 0 and 5.0 < hanging["achieved"][f"arm_angle_{side}"] < 30.0
 
 
 @pytest.mark.parametrize("payload, field, words", [
@@ -518,5 +521,6 @@ def test_api_ranges(client):
     assert set(data["measurements"]) == set(MEASUREMENT_RANGES)
     assert data["measurements"]["height"]["min"] == 140 and data["measurements"]["height"]["required"]
     assert data["measurements"]["inseam"]["default"] is None
-    assert data["pose"]["arm_angle"]["default"] == Pose().arm_angle
+    assert data["pose"]["arm_angle_left"]["default"] == Pose().arm_angle_left
+    assert data["pose"]["arm_angle"]["default"] is None  # the shorthand: both sides at once
     assert set(data["estimated_defaults"]) == set(OPTIONAL)

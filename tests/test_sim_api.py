@@ -10,6 +10,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from tryon.api.app import create_app
+from tryon.body.params import Pose
 from tryon.config import Settings
 from tryon.garment.catalogue import Catalogue
 
@@ -41,7 +42,7 @@ def test_tryon_answers_the_fitted_garment_and_metrics(client_and_id):
         assert key in m
     assert m["stays_up"] and m["slid_cm"] < 10.0  # settled about 3 cm down the hips
     assert sorted(o["opening"] for o in m["limb_openings"]) == ["left leg", "right leg"]
-    assert m["pose"] == {"arm_angle": 30.0, "elbow_bend": 0.0, "leg_spread": 3.0}  # the default, as built
+    assert m["pose"] == Pose().as_dict()  # the default, as built (every side field)
     assert 1 <= m["steps"] <= 60
     assert m["sim_seconds"] == pytest.approx(m["steps"] * 0.02)
     assert len(m["strain"]) == len(v)

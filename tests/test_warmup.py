@@ -67,8 +67,18 @@ FIRST_REQUESTS = textwrap.dedent("""
     result_glb(run_tryon(catalogue, outfit))
     request = TryOnRequest(garment_id="-", measurements=measurements, pose=pose)
     body = build_body(*to_body_params(request.measurements, request.pose), 24)
-    json_bytes(body_json(body, request.pose.model_dump()))
+    json_bytes(body_json(body, request.pose.angles()))
     body_glb(body)
+    # a live session's re-poses, unlike the warm-up's: another garment, body and poses
+    from tryon.api.pool import RunGuard
+    from tryon.body.params import Measurements, pose_from
+    from tryon.sim.repose import repose, settle
+    from tryon.sim.start import start
+    d = start(body, catalogue.model(top, 0.25))
+    settle(d, RunGuard(60.0))
+    for name in ("arms_raised", "stride"):
+        d = repose(d, build_body(Measurements(**measurements), pose_from(name), 24))
+        settle(d, RunGuard(60.0), give_way=lambda: False)
     after = signatures()
     print(json.dumps({name: after[name] - before.get(name, 0) for name in after if after[name] != before.get(name, 0)}))
 """)

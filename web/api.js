@@ -81,7 +81,11 @@ const CLOSE_TRY_AGAIN_LATER = 1013;
 /**
  * Run one live try-on over `WS /ws/tryon`.
  * handlers: onInit(init), onFrame(frameNo, step, positions Float32Array), onDone(done).
- * Resolves with the done message; rejects with an ApiError. `session.cancel()` closes the socket.
+ * Resolves with the (first) done message; rejects with an ApiError. `session.cancel()` closes the socket.
+ * A live request (`payload.live`) stays open after done: `session.sendPose(pose)` re-poses (a name or
+ * angles), and then onBody(body message: the new body's vertices and vertex_part), onBodyPose(parts motions,
+ * or null: the body in its own pose) and onFrame as it moves and settles, onPoseDone(done) at rest,
+ * onLiveError(message) for a refused update, onClosed() when the connection ends.
  */
 export function liveTryOn(payload, handlers) {
   const scheme = location.protocol === 'https:' ? 'wss' : 'ws';
@@ -101,11 +105,17 @@ export function liveTryOn(payload, handlers) {
           init = message;
           handlers.onInit?.(message);
         } else if (message.type === 'done') {
+          if (finished) { handlers.onPoseDone?.(message); return; }
           finished = true;
           handlers.onDone?.(message);
           resolve(message);
+        } else if (message.type === 'body') {
+          handlers.onBody?.(message);
+        } else if (message.type === 'body_pose') {
+          handlers.onBodyPose?.(message.parts);
         } else if (message.type === 'error') {
-          errorReason = message.reason;
+          if (message.fatal === false) handlers.onLiveError?.(message);
+          else errorReason = message.reason;
         }
         return;
       }
@@ -133,7 +143,8 @@ export function liveTryOn(payload, handlers) {
     };
     ws.onerror = () => {};  // the close event carries what happened
     ws.onclose = (event) => {
-      if (finished) return;
+      session.open = false;
+      if (finished) { handlers.onClosed?.(); return; }
       if (session.cancelled) { reject(new ApiError('You stopped the try-on.', { stopped: true })); return; }
       if (event.code === CLOSE_TRY_AGAIN_LATER) {
         const wait = /try again in (\d+) s/.exec(errorReason || '');
@@ -146,8 +157,13 @@ export function liveTryOn(payload, handlers) {
       }
     };
   });
-  session = { promise, cancelled: false };
+  session = { promise, cancelled: false, open: true, live: Boolean(payload.live) };
   session.cancel = () => { session.cancelled = true; ws.close(); };
+  session.sendPose = (pose) => {
+    if (ws.readyState !== WebSocket.OPEN) return false;
+    ws.send(JSON.stringify({ type: 'pose', pose }));
+    return true;
+  };
   return session;
 }
 

@@ -25,6 +25,9 @@ const state = {
   lastError: null,
   lastStep: 0,
   bodyRequests: 0,
+  live: null,           // the open live session (re-posing) after a try-on, or null
+  poseUpdates: 0,       // pose updates sent over it
+  poseDones: 0,         // their settles' done messages received
 };
 window.tryon = state;
 
@@ -193,7 +196,26 @@ function updateTryOnButton() {
 }
 
 // ---- body preview ---------------------------------------------------------------------------------
+// A pose change: with a garment on or going on (a live session open) the body is re-posed with the garment
+// on it, over the same connection (during the first drape the server keeps it for after); else the body
+// alone is rebuilt.
+function poseChanged() {
+  if (state.live?.open && (state.state === 'done' || state.state === 'draping') && form.valid()) {
+    state.live.sendPose(form.poseValues());
+    state.poseUpdates++;
+    setProgress(0.05, 'Moving…');
+    return;
+  }
+  scheduleBody();
+}
+
+function closeLive() {
+  if (state.live?.open) state.live.cancel();
+  state.live = null;
+}
+
 function scheduleBody() {
+  closeLive();  // the garment on the screen was draped for the old measurements
   clearTimeout(bodyTimer);
   if (state.advice) clearAdvice();  // the advice was for the old measurements
   if (state.state === 'draping') live?.cancel();  // that drape is for the old measurements
@@ -233,10 +255,14 @@ function describeBody(body) {
   const parts = ['chest', 'waist', 'hips'].filter((k) => Number.isFinite(a[k])).map((k) => `${k} ${a[k].toFixed(1)}`);
   let text = parts.length ? `Your body as built: ${parts.join(' · ')} cm` : '';
   // an arm angle too low for the arm to clear the torso is raised to where the arm rests against it
-  const asked = body.pose?.requested?.arm_angle;
-  const built = body.pose?.achieved?.arm_angle;
-  if (Number.isFinite(asked) && Number.isFinite(built) && built > asked + 0.05) {
-    text += `${text ? '. ' : ''}Arms at ${built.toFixed(1)}°: lower, they would pass into the torso`;
+  const raised = ['left', 'right'].filter((side) => {
+    const asked = body.pose?.requested?.[`arm_angle_${side}`];
+    const built = body.pose?.achieved?.[`arm_angle_${side}`];
+    return Number.isFinite(asked) && Number.isFinite(built) && built > asked + 0.05;
+  }).map((side) => `${side} arm out ${body.pose.achieved[`arm_angle_${side}`].toFixed(1)}°`);
+  if (raised.length) {
+    const said = raised.join(', ');
+    text += `${text ? '. ' : ''}${said[0].toUpperCase()}${said.slice(1)}: lower, it would pass into the torso`;
   }
   return text;
 }
@@ -251,8 +277,15 @@ function setProgress(fraction, text) {
 async function tryOn() {
   if (state.state === 'draping') { live?.cancel(); return; }
   clearNotice();
-  // uint16 frames: half the bytes of float32, 0.04 mm steps (far below what a screen shows)
+  closeLive();
+  // the try-on brings its own body: a body preview still waiting or on its way would land after it and
+  // take the garment off (a pose chosen just before "Try on")
+  clearTimeout(bodyTimer);
+  bodySeq++;
+  // uint16 frames: half the bytes of float32, 0.04 mm steps (far below what a screen shows); one garment
+  // stays live for re-posing (an outfit is draped once)
   const payload = { ...tryOnPayload(), fps: 30, encoding: 'uint16' };
+  if (payload.garment_id) payload.live = true;
   state.state = 'draping';
   state.framesReceived = 0;
   state.done = null;
@@ -279,23 +312,29 @@ async function tryOn() {
       state.framesReceived++;
       state.lastStep = step;
       stage.updateGarment(positions);
+      if (state.state !== 'draping') return;  // a re-pose: the progress says "Moving…"
       const maxSteps = state.init?.max_steps || 0;
       const seconds = ((performance.now() - started) / 1000).toFixed(1);
       setProgress(maxSteps ? step / maxSteps : 0.5, `Draping… step ${step}${maxSteps ? ` of at most ${maxSteps}` : ''} · ${seconds} s`);
     },
+    onBody(message) { stage.setPosedBody(message.vertices.flat(), message.vertex_part); },
+    onBodyPose(parts) { stage.poseBody(parts); },
+    onPoseDone(done) {
+      state.poseDones++;
+      state.done = done;
+      showDone(done);
+      setProgress(1, 'Done.');
+      setTimeout(() => { if (state.state === 'done') $('progress').hidden = true; }, 1500);
+    },
+    onLiveError(message) { showError(message.reason); },
+    onClosed() { if (state.live === session) state.live = null; },
   });
+  const session = live;
+  state.live = payload.live ? session : null;
   try {
     const done = await live.promise;
     state.done = done;
-    if (done.strain?.length) {
-      const strain = smoothStrain(done.strain, stage.garment.geometry.index.array);
-      const top = strainScale(strain);
-      stage.setStrain(strain, top);
-      $('legend-max').textContent = `${(top * 100).toFixed(0)}%+`;
-      $('legend-mid').textContent = `${(top * 50).toFixed(0)}%`;
-      showLimitOnLegend(state.init?.strain_limit ?? DEFAULT_STRAIN_LIMIT, top);
-    }
-    showMetrics(done);
+    showDone(done);
     setProgress(1, done.cached ? 'Done (from the fitting-room memory).' : 'Done.');
     setTimeout(() => { if (state.state === 'done') $('progress').hidden = true; }, 1500);
     $('result').hidden = false;
@@ -317,6 +356,19 @@ async function tryOn() {
     live = null;
     updateTryOnButton();
   }
+}
+
+/** A done message's strain on the fit map and its metrics in the summary. */
+function showDone(done) {
+  if (done.strain?.length) {
+    const strain = smoothStrain(done.strain, stage.garment.geometry.index.array);
+    const top = strainScale(strain);
+    stage.setStrain(strain, top);
+    $('legend-max').textContent = `${(top * 100).toFixed(0)}%+`;
+    $('legend-mid').textContent = `${(top * 50).toFixed(0)}%`;
+    showLimitOnLegend(state.init?.strain_limit ?? DEFAULT_STRAIN_LIMIT, top);
+  }
+  showMetrics(done);
 }
 
 /** The fit map's scale is this garment's own (fitmap.strainScale): mark the cloth's limit on it. */
@@ -549,7 +601,7 @@ async function start() {
     state.styles = Array.isArray(styles) ? styles : [];
     form = new MeasurementForm(normaliseRanges(ranges), {
       required: $('measurements'), optional: $('more-measurements'), pose: $('pose'),
-    }, scheduleBody);
+    }, scheduleBody, ranges, poseChanged);
     state.garments = Array.isArray(garments) ? garments : (garments.garments || garments.items || []);
     renderGarments(state.garments);
     if (state.garments.length) {

@@ -1,10 +1,11 @@
-// Measurement and pose fields: a labelled slider plus a number box per value, with the valid range
-// from `GET /api/bodies/ranges`. Optional measurements start on "auto" (estimated by the server).
+// Measurement fields: a labelled slider plus a number box per value, with the valid range from
+// `GET /api/bodies/ranges`. Optional measurements start on "auto" (estimated by the server). The pose has
+// its own controls (pose.js).
+import { PoseControls } from './pose.js';
 
 const LABELS = {
   height: 'Height', chest: 'Chest', waist: 'Waist', hips: 'Hips', shoulder_width: 'Shoulder width',
   arm_length: 'Arm length', inseam: 'Inseam', neck: 'Neck', thigh: 'Thigh', upper_arm: 'Upper arm',
-  arm_angle: 'Arm angle', elbow_bend: 'Elbow bend', leg_spread: 'Leg spread',
 };
 const REQUIRED = ['height', 'chest', 'waist', 'hips'];
 
@@ -150,17 +151,18 @@ class Field {
 function fmt(v) { const x = Number(v); return Number.isInteger(x) ? String(x) : x.toFixed(1); }
 
 export class MeasurementForm {
-  constructor(ranges, containers, onChange) {
+  /** `raw`: the ranges answer itself (the pose controls read its side fields and named poses);
+   * `onPose`: called instead of `onChange` when only the pose changed (null: `onChange`). */
+  constructor(ranges, containers, onChange, raw = {}, onPose = null) {
     this.fields = [];
-    this.pose = [];
     for (const spec of ranges.measurements) {
       const box = spec.required ? containers.required : containers.optional;
       this.fields.push(new Field(spec, box, onChange));
     }
-    for (const spec of ranges.pose) this.pose.push(new Field({ ...spec, required: true }, containers.pose, onChange));
+    this.pose = new PoseControls(raw, containers.pose, () => (onPose ?? onChange)());
   }
 
-  valid() { return [...this.fields, ...this.pose].every((f) => f.validate()); }
+  valid() { return this.fields.every((f) => f.validate()); }
 
   measurements() {
     const out = {};
@@ -168,11 +170,7 @@ export class MeasurementForm {
     return out;
   }
 
-  poseValues() {
-    const out = {};
-    for (const f of this.pose) out[f.spec.name] = f.value();
-    return out;
-  }
+  poseValues() { return this.pose.value(); }
 
   bodyRequest() { return { measurements: this.measurements(), pose: this.poseValues() }; }
 
@@ -185,7 +183,8 @@ export class MeasurementForm {
 
   /** Set a field by name (used by tests and deep links). */
   set(name, value) {
-    const f = [...this.fields, ...this.pose].find((x) => x.spec.name === name);
+    if (this.pose.has(name)) { this.pose.set(name, value); return; }
+    const f = this.fields.find((x) => x.spec.name === name);
     if (!f) throw new Error(`no field ${name}`);
     f.number.value = value;
     f.number.dispatchEvent(new Event('input'));

@@ -156,6 +156,39 @@ export class Stage {
     this.requestRender();
   }
 
+  /** A re-posed body (same topology): its rest positions (n*3 floats, metres) and each vertex's part
+   * (n ints); shown at once, then moved by `poseBody`. */
+  setPosedBody(vertices, vertexPart) {
+    this.bodyRest = new Float32Array(vertices);
+    this.bodyPart = Int32Array.from(vertexPart);
+    const position = this.body.geometry.getAttribute('position');
+    position.setUsage(THREE.DynamicDrawUsage);
+    this.poseBody(null);
+  }
+
+  /** Move the body's parts rigidly from its rest positions: `parts` (P rows of R (9, row-major) then t (3)),
+   * or null for the rest pose itself. Writes into the allocated position attribute. */
+  poseBody(parts) {
+    if (!this.body || !this.bodyRest) return;
+    const position = this.body.geometry.getAttribute('position');
+    const out = position.array, rest = this.bodyRest, part = this.bodyPart;
+    if (!parts) {
+      out.set(rest);
+    } else {
+      for (let i = 0; i < part.length; i++) {
+        const m = parts[part[i]];
+        const x = rest[3 * i], y = rest[3 * i + 1], z = rest[3 * i + 2];
+        out[3 * i] = m[0] * x + m[1] * y + m[2] * z + m[9];
+        out[3 * i + 1] = m[3] * x + m[4] * y + m[5] * z + m[10];
+        out[3 * i + 2] = m[6] * x + m[7] * y + m[8] * z + m[11];
+      }
+    }
+    position.needsUpdate = true;
+    this.body.geometry.computeVertexNormals();
+    this.body.geometry.computeBoundingSphere();
+    this.requestRender();
+  }
+
   /** Point the camera at a box (the body), from the front and a little to the side. */
   frame(box) {
     const size = box.getSize(new THREE.Vector3());

@@ -8,32 +8,61 @@ import asyncio
 import json
 import threading
 import time
+from collections import deque
 from concurrent.futures import Future
 from typing import Any, Literal
 
 import numpy as np
 from fastapi import HTTPException
-from pydantic import Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from tryon.api.export import json_bytes, mesh_arrays
 from tryon.api.frames import FLOAT32, FrameCodec
 from tryon.api.pool import CachedTryOn, RunGuard
+from tryon.api.schemas.bodies import PoseIn, to_body_params
 from tryon.api.schemas.tryon import TryOnRequest
 from tryon.api.outfits import OutfitMesh, layered, outfit_models
 from tryon.api.service import body_mesh, prepare_outfit, prepare_tryon, result_json
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
-from tryon.sim.outfit import OutfitResult, drape_outfit
+from tryon.body.build import build_body
+from tryon.body.params import Measurements, Pose
+from tryon.sim.outfit import OutfitResult, drape_outfit, piece_categories
+from tryon.sim.repose import redrape_if_off, repose, settle
 from tryon.sim.run import TryOnResult, drape
 from tryon.sim.settings import SimSettings
+from tryon.sim.start import start
+from tryon.sim.state import Drape
 
 class LiveTryOnRequest(TryOnRequest):
-    """``POST /api/tryon``'s body plus the frame rate the client wants."""
+    """``POST /api/tryon``'s body plus the frame rate the client wants, and whether the connection stays open
+    for re-posing (``live``)."""
 
     fps: int = Field(30, ge=1, le=60, description="frames per second of wall time to send, 1/s; range [1, 60]")
     encoding: Literal["float32", "uint16"] = Field(
         "float32", description="frame positions: float32 metres, or uint16 quantized in a box around the "
                                "body (half the bytes, ~0.04 mm steps)")
+    live: bool = Field(False, description="keep the connection open after done: the client may then send "
+                                          "{\"type\": \"pose\", \"pose\": ...} at any time and the garment is "
+                                          "carried to the new pose and draped on (one garment: garment_id)")
+
+    @model_validator(mode="after")
+    def _live_is_one_garment(self) -> "LiveTryOnRequest":
+        if self.live and self.garment_ids is not None:
+            raise ValueError("live re-posing takes one garment (garment_id), not an outfit (garment_ids)")
+        if self.poses is not None:
+            raise ValueError("poses (a motion) is for POST /api/tryon; over the stream send pose updates "
+                             "(\"live\": true)")
+        return self
+
+
+class PoseUpdate(BaseModel):
+    """A live session's pose update: ``{"type": "pose", "pose": "hands_on_hips"}`` or angles (degrees)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    type: Literal["pose"] = Field(description="the message type")
+    pose: PoseIn = Field(description="pose angles, degrees, or a named pose (GET /api/bodies/ranges)")
 
 
 def _entry(meta) -> dict:
@@ -125,9 +154,83 @@ def run_live(catalogue: Catalogue, request: LiveTryOnRequest, session: LiveSessi
     session.offer_init(init_base, shown, FrameCodec.around(request.encoding, box))
     if request.outfit:
         run.result = drape_outfit(body, models, sim_settings, request.tuck, on_frame=guard)
+    elif request.live:
+        if piece_categories(shown) is not None:
+            raise ValueError("live re-posing is not available for a garment file of several pieces (an outfit)")
+        d = start(body, shown, sim_settings)
+        run.result, _ = settle(d, guard)
+        session.reposing = LiveReposing(session, to_body_params(request.measurements)[0], d)
     else:
         run.result = drape(body, shown, sim_settings, guard)
     return run, done_message(run.result, guard.stopped_by)
+
+
+class LiveReposing:
+    """A live session's re-posing (``"live": true``): the drape at rest (or given way) on the last pose's body,
+    the measurements its bodies are built from, and the latest pose update waiting (latest wins: one slot).
+
+    ``repose_to`` runs on a pool thread: it builds the new pose's body, sends it (a ``body`` message, before
+    the frames of that pose), carries the garment to it (``sim.repose``) and settles it, each frame with the
+    body's part motions while the body moves (a ``body_pose`` message before the frame); it gives way to a
+    newer pose once the body has reached its own (no done for that one)."""
+
+    def __init__(self, session: "LiveSession", measurements: Measurements, drape: Drape):
+        self.session = session
+        self.measurements = measurements
+        self.drape = drape
+        self.settles = 0  # re-poses started
+
+    def repose_to(self, update: int, pose: Pose, received_at: float, guard: RunGuard) -> dict | None:
+        """Re-pose the drape to ``pose`` (update number ``update``, arrived at ``received_at``, monotonic s) and
+        settle it; the done message, or None if a newer pose came first (``session.pending``)."""
+        guard.start()
+        session = self.session
+        session.update_received_at = received_at
+        session.update_first_frame_at = None
+        body = build_body(self.measurements, pose)
+        d = repose(self.drape, body)
+        self.settles += 1
+        message = {"type": "body", "update": update, "pose": body.pose,
+                   **mesh_arrays(body.vertices, body.faces, decimals=5), "vertex_part": vertex_parts(body),
+                   "transition_steps": int(d.arms.steps)}
+        message.pop("faces")  # the init message's body faces: the same body, another pose
+        session.post_text(json_bytes(message).decode())
+        session.moving = d
+        try:
+            result, gave_way = settle(d, guard, give_way=lambda: session.pending is not None)
+        finally:
+            session.moving = None
+            if d.state.step > d.startup:  # the garment is on the new body's pose: the next re-pose starts here
+                self.drape = d
+        if gave_way:
+            return None
+        d, result, redraped = redrape_if_off(d, result, guard)
+        self.drape = d
+        session.post_final(d.state.step, result.vertices)
+        done = {**done_message(result, guard.stopped_by), "update": update, "redraped": redraped}
+        first = session.update_first_frame_at
+        done["metrics"]["wall_seconds"] = round(time.monotonic() - received_at, 4)
+        done["time_to_first_frame_s"] = None if first is None else round(first - received_at, 4)
+        done["transition_steps"] = int(d.arms.steps)
+        return done
+
+
+def vertex_parts(body) -> np.ndarray:
+    """(n,) int32: the part of each body vertex (``body.parts`` index)."""
+    out = np.zeros(len(body.vertices), dtype=np.int32)
+    out[body.faces.reshape(-1)] = np.repeat(body.face_part, 3)
+    return out
+
+
+def resume_live(session: "LiveSession", request: LiveTryOnRequest, model: GarmentModel, cached: CachedTryOn,
+                codec: FrameCodec) -> None:
+    """A live session from a cached try-on (blocking: a thread): its body built again and a drape at rest in the
+    cached final state (``start`` from the coarse positions), for the pose updates to start from."""
+    measurements, pose = to_body_params(request.measurements, request.pose)
+    body = build_body(measurements, pose)
+    d = start(body, model, cached.settings, initial=cached.result.coarse)
+    session.codec, session._model = codec, model
+    session.reposing = LiveReposing(session, measurements, d)
 
 
 def failure_reason(error: BaseException, request: TryOnRequest) -> str:
@@ -166,6 +269,17 @@ class LiveSession:
         self._next_offer_at = 0.0
         self._model: Any = None
         self.codec = FLOAT32  # set with the init message, before any frame
+        # live re-posing (``"live": true``): after the first done, texts and frames go out in order through
+        # the outbox (a frame replaces a frame still waiting at its end); the pose slot holds the latest update
+        self.reposing: LiveReposing | None = None  # set by the first drape's worker
+        self.live = False
+        self.outbox: deque = deque()  # ("text", str) | ("frame", step, payload bytes, body motion text | None)
+        self.pending: tuple[int, Any, float] | None = None  # (update number, Pose, monotonic s received)
+        self.updates = 0
+        self.pose_arrived = asyncio.Event()
+        self.moving: Drape | None = None  # sim thread: the re-posed drape while it settles
+        self.update_received_at = 0.0
+        self.update_first_frame_at: float | None = None
 
     # -- called on the simulation thread ---------------------------------------------------------
     def offer_init(self, init_base: str, model: Any, codec: FrameCodec) -> None:
@@ -184,8 +298,36 @@ class LiveSession:
         # interval from a late step would deliver well under fps; the sender still spaces frames 1/fps apart
         self._next_offer_at = max(self._next_offer_at + self.interval_s, now - self.interval_s)
         payload = self.codec.encode(self._model.expand(coarse))
-        self.loop.call_soon_threadsafe(self._put_frame, (step, payload))
+        if self.live:
+            if self.update_first_frame_at is None:
+                self.update_first_frame_at = now
+            self.loop.call_soon_threadsafe(self._put_live_frame, (step, payload, self._motion_text()))
+        else:
+            self.loop.call_soon_threadsafe(self._put_frame, (step, payload))
         return True
+
+    def _motion_text(self) -> str | None:
+        """The ``body_pose`` message of the body the frame's garment is on, while a re-posed drape settles:
+        each part's rigid motion from the new body's own pose (rows of R (3, 3) then t (3,), metres), the
+        identity once the body has reached it."""
+        d = self.moving
+        if d is None:
+            return None
+        moves = d.arms.current() if d.state.step <= d.arms.steps else None
+        if moves is None:
+            return '{"type":"body_pose","parts":null}'
+        parts = np.concatenate([moves[:, :3, :3].reshape(-1, 9), moves[:, :3, 3]], axis=1)
+        return json.dumps({"type": "body_pose", "step": int(d.state.step),
+                           "parts": np.round(parts, 6).tolist()}, separators=(",", ":"))
+
+    def post_text(self, text: str) -> None:
+        """A text message for the live outbox, after everything handed over before it (any thread)."""
+        self.loop.call_soon_threadsafe(self._put_text, text)
+
+    def post_final(self, step: int, vertices: np.ndarray) -> None:
+        """A settle's final state for the live outbox (sim thread): the body in its own pose."""
+        self.loop.call_soon_threadsafe(self._put_live_frame,
+                                       (step, self.codec.encode(vertices), '{"type":"body_pose","parts":null}'))
 
     # -- called on the event loop ------------------------------------------------------------------
     def _set_init(self, message: str) -> None:
@@ -196,6 +338,27 @@ class LiveSession:
         self.latest = frame  # replaces an unsent frame: a slow client never gets a backlog
         self.frames_offered += 1
         self.wake.set()
+
+    def _put_text(self, text: str) -> None:
+        self.outbox.append(("text", text))
+        self.wake.set()
+
+    def _put_live_frame(self, frame: tuple) -> None:
+        if self.outbox and self.outbox[-1][0] == "frame":
+            self.outbox.pop()  # a frame not sent yet: the newer one replaces it (no backlog)
+        self.outbox.append(("frame", *frame))
+        self.frames_offered += 1
+        self.wake.set()
+
+    def offer_pose(self, pose: Any) -> None:
+        """A pose update arrived (event loop): it replaces any update still waiting (latest wins)."""
+        self.updates += 1
+        self.pending = (self.updates, pose, time.monotonic())
+        self.pose_arrived.set()
+
+    def take_pose(self) -> tuple[int, Any, float] | None:
+        out, self.pending = self.pending, None
+        return out
 
     def finish(self, step: int, vertices: np.ndarray) -> None:
         """The final state: always sent, replacing any frame still waiting."""
@@ -209,3 +372,4 @@ class LiveSession:
         self.cancelled.set()
         self.finished = True
         self.wake.set()
+        self.pose_arrived.set()

@@ -199,7 +199,7 @@ def request_key(garment_id: str, measurements: dict, pose: dict, settings: dict)
 
 
 # Request fields that change how a result is shown, not the result: left out of the cache key.
-DISPLAY_FIELDS = frozenset({"fps", "encoding"})
+DISPLAY_FIELDS = frozenset({"fps", "encoding", "live"})
 
 
 def tryon_key(request: Any) -> str:

@@ -7,18 +7,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from tryon.api.export import mesh_bytes, mesh_json, scene_bytes
+from tryon.api.export import mesh_bytes, mesh_json, morph_glb, scene_bytes
 from tryon.api.outfits import outfit_models
 from tryon.api.pool import CachedTryOn
 from tryon.api.schemas.bodies import to_body_params
 from tryon.api.schemas.tryon import TryOnRequest
 from tryon.body.build import build_body
+from tryon.body.params import Pose
 from tryon.body.types import Body
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
-from tryon.sim.outfit import OutfitResult, drape_outfit
+from tryon.sim.outfit import OutfitResult, drape_outfit, piece_categories
+from tryon.sim.repose import redrape_if_off, repose, settle
 from tryon.sim.run import FrameCallback, TryOnResult, drape
 from tryon.sim.settings import SimSettings
+from tryon.sim.start import start
 
 
 def prepare_tryon(catalogue: Catalogue, request: TryOnRequest) -> tuple[Body, GarmentModel, SimSettings]:
@@ -50,8 +53,50 @@ def simulate(catalogue: Catalogue, request: TryOnRequest, on_frame: FrameCallbac
         body, models, settings = prepare_outfit(catalogue, request)
         result = drape_outfit(body, models, settings, request.tuck, on_frame=on_frame)
         return CachedTryOn(result=result, body=body_mesh(body), settings=settings)
+    if request.poses is not None:
+        return simulate_motion(catalogue, request, on_frame)
     body, model, settings = prepare_tryon(catalogue, request)
     return CachedTryOn(result=drape(body, model, settings, on_frame), body=body_mesh(body), settings=settings)
+
+
+def simulate_motion(catalogue: Catalogue, request: TryOnRequest, on_frame: FrameCallback | None = None
+                    ) -> CachedTryOn:
+    """A motion (``request.poses``): the garment draped in the first pose, then carried to each next one and
+    draped on from where it is (``sim.repose``). The first pose's result is the run's; ``extra["motion"]`` holds
+    every pose's (result, body vertices (n, 3) m)."""
+    if catalogue.get(request.garment_id) is None:
+        raise KeyError(request.garment_id)
+    settings = request.settings.to_settings()
+    model = catalogue.model(request.garment_id, settings.simplification)
+    if piece_categories(model) is not None:
+        raise ValueError("a motion (poses) is not available for a garment file of several pieces (an outfit)")
+    measurements = to_body_params(request.measurements)[0]
+    motion, bodies = [], []
+    d = None
+    for pose in request.poses:
+        body = build_body(measurements, Pose(**pose.angles()))
+        if d is None:
+            d = start(body, model, settings)
+            result, _ = settle(d, on_frame)
+        else:
+            d = repose(d, body)
+            result, _ = settle(d, on_frame)
+            d, result, _ = redrape_if_off(d, result, on_frame)
+        motion.append((result, body.vertices))
+        bodies.append(body)
+    run = CachedTryOn(result=motion[0][0], body=body_mesh(bodies[0]), settings=settings)
+    run.extra["motion"] = motion
+    return run
+
+
+def motion_glb(run: CachedTryOn, faces_body: np.ndarray) -> bytes:
+    """A motion's animated GLB (``export.morph_glb``): the garment (vertex colours by its first pose's strain)
+    and the body, one morph target per pose after the first, one second per pose."""
+    motion = run.extra["motion"]
+    first = motion[0][0]
+    colours = strain_colours(first.strain, SimSettings().strain_limit[0])
+    return morph_glb([("garment", [r.vertices for r, _ in motion], first.faces, colours),
+                      ("body", [v for _, v in motion], faces_body, None)])
 
 
 def prepare_outfit(catalogue: Catalogue, request: TryOnRequest) -> tuple[Body, list[GarmentModel], SimSettings]:
@@ -129,6 +174,15 @@ def outfit_json(result: OutfitResult, cached_answer_s: float | None = None) -> d
         "tuck_as_asked": m["tuck_as_asked"],
     }
     return {"garments": garments, "metrics": metrics}
+
+
+def motion_json(run: CachedTryOn, cached_answer_s: float | None = None) -> dict:
+    """A motion's JSON answer: the first pose's answer (``result_json``) and ``poses``: each pose's built pose
+    and metrics, in order."""
+    out = result_json(run.result, cached_answer_s)
+    out["poses"] = [{"pose": r.metrics.get("pose", {}), "metrics": result_json(r, cached_answer_s)["metrics"]}
+                    for r, _ in run.extra["motion"]]
+    return out
 
 
 def result_glb(result: TryOnResult | OutfitResult) -> bytes:

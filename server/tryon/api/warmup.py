@@ -62,7 +62,7 @@ def _exercise() -> None:
 
     request = TryOnRequest(garment_id="-", measurements=WARM_MEASUREMENTS)
     body = build_body(*to_body_params(request.measurements, request.pose))  # POST /api/bodies
-    json_bytes(body_json(body, request.pose.model_dump()))
+    json_bytes(body_json(body, request.pose.angles()))
     body_glb(body)
     with tempfile.TemporaryDirectory(prefix="tryon-warmup-") as tmp:
         catalogue = Catalogue(Path(tmp) / "data")
@@ -75,12 +75,31 @@ def _exercise() -> None:
             result = run_tryon(catalogue, request.model_copy(update={"garment_id": entry.id}))
             result_json(result)
             mesh_bytes(result.vertices, result.faces, "glb", strain_colours(result.strain, 0.1))
+            if category == "top":  # a live session's re-pose (WS "live": true): carried to a new pose, settled
+                _repose(body, catalogue.model(entry.id))
         # an outfit, tucked in and out (the layers' kernels, the outfit's answers)
         for tuck in ("out", "in"):
             outfit = run_tryon(catalogue, request.model_copy(update={"garment_id": None, "garment_ids": ids,
                                                                      "tuck": tuck}))
             result_json(outfit)
             result_glb(outfit)
+
+
+def _repose(body, model) -> None:
+    """A drape of ``model`` on ``body`` re-posed as a live session does (``api.live.LiveReposing``): to an
+    asymmetric pose with a hand turned at the wrist (every body kernel's posed path), settled to rest."""
+    from tryon.api.pool import RunGuard
+    from tryon.body.build import build_body
+    from tryon.body.params import Measurements, Pose, pose_from
+    from tryon.sim.repose import repose, settle
+    from tryon.sim.start import start
+
+    d = start(body, model)
+    settle(d, RunGuard(60.0))
+    measurements = Measurements(**WARM_MEASUREMENTS)
+    for pose in (pose_from("hands_on_hips"), Pose(arm_angle_left=70.0, arm_forward_right=40.0, leg_spread_left=12.0)):
+        d = repose(d, build_body(measurements, pose))
+        settle(d, RunGuard(60.0), give_way=lambda: False)
 
 
 class WarmUp:

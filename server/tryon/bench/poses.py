@@ -26,7 +26,10 @@ def _poses(category: str) -> list[dict]:
 
 def _pose_name(asked: dict, built: dict) -> str:
     """'arm_angle 0 (built 12.7)' where the body raised the arm (see the module doc), else the angles asked."""
-    return ", ".join(f"{k} {v:g}" + (f" (built {built[k]:.1f})" if abs(built[k] - v) > 0.05 else "")
+    def as_built(k):  # the shorthand asked (both sides alike): the left side's built angle
+        return built[k] if k in built else built[f"{k}_left"]
+
+    return ", ".join(f"{k} {v:g}" + (f" (built {as_built(k):.1f})" if abs(as_built(k) - v) > 0.05 else "")
                      for k, v in asked.items())
 
 
@@ -56,7 +59,7 @@ def run(ctx: Context, sec: Section) -> None:
              "display_max_strain": m["display_max_strain"], "on_limbs": m["openings_on_limbs"],
              "off_limbs": [o["opening"] for o in m["limb_openings"] if not o["ok"]],
              "arm_turn_deg": m["arm_turn_deg"], "elbow_turn_deg": m["elbow_turn_deg"],
-             "built_arm_angle": m["pose"]["arm_angle"], "slid_cm": m["slid_cm"], "stays_up": m["stays_up"]}
+             "built_arm_angle": m["pose"]["arm_angle_left"], "slid_cm": m["slid_cm"], "stays_up": m["stays_up"]}
         d["met"] = d["over"] == 0 and d["penetrating"] == 0 and d["rest"] and d["on_limbs"] is not False
         data.append(d)
         rows.append([entry["name"], _pose_name(pose, m["pose"]), d["steps"], fmt(d["rest"]),

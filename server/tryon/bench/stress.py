@@ -127,7 +127,7 @@ def run_scene(model: GarmentModel, settings: SimSettings, measurements: Measurem
         "time_step": round(settings.time_step, 4), "passes": settings.passes, "substeps": settings.substeps,
         "structural_limit": round(settings.strain_limit[0], 4),
         "measurements": {k: round(v, 1) for k, v in measurements.as_dict().items() if v is not None},
-        "arm_angle": round(pose.arm_angle, 1),
+        "arm_angle": round(pose.arm_angle_left, 1),
     }
 
 
@@ -139,7 +139,7 @@ def stress(n_scenes: int = 100, seed: int = 0, models: list[GarmentModel] | None
     records = []
     for i in range(n_scenes):
         model = models[i % len(models)] if i < len(models) else models[int(rng.integers(len(models)))]
-        pose = replace(Pose(), arm_angle=float(rng.uniform(*POSE_RANGES["arm_angle"])))
+        pose = replace(Pose(), arm_angle=float(rng.uniform(*POSE_RANGES["arm_angle_left"])))  # both sides
         records.append(run_scene(model, random_settings(rng), random_measurements(rng), pose, rng))
     failures = [r for r in records if not r["ok"]]
     return {

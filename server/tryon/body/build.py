@@ -6,14 +6,14 @@ sampled section, see ``nurbs.py``, so the mesh then measures what was asked); (3
 control sections into the world and evaluate each part's two surfaces on the cached (u, v) grid; (4)
 solve the leg length so that the soles stand on y = 0 with the hips where the measurements put them
 (spread legs are lengthened rather than the body lowered, so stature and crotch height hold in any pose),
-raise arms asked to hang lower than they can rest against the torso (``ARM_PRESS``), mirror the left limbs
-into the right ones, and scale y by the last ~1e-6 that makes the top of the head
+raise arms asked to hang lower than they can rest against the torso (``ARM_PRESS``), each side on its own
+(every limb is built as a left one in its side's angles; the right ones are mirrored, x -> -x), and scale y by the last ~1e-6 that makes the top of the head
 exactly the stature; (5) normals, measurements of the built mesh, OBBs and cylinder maps.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -47,6 +47,17 @@ CAP_ROUNDNESS = 1.0
 # met the fit targets). With 1.5 cm the medium body's arms rest at 12.7 degrees and all 9 meet them; with
 # 2 cm (8.4 degrees) 4 of the 9 still end with springs over their limits.
 ARM_PRESS = 0.015
+# The top of the upper arm, within this fraction of its length (shoulder joint to elbow) from the shoulder
+# joint, is inside the shoulder where arm and torso meet: above the chest it is not counted as pressing.
+# Beyond it, an arm raised forwards or a hand on the hip counts wherever it is (an arm swung forwards at 0
+# degrees would otherwise cross the chest).
+SHOULDER_REACH = 0.5
+# A hand rests on the clothes, not in the body: it keeps this far (m) off the torso, room for a layer of cloth
+# between them (the simulation keeps cloth 4 mm off every part, so 2 x 4 mm and 1 mm of cloth). Pressing
+# 1.5 cm into the hip as an arm may, the hand pinched the shirt there: the shown shirt stretched 270 % round
+# the hand, the hand showed through it, and the next pose came out with a sleeve off the arm. Hanging arms
+# are unchanged by it: their hands never come near the torso, the upper arm rests against it first.
+HAND_GAP = 0.009
 ARM_ANGLE_PRECISION = 0.25
 SECTION_STEP = 0.005
 # Margin (m) the OBBs and cylinder cells are grown by: the collision offset of the body surface is
@@ -67,6 +78,7 @@ PART_SHAPES = {
     "thigh_l": ("thigh", False), "thigh_r": ("thigh", True),
     "shin_l": ("shin", False), "shin_r": ("shin", True),
 }
+LIMB_SHAPES = ("upper_arm", "forearm", "thigh", "shin")
 GIRTHS = {"chest": "torso", "waist": "torso", "hips": "torso", "neck": "head", "thigh": "thigh",
           "upper_arm": "upper_arm"}
 
@@ -197,66 +209,89 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
         raise ValueError("; ".join(problems))
     full = complete(m)
     g = grid(int(resolution))
-    layout = body_layout(full, pose)
+    sides = ("left", "right")
+    layouts = {side: body_layout(full, pose, 1.0, side) for side in sides}
     targets = {name: getattr(full, name) / 100.0 for name in GIRTHS}
 
     # ---- surfaces --------------------------------------------------------------------------------------
+    # shape_points[(shape, side)]: the left-side limbs of the layout of that side (the right ones are
+    # mirrored below); head and torso are the same in both layouts and evaluated once ("left").
     shape_points = {}
     shape_axes = {}
+    params = station_params()
 
-    def evaluate(shapes):
+    def evaluate(shapes, side):
+        part_layout = layouts[side]
         for shape in shapes:
-            part = layout.parts[shape]
+            part = part_layout.parts[shape]
             stations = _fit_girths(part.stations, part.measured, targets, g.ring[shape])
             pw = _homogeneous_world(stations, params[shape], part.rotation, part.origin, part.tilt, part.pivot)
             pts = nurbs.evaluate_tube(pw, g.rows[shape], g.ring[shape])
-            shape_points[shape] = np.concatenate([pts[0, :1], pts[1:-1].reshape(-1, 3), pts[-1, :1]])
-            shape_axes[shape] = np.stack([pts[0, 0], pts[-1, 0]])
+            shape_points[shape, side] = np.concatenate([pts[0, :1], pts[1:-1].reshape(-1, 3), pts[-1, :1]])
+            shape_axes[shape, side] = np.stack([pts[0, 0], pts[-1, 0]])
 
-    params = station_params()
-    evaluate(SHAPE_NAMES)
+    evaluate(SHAPE_NAMES, "left")
+    evaluate(LIMB_SHAPES, "right")
     # Legs long enough for the soles to stand on y = 0 (secant steps on the leg length; the sole's height
     # is nearly linear in it): the crotch, the torso levels and the stature then stay where the
-    # measurements put them, in any leg spread.
-    hip_y = layout.landmarks["hip_joint"][1]
-    leg_scale = 1.0
-    for _ in range(LEG_ITERATIONS):
-        sole = shape_points["shin"][:, 1].min()
-        if abs(sole) < LEG_TOLERANCE:
-            break
-        leg_scale *= hip_y / (hip_y - sole)
-        layout = body_layout(full, pose, leg_scale)
-        evaluate(("thigh", "shin"))
-    # Arms no lower than where they rest against the torso (``ARM_PRESS``); the torso does not depend
-    # on the arms, so only the arms are evaluated again.
-    torso = (shape_points["torso"], g.part_edges[PART_NAMES.index("torso")])
-    chest_y = layout.landmarks["levels"]["chest"]
+    # measurements put them, in any leg spread. Each leg has its own spread, so its own length.
+    hip_y = layouts["left"].landmarks["hip_joint"][1]
+    leg_scale = {}
+    for side in sides:
+        leg_scale[side] = 1.0
+        for _ in range(LEG_ITERATIONS):
+            sole = shape_points["shin", side][:, 1].min()
+            if abs(sole) < LEG_TOLERANCE:
+                break
+            leg_scale[side] *= hip_y / (hip_y - sole)
+            layouts[side] = body_layout(full, pose, leg_scale[side], side)
+            evaluate(("thigh", "shin"), side)
+    # Arms no lower than where they rest against the torso (``ARM_PRESS``), each side on its own; the torso
+    # does not depend on the arms, so only the arms are evaluated again.
+    torso = (shape_points["torso", "left"], g.part_edges[PART_NAMES.index("torso")])
+    start, stop = g.part_faces[PART_NAMES.index("torso")]
+    torso_faces = g.faces[start:stop] - g.part_vertices[PART_NAMES.index("torso")][0]
+    grown = (torso[0] + HAND_GAP * face_vertex_normals(torso[0], torso_faces)[1], torso[1])
+    chest_y = layouts["left"].landmarks["levels"]["chest"]
 
-    def arm_press() -> float:  # m: how far the evaluated arm goes into the torso below the chest
-        arm = np.concatenate([shape_points["upper_arm"], shape_points["forearm"]])
-        arm = arm[arm[:, 1] < chest_y]
-        return float(section_depths(arm, *torso, SECTION_STEP).max(initial=0.0))
+    def pressing(side: str) -> bool:
+        arm = np.concatenate([shape_points["upper_arm", side], shape_points["forearm", side]])
+        lm = layouts[side].landmarks
+        arm_depth, _ = arm_press(arm, lm["shoulder_joint"], lm["elbow"], lm["wrist"], torso, chest_y)
+        _, hand_depth = arm_press(arm, lm["shoulder_joint"], lm["elbow"], lm["wrist"], grown, chest_y)
+        return arm_depth > ARM_PRESS or hand_depth > 0.0
 
-    def pose_arms(arm_angle: float) -> None:
-        nonlocal layout
-        layout = body_layout(full, replace(pose, arm_angle=arm_angle), leg_scale)
-        evaluate(("upper_arm", "forearm"))
+    def pose_arm(side: str, angle: float) -> None:
+        layouts[side] = body_layout(full, replace(pose, **{f"arm_angle_{side}": angle}), leg_scale[side], side)
+        evaluate(("upper_arm", "forearm"), side)
 
-    if arm_press() > ARM_PRESS:
-        lo, hi = pose.arm_angle, POSE_RANGES["arm_angle"][1]
+    for side in sides:
+        if not pressing(side):
+            continue
+        lo, hi = getattr(pose, f"arm_angle_{side}"), POSE_RANGES[f"arm_angle_{side}"][1]
         while hi - lo > ARM_ANGLE_PRECISION:
             mid = 0.5 * (lo + hi)
-            pose_arms(mid)
-            lo, hi = (mid, hi) if arm_press() > ARM_PRESS else (lo, mid)
-        pose = replace(pose, arm_angle=hi)
-        pose_arms(hi)
+            pose_arm(side, mid)
+            lo, hi = (mid, hi) if pressing(side) else (lo, mid)
+        pose = replace(pose, **{f"arm_angle_{side}": hi})
+        pose_arm(side, hi)
+    layout = layouts["left"]
     mirror = np.array([-1.0, 1.0, 1.0])
-    vertices = np.concatenate([
-        shape_points[PART_SHAPES[name][0]] * (mirror if PART_SHAPES[name][1] else 1.0) for name in PART_NAMES
-    ])
-    part_axes = np.stack([
-        shape_axes[PART_SHAPES[name][0]] * (mirror if PART_SHAPES[name][1] else 1.0) for name in PART_NAMES
-    ])
+
+    def points(name):
+        shape, mirrored = PART_SHAPES[name]
+        if shape in LIMB_SHAPES:
+            return shape_points[shape, "right" if mirrored else "left"] * (mirror if mirrored else 1.0)
+        return shape_points[shape, "left"]
+
+    def axis(name):
+        shape, mirrored = PART_SHAPES[name]
+        if shape in LIMB_SHAPES:
+            return shape_axes[shape, "right" if mirrored else "left"] * (mirror if mirrored else 1.0)
+        return shape_axes[shape, "left"]
+
+    vertices = np.concatenate([points(name) for name in PART_NAMES])
+    part_axes = np.stack([axis(name) for name in PART_NAMES])
 
     # ---- floor and stature -----------------------------------------------------------------------------
     y0 = vertices[:, 1].min()
@@ -279,6 +314,11 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
     levels = {k: float((v - y0) * stretch) for k, v in lm["levels"].items()}
     achieved = _measure(vertices, g, layout, levels, to_floor)
 
+    joints = {}
+    for side in sides:
+        flip = mirror if side == "right" else 1.0
+        for name in ("shoulder_joint", "elbow", "wrist", "hip_joint", "knee"):
+            joints[f"{name.removesuffix('_joint')}_{side[0]}"] = to_floor(layouts[side].landmarks[name] * flip)
     maps = build_part_maps(vertices, faces, g.face_part, part_axes, margin=MAP_MARGIN)
     requested = {k: v for k, v in m.as_dict().items() if v is not None}
     return Body(
@@ -287,8 +327,24 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
         requested=requested, achieved=achieved,
         levels={k: levels[k] for k in ("chest", "waist", "hips")},
         estimated={k: getattr(full, k) for k in full.as_dict() if getattr(m, k) is None},
-        pose=asdict(pose),
+        pose=pose.as_dict(), joints=joints,
     )
+
+
+def arm_press(arm: np.ndarray, joint: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, torso: tuple,
+              chest_y: float) -> tuple[float, float]:
+    """How far (m) an arm's points ``arm`` (n, 3) go into the torso (its vertices and edge list ``torso``; for
+    the hand, the torso grown by ``HAND_GAP``):
+    the deepest of them inside the torso's horizontal section at its height, (the arm's, the hand's). The
+    hand: the points farther from the ``elbow`` than the ``wrist`` joint is (3,) each. Counted: every point
+    below ``chest_y`` and, above it, those farther than ``SHOULDER_REACH`` x the upper arm's length from the
+    shoulder ``joint`` (3,): the top of the arm is inside the shoulder where the parts meet, and an arm
+    hanging at the side may touch the torso at the armpit."""
+    reach = SHOULDER_REACH * float(np.linalg.norm(elbow - joint))
+    counted = arm[(arm[:, 1] < chest_y) | (np.linalg.norm(arm - joint, axis=1) > reach)]
+    depth = section_depths(counted, *torso, SECTION_STEP)
+    hand = np.linalg.norm(counted - elbow, axis=1) > np.linalg.norm(wrist - elbow)
+    return float(depth[~hand].max(initial=0.0)), float(depth[hand].max(initial=0.0))
 
 
 def _part_mesh(vertices: np.ndarray, g: Grid, name: str) -> tuple[np.ndarray, np.ndarray]:

@@ -7,7 +7,7 @@ other populations still fit.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import InitVar, dataclass, fields, replace
 
 # Every field: (min, max) in cm. Required: height, chest, waist, hips. The ANSUR II sample spans
 # height 147.5-196.6, chest 78.3-125.2, waist 65.6-133.4, hips 84.7-130.6, biacromial breadth 31.2-45.0,
@@ -73,32 +73,140 @@ OPTIONAL_FITS: dict[str, tuple[float, float, float, float, float]] = {
 REQUIRED = ("height", "chest", "waist", "hips")
 OPTIONAL = ("shoulder_width", "arm_length", "inseam", "neck", "thigh", "upper_arm")
 
-# Angles, degrees. arm_angle: between the upper arm and the side of the torso in the frontal plane
-# (0 = hanging down, 90 = T-pose; ``build_body`` raises an angle at which the arm would pass into the
-# torso to where it rests against it). elbow_bend: forearm flexion (0 = straight). leg_spread: each leg's
-# abduction from vertical.
+# Angles, degrees, each limb on its own (``_left`` / ``_right``: the body's left is towards +x).
+# arm_angle: the upper arm's abduction, between it and the side of the torso in the frontal plane (0 =
+# hanging down, 90 = T-pose; ``build_body`` raises an angle at which the arm would pass into the torso to
+# where it rests against it). arm_forward: the arm so abducted then swung forwards and up about the
+# shoulders' left-right axis (flexion; 90 = horizontal; it turns a T-pose arm about its own axis only).
+# arm_rotation: the upper arm turned about its own axis (internal rotation; 90 = the elbow bends the forearm
+# across the body instead of forwards, as for hands on hips; negative: external, the forearm bends up).
+# elbow_bend: forearm flexion (0 = straight). wrist_bend: the hand turned at the wrist towards the palm
+# (flexion), negative towards the back of the hand. leg_spread: the leg's abduction from vertical.
 POSE_RANGES: dict[str, tuple[float, float]] = {
-    "arm_angle": (0.0, 90.0),
-    "elbow_bend": (0.0, 120.0),
-    "leg_spread": (0.0, 20.0),
+    "arm_angle_left": (0.0, 90.0), "arm_angle_right": (0.0, 90.0),
+    "arm_forward_left": (0.0, 90.0), "arm_forward_right": (0.0, 90.0),
+    "arm_rotation_left": (-90.0, 90.0), "arm_rotation_right": (-90.0, 90.0),
+    "elbow_bend_left": (0.0, 120.0), "elbow_bend_right": (0.0, 120.0),
+    "wrist_bend_left": (-90.0, 90.0), "wrist_bend_right": (-90.0, 90.0),
+    "leg_spread_left": (0.0, 20.0), "leg_spread_right": (0.0, 20.0),
 }
-
+# The symmetric shorthand: one value for both sides of a joint (the fields before per-side poses).
+POSE_SHORTHAND: dict[str, tuple[str, str]] = {
+    name: (f"{name}_left", f"{name}_right")
+    for name in ("arm_angle", "arm_forward", "arm_rotation", "elbow_bend", "wrist_bend", "leg_spread")
+}
+_JOINT_DESCRIPTIONS = {
+    "arm_angle": "angle between the upper arm and the side of the torso, frontal plane (abduction), degrees "
+                 "(0 = hanging, 90 = T-pose; raised, if lower, to where the arm rests against the torso)",
+    "arm_forward": "the abducted arm swung forwards and up about the shoulders' left-right axis (flexion), "
+                   "degrees (0 = in the frontal plane, 90 = horizontal)",
+    "arm_rotation": "upper arm turned about its own axis (internal rotation), degrees: 0 = the elbow bends the "
+                    "forearm forwards, 90 = across the body (hands on hips), -90 = upwards",
+    "elbow_bend": "elbow flexion, degrees (0 = straight arm)",
+    "wrist_bend": "hand turned at the wrist, degrees: towards the palm (flexion) positive, towards the back of "
+                  "the hand negative",
+    "leg_spread": "abduction of the leg from vertical, degrees",
+}
 POSE_DESCRIPTIONS: dict[str, str] = {
-    "arm_angle": "angle between the upper arm and the side of the torso, frontal plane, degrees (0 = hanging; "
-                 "raised, if lower, to where the arm rests against the torso)",
-    "elbow_bend": "elbow flexion, forearm forwards, degrees (0 = straight arm)",
-    "leg_spread": "abduction of each leg from vertical, degrees",
+    **{f"{joint}_{side}": f"{side} {text}" for joint, text in _JOINT_DESCRIPTIONS.items()
+       for side in ("left", "right")},
+    **{joint: f"both sides at once (shorthand for {joint}_left and {joint}_right): {text}"
+       for joint, text in _JOINT_DESCRIPTIONS.items()},
 }
 
 
 @dataclass(frozen=True)
 class Pose:
-    """Pose angles in degrees. The default A-pose keeps the arms clear of the torso below the armpit
-    (30 degrees) and the knees apart (3 degrees per leg), as garments need."""
+    """Pose angles in degrees, each side its own (``POSE_RANGES``). The default A-pose keeps the arms clear
+    of the torso below the armpit (30 degrees) and the knees apart (3 degrees per leg), as garments need.
 
-    arm_angle: float = 30.0
-    elbow_bend: float = 0.0
-    leg_spread: float = 3.0
+    The symmetric shorthand (``arm_angle=40``, ... : ``POSE_SHORTHAND``) sets both sides of a joint and wins
+    over the side fields given with it: ``Pose(arm_angle=40)``, ``replace(pose, elbow_bend=90)``."""
+
+    arm_angle_left: float = 30.0
+    arm_angle_right: float = 30.0
+    arm_forward_left: float = 0.0
+    arm_forward_right: float = 0.0
+    arm_rotation_left: float = 0.0
+    arm_rotation_right: float = 0.0
+    elbow_bend_left: float = 0.0
+    elbow_bend_right: float = 0.0
+    wrist_bend_left: float = 0.0
+    wrist_bend_right: float = 0.0
+    leg_spread_left: float = 3.0
+    leg_spread_right: float = 3.0
+    arm_angle: InitVar[float | None] = None
+    arm_forward: InitVar[float | None] = None
+    arm_rotation: InitVar[float | None] = None
+    elbow_bend: InitVar[float | None] = None
+    wrist_bend: InitVar[float | None] = None
+    leg_spread: InitVar[float | None] = None
+
+    def __post_init__(self, *shorthand):
+        for (left, right), value in zip(POSE_SHORTHAND.values(), shorthand):
+            if value is not None:
+                object.__setattr__(self, left, float(value))
+                object.__setattr__(self, right, float(value))
+
+    def as_dict(self) -> dict[str, float]:
+        """Every side field, degrees (``POSE_RANGES`` order)."""
+        return {name: float(getattr(self, name)) for name in POSE_RANGES}
+
+    def side(self, side: str) -> "SidePose":
+        """The angles of one side (``"left"`` | ``"right"``)."""
+        return SidePose(**{joint: float(getattr(self, f"{joint}_{side}")) for joint in POSE_SHORTHAND})
+
+
+@dataclass(frozen=True)
+class SidePose:
+    """One side's limb angles, degrees (the ``Pose`` fields of that side, without the suffix)."""
+
+    arm_angle: float
+    arm_forward: float
+    arm_rotation: float
+    elbow_bend: float
+    wrist_bend: float
+    leg_spread: float
+
+
+def _named(**angles: float) -> dict[str, float]:
+    return Pose(**angles).as_dict()
+
+
+# Named poses the API and the page both know (the page lists them in this order), every side field given.
+# hands_on_hips: elbows out, the forearms turned across the body onto the hips and the hands turned forwards
+# at the wrist; the body lowers nothing: an arm that would press into the torso is raised (``build_body``)
+# until the hand rests on the hip. arms_raised: upper arms level, forearms up. stride: a wide stance with
+# the arms swung, one forwards (the legs have no forward swing in this model).
+NAMED_POSES: dict[str, dict[str, float]] = {
+    "a_pose": _named(),
+    "arms_down": _named(arm_angle=0.0, leg_spread=1.0),
+    "hands_on_hips": _named(arm_angle=38.0, arm_rotation=80.0, elbow_bend=100.0, wrist_bend=-90.0),
+    "arms_raised": _named(arm_angle=90.0, arm_rotation=-90.0, elbow_bend=90.0),
+    "stride": _named(arm_angle_left=20.0, arm_angle_right=25.0, arm_forward_left=35.0, elbow_bend_left=20.0,
+                     elbow_bend_right=10.0, leg_spread_left=14.0, leg_spread_right=10.0),
+}
+NAMED_POSE_DESCRIPTIONS: dict[str, str] = {
+    "a_pose": "arms 30 degrees out, legs slightly apart (the default)",
+    "arms_down": "arms hanging, resting against the torso",
+    "hands_on_hips": "elbows out, hands on the hips",
+    "arms_raised": "upper arms level, forearms up",
+    "stride": "a wide stance, the left arm swung forwards",
+}
+
+
+def pose_from(value: str | dict | Pose | None) -> Pose:
+    """A ``Pose`` from a named pose (``NAMED_POSES``), a dict of angles (side fields and / or shorthand)
+    or a ``Pose``; None: the default. Raises ValueError naming the known poses for an unknown name."""
+    if value is None:
+        return Pose()
+    if isinstance(value, Pose):
+        return value
+    if isinstance(value, str):
+        if value not in NAMED_POSES:
+            raise ValueError(f"unknown pose '{value}': the named poses are {', '.join(NAMED_POSES)}")
+        return Pose(**NAMED_POSES[value])
+    return Pose(**value)
 
 
 @dataclass(frozen=True)
@@ -168,7 +276,7 @@ def check_measurements(m: Measurements) -> list[str]:
 def check_pose(p: Pose) -> list[str]:
     """Problems with ``p`` as messages naming the field and the range (empty list: valid)."""
     problems = []
-    for name, (lo, hi) in POSE_RANGES.items():
+    for name, (lo, hi) in POSE_RANGES.items():  # the shorthand is in the side fields already
         value = getattr(p, name)
         if not lo <= value <= hi:
             problems.append(f"{name}={value:g} degrees is outside [{lo:g}, {hi:g}] degrees")

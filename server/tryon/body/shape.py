@@ -94,6 +94,16 @@ def rot_z(angle: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def rot_x(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rot_y(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
 def rot_axis(axis: np.ndarray, angle: float) -> np.ndarray:
     """Rotation matrix about unit ``axis`` by ``angle`` radians (Rodrigues)."""
     k = axis / np.linalg.norm(axis)
@@ -109,13 +119,16 @@ class BodyLayout:
     landmarks: dict
 
 
-def body_layout(m: Measurements, pose: Pose, leg_scale: float = 1.0) -> BodyLayout:
-    """Stations and placements of head, torso and the left limbs for measurements ``m`` (cm) in ``pose``.
+def body_layout(m: Measurements, pose: Pose, leg_scale: float = 1.0, side: str = "left") -> BodyLayout:
+    """Stations and placements of head, torso and the left limbs for measurements ``m`` (cm) in ``pose``,
+    the limbs posed with the angles of ``side`` ("left" | "right": ``build.py`` mirrors the right side's
+    limbs, x -> -x; head and torso do not depend on the pose).
 
     leg_scale: factor on the thigh and shin lengths, which ``build.py`` solves for so that the soles
     reach the floor from the hip joints' height (spread legs need longer legs to keep the crotch height
     and the stature; the cubic sole cap also reaches a few millimetres below its pole)."""
     m = complete(m)
+    limb = pose.side(side)
     H = m.height / 100.0
     C, W, P = m.chest / 100.0, m.waist / 100.0, m.hips / 100.0
     S, N, T, U = m.shoulder_width / 100.0, m.neck / 100.0, m.thigh / 100.0, m.upper_arm / 100.0
@@ -200,8 +213,10 @@ def body_layout(m: Measurements, pose: Pose, leg_scale: float = 1.0) -> BodyLayo
     L2 = L_arm - L1
     acromion = np.array([0.5 * S, y_ac, cz_ac])
     joint = acromion + np.array([-0.018 * hs, -0.04 * hs, 0.0])  # glenohumeral centre
-    alpha = np.radians(pose.arm_angle)
-    rot_ua = rot_z(np.pi + alpha)
+    # the upper arm: hanging (local +y down), abducted about z, swung forwards about x, turned about its axis
+    alpha = np.radians(limb.arm_angle)
+    rot_ua = (rot_x(-np.radians(limb.arm_forward)) @ rot_z(np.pi + alpha)
+              @ rot_y(np.radians(limb.arm_rotation)))
     d_ua = rot_ua[:, 1]
     # distance joint -> elbow such that |acromion -> elbow| = L1
     o = acromion - joint
@@ -218,8 +233,9 @@ def body_layout(m: Measurements, pose: Pose, leg_scale: float = 1.0) -> BodyLayo
         _ring(l_ua + 0.5 * r_e, 0.85 * r_e),
         _pole(l_ua + 0.9 * r_e),
     ])
-    beta = np.radians(pose.elbow_bend)
-    flex_axis = np.cross(d_ua, np.array([0.0, 0.0, 1.0]))
+    # the elbow bends about the upper arm's local x axis (unturned: forwards; turned 90 degrees: across)
+    beta = np.radians(limb.elbow_bend)
+    flex_axis = rot_ua[:, 0]
     rot_fa = rot_axis(flex_axis, beta) @ rot_ua
     d_fa = rot_fa[:, 1]
     wrist = elbow + L2 * d_fa
@@ -235,6 +251,10 @@ def body_layout(m: Measurements, pose: Pose, leg_scale: float = 1.0) -> BodyLayo
         _station(L2 + 0.16 * hs, 0.009 * hs, 0.032 * hs, 0.032 * hs),
         _pole(L2 + 0.19 * hs),
     ])
+    # the hand turned at the wrist: its sections about the local z axis through the wrist (flexion towards
+    # the palm, which faces local +x: a hanging arm's palm faces the thigh), half of it at the wrist itself
+    omega = np.radians(limb.wrist_bend)
+    hand_tilt = -omega * np.array([0, 0, 0, 0, 0, 0.5, 1, 1, 1, 1]) if omega else None
 
     # ---- legs (left leg, local frames) ------------------------------------------------------------------
     r_t = fitted_section(0.9, 1.0, 1.1, ROUND, ROUND, T)[0] / 0.9  # the thigh section below: (0.9, 1, 1.1) r_t
@@ -244,7 +264,7 @@ def body_layout(m: Measurements, pose: Pose, leg_scale: float = 1.0) -> BodyLayo
     # hip joint: the thigh's section at hip level (half-width 0.85 r_t) stays 1 cm inside the hips' side;
     # a spread leg swings its upper outer side up to hip level, so the joint moves in by r_t sin(spread)
     # to keep the thighs inside the hip tape (the flesh of a real hip gives way the same)
-    gamma = np.radians(pose.leg_spread)
+    gamma = np.radians(limb.leg_spread)
     hip_joint = np.array([min(0.5 * a_h, a_h - 0.85 * r_t - 0.01) - r_t * np.sin(gamma), y_h, 0.0])
     rot_leg = rot_z(np.pi + gamma)
     d_leg = rot_leg[:, 1]
@@ -281,7 +301,7 @@ def body_layout(m: Measurements, pose: Pose, leg_scale: float = 1.0) -> BodyLayo
         "head": PartShape(head, eye, zero, MEASURED_STATIONS["head"]),
         "torso": PartShape(torso, eye, zero, MEASURED_STATIONS["torso"]),
         "upper_arm": PartShape(upper_arm, rot_ua, joint, MEASURED_STATIONS["upper_arm"]),
-        "forearm": PartShape(forearm, rot_fa, elbow, {}),
+        "forearm": PartShape(forearm, rot_fa, elbow, {}, tilt=hand_tilt, pivot=np.array([0.0, L2, 0.0])),
         "thigh": PartShape(thigh, rot_leg, hip_joint, MEASURED_STATIONS["thigh"]),
         "shin": PartShape(shin, rot_leg, knee, {}, tilt=np.array([0, 0, 0, 0, 0, -0.5, -1, -1, -1]) * gamma,
                           pivot=np.array([0.0, l_sh - 0.075 * hs, 0.0])),

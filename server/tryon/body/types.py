@@ -28,6 +28,8 @@ class Body:
     estimated: the optional measurements that were not given and were estimated (cm).
     pose: the pose built, degrees (``Pose`` fields): the one asked for, except an arm angle too low for
     the arm to clear the torso, which is raised to where the arm rests against it.
+    joints: the skeleton's joints (3,) m: ``shoulder_l``, ``elbow_l``, ``wrist_l``, ``hip_l``, ``knee_l`` and
+    the same ``_r`` (the wrist is the joint, where the hand turns, not the end of the hand).
     """
 
     vertices: np.ndarray
@@ -43,3 +45,4 @@ class Body:
     levels: dict
     estimated: dict = field(default_factory=dict)
     pose: dict = field(default_factory=dict)
+    joints: dict = field(default_factory=dict)

@@ -53,7 +53,7 @@ FOREARM_SLEEVE = 0.2
 # Largest elbow turn, radians: the elbow's range of flexion (the body's own pose range) and 30 degrees
 # more, for a sleeve bent another way than the body's forearm (the catalogue's long-sleeve M, made
 # 10 degrees bent, is 129 degrees off a forearm bent 120 degrees).
-MAX_ELBOW_TURN = np.radians(POSE_RANGES["elbow_bend"][1] + 30.0)
+MAX_ELBOW_TURN = np.radians(POSE_RANGES["elbow_bend_left"][1] + 30.0)
 
 
 @dataclass(frozen=True)

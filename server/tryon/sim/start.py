@@ -29,9 +29,11 @@ from tryon.sim.tuning import TUNING, Tuning
 
 
 def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings(), tuning: Tuning = TUNING,
-          initial: np.ndarray | None = None) -> Drape:
+          initial: np.ndarray | None = None, motion=None) -> Drape:
     """A drape of ``model`` on ``body``, ready for its first step. ``initial`` (k, 3) m replaces the
-    alignment (tests and stress scenes start from given positions)."""
+    alignment (tests and stress scenes start from given positions; a re-posed drape from where its garment
+    was). ``motion(collider)``: the body's start-up motion in place of the arms' turn back from the sleeves
+    (``repose.PoseTransition``: the body moving from its old pose to this one, carrying the garment)."""
     started = time.perf_counter()
     sized = False
     piece = piece_labels(model.coarse_faces, len(model.mass))  # a file's separate garments (an outfit's)
@@ -63,7 +65,7 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     placed_tops = piece_tops(x, piece)  # to tell at the end how far the garment slid down
     # the sleeves' and trouser legs' openings, to tell at the end whether each is around its limb
     openings = limb_openings(x, model.coarse_faces, body, model.meta.category, model.coarse_loops, piece)
-    arms = ArmSchedule(body, collider, plan)
+    arms = ArmSchedule(body, collider, plan) if motion is None else motion(collider)
     parts = relevant_parts(body.maps, x.min(axis=0), x.max(axis=0), tuning.part_reach)
     if arms.steps:
         arms.apply(0)

@@ -14,7 +14,9 @@ from tryon.api.schemas.bodies import (
     DEFAULT_MEASUREMENTS,
     BodyOut,
     BodyRequest,
+    POSE_FIELD_RANGES,
     MeshFormatBody,
+    NamedPoseOut,
     RangeOut,
     RangesOut,
     to_body_params,
@@ -23,8 +25,9 @@ from tryon.body.build import DEFAULT_RESOLUTION, MIN_RESOLUTION, build_body
 from tryon.body.params import (
     MEASUREMENT_DESCRIPTIONS,
     MEASUREMENT_RANGES,
+    NAMED_POSE_DESCRIPTIONS,
+    NAMED_POSES,
     POSE_DESCRIPTIONS,
-    POSE_RANGES,
     REQUIRED,
     Pose,
     complete,
@@ -86,27 +89,30 @@ def create_body(
         return Response(body_glb(body), media_type=MEDIA_TYPES["glb"],
                         headers={"X-Body-Measurements": json.dumps(body.achieved, separators=(",", ":")),
                                  "X-Body-Pose": json.dumps(body.pose, separators=(",", ":"))})
-    return Response(json_bytes(body_json(body, request.pose.model_dump())), media_type="application/json")
+    return Response(json_bytes(body_json(body, request.pose.angles())), media_type="application/json")
 
 
 @router.get("/bodies/ranges", response_model=RangesOut)
 def body_ranges() -> RangesOut:
-    """Every measurement and pose field with its range, unit and default (for building sliders)."""
+    """Every measurement and pose field with its range, unit and default (for building sliders; the pose's
+    shorthand fields have no default: they set both sides), and the named poses with their angles."""
     estimated = complete(Measurements(**DEFAULT_MEASUREMENTS))
     measurements = {
         name: RangeOut(min=lo, max=hi, default=DEFAULT_MEASUREMENTS.get(name), unit="cm",
                        required=name in REQUIRED, description=MEASUREMENT_DESCRIPTIONS[name])
         for name, (lo, hi) in MEASUREMENT_RANGES.items()
     }
-    pose_defaults = Pose()
+    pose_defaults = Pose().as_dict()
     pose = {
-        name: RangeOut(min=lo, max=hi, default=getattr(pose_defaults, name), unit="degrees", required=False,
+        name: RangeOut(min=lo, max=hi, default=pose_defaults.get(name), unit="degrees", required=False,
                        description=POSE_DESCRIPTIONS[name])
-        for name, (lo, hi) in POSE_RANGES.items()
+        for name, (lo, hi) in POSE_FIELD_RANGES.items()
     }
     return RangesOut(
         measurements=measurements,
         pose=pose,
+        named_poses={name: NamedPoseOut(description=NAMED_POSE_DESCRIPTIONS[name], angles=angles)
+                     for name, angles in NAMED_POSES.items()},
         estimated_defaults={k: round(getattr(estimated, k), 1) for k in MEASUREMENT_RANGES if k not in REQUIRED},
         resolution=RangeOut(min=MIN_RESOLUTION, max=API_MAX_RESOLUTION, default=DEFAULT_RESOLUTION, unit="",
                             required=False, description="grid intervals across the front of the torso"),

@@ -18,7 +18,7 @@ from tryon.api.export import MEDIA_TYPES
 from tryon.api.outfits import check_garments
 from tryon.api.pool import PoolFull, busy_response_headers, get_pool, get_result_cache, tryon_key
 from tryon.api.schemas.tryon import MeshFormatTryOn, OutfitOut, TryOnOut, TryOnRequest
-from tryon.api.service import result_glb, result_json, simulate
+from tryon.api.service import motion_glb, motion_json, result_glb, result_json, simulate
 
 router = APIRouter(tags=["tryon"])
 
@@ -40,7 +40,9 @@ async def tryon(
 ):
     """Drape the garment (or the outfit: ``garment_ids``) on the body; answer the fitted garment(s) and the fit
     metrics. A request equal to an earlier one (REST or WebSocket) is answered from the result cache, saying
-    ``cached: true``. An outfit's GLB holds each garment as a node of its own."""
+    ``cached: true``. An outfit's GLB holds each garment as a node of its own. A motion (``poses``) is draped
+    pose after pose; its GLB holds the garment and the body with one morph target per later pose and an
+    animation through them (one second per pose), its JSON each pose's metrics (``poses``)."""
     started = time.perf_counter()
     check_garments(catalogue, body)
     pool = get_pool(request.app)
@@ -58,11 +60,12 @@ async def tryon(
     if hit is None and guard.stopped_by is None:  # cut-short runs are not kept
         cache.put(key, run)
     result = run.result
-    out = result_json(result, None if hit is None else time.perf_counter() - started)
+    cached_s = None if hit is None else time.perf_counter() - started
+    out = motion_json(run, cached_s) if body.poses is not None else result_json(result, cached_s)
     if guard.stopped_by == "wall_limit":
         out["metrics"]["timed_out"] = True
     if format == "glb":
-        data = result_glb(result)
+        data = motion_glb(run, run.body["faces"]) if body.poses is not None else result_glb(result)
         summary = {k: v for k, v in out["metrics"].items() if k not in ("strain", "strain_by_kind")}
         return Response(content=data, media_type=MEDIA_TYPES["glb"],
                         headers={"X-Tryon-Metrics": json.dumps(summary)})

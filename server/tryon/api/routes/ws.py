@@ -20,6 +20,10 @@ Protocol (one try-on per connection):
    normal close (1000); an outfit's metrics are ``POST /api/tryon``'s outfit metrics, with ``garments``: each
    garment's own metrics (its strain in ``strain``, every garment's one after the other).
 
+5. with ``"live": true`` (one garment) the connection stays open after done: ``{"type": "pose", "pose": ...}``
+   messages re-pose the body with the garment on it; each taken update gets a ``body`` message, frames
+   (with ``body_pose`` motions while the body moves) and its own done (docs/live-tryon.md, *Live re-posing*).
+
 Any failure (not JSON, a bad field, an unknown garment, a failed simulation) is one JSON
 ``{"type": "error", "reason": "..."}`` followed by a normal close. A full server sends the error and
 closes with 1013 (try again later).
@@ -33,7 +37,8 @@ next step; a job still waiting for a worker is skipped.
 
 A request equal to an earlier finished one, over this socket or ``POST /api/tryon`` (garment, measurements,
 pose, settings; see ``tryon.api.pool.request_key``), is served from the one result cache: init, the final
-frame, done with ``"cached": true`` (and ``metrics.wall_seconds`` the time of this answer).
+frame, done with ``"cached": true`` (and ``metrics.wall_seconds`` the time of this answer); a live one then
+goes on from the cached final state.
 """
 
 from __future__ import annotations
@@ -50,8 +55,10 @@ from starlette.websockets import WebSocketState
 
 from tryon.api.deps import get_catalogue
 from tryon.api.frames import FrameCodec, encode_frame
-from tryon.api.live import LiveSession, LiveTryOnRequest, done_message, failure_reason, replay_parts, run_live, \
-    shown_model, with_encoding
+from tryon.api.live import LiveSession, LiveTryOnRequest, PoseUpdate, done_message, failure_reason, replay_parts, \
+    resume_live, run_live, shown_model, with_encoding
+from tryon.body.params import Pose
+from tryon.sim.outfit import piece_categories
 from tryon.api.outfits import check_garments
 from tryon.api.pool import CachedTryOn, PoolFull, RunCancelled, get_pool, get_result_cache, tryon_key
 from tryon.garment.catalogue import Catalogue
@@ -112,16 +119,100 @@ async def _sender(ws: WebSocket, session: LiveSession) -> None:
         session.stop()
 
 
-async def _watch_disconnect(ws: WebSocket, session: LiveSession) -> None:
-    """Read until the client goes away, then stop the simulation (messages after the request are ignored)."""
+async def _watch_disconnect(ws: WebSocket, session: LiveSession, live: bool = False) -> None:
+    """Read until the client goes away, then stop the simulation. Messages after the request are ignored,
+    except a live session's pose updates (``live``): each goes into the session's pose slot (latest wins);
+    one that is not a valid update gets an error message, and the session goes on."""
     try:
         while True:
             message = await ws.receive()
             if message["type"] == "websocket.disconnect":
                 break
+            if live and message.get("text") is not None:
+                _pose_update(session, message["text"])
     except (WebSocketDisconnect, RuntimeError, OSError):
         pass
     session.stop()
+
+
+def _pose_update(session: LiveSession, text: str) -> None:
+    """A live session's message: a valid pose update into the slot, anything else an error message."""
+    try:
+        update = PoseUpdate.model_validate_json(text)
+    except ValidationError as e:
+        session.post_text(json.dumps({"type": "error", "reason": validation_reason(e).replace(
+            "invalid request", "invalid pose update"), "fatal": False}))
+        return
+    session.offer_pose(Pose(**update.pose.angles()))
+
+
+async def _live_sender(ws: WebSocket, session: LiveSession) -> None:
+    """A live session's sender after the first done: the outbox in order, each frame no sooner than 1 / fps
+    after the one before, a frame's body motion (``body_pose``) right before it when it changed."""
+    last_sent = -1e9
+    last_motion = None
+    try:
+        while not session.cancelled.is_set():
+            await session.wake.wait()
+            session.wake.clear()
+            while session.outbox and not session.cancelled.is_set():
+                item = session.outbox.popleft()
+                if item[0] == "text":
+                    await ws.send_text(item[1])
+                    continue
+                _, step, payload, motion = item
+                while (wait := last_sent + session.interval_s - time.monotonic()) > 0:
+                    await asyncio.sleep(wait)
+                if motion is not None and motion != last_motion:
+                    await ws.send_text(motion)
+                    last_motion = motion
+                now = time.monotonic()
+                data = encode_frame(session.frames_sent, step, payload, now - session.started_at)
+                await ws.send_bytes(data)
+                last_sent = now
+                session.frames_sent += 1
+                session.bytes_sent += len(data)
+    except (WebSocketDisconnect, RuntimeError, OSError):
+        session.stop()
+
+
+async def _live(ws: WebSocket, session: LiveSession) -> None:
+    """A live session after its first done: each pose update taken from the slot (the latest, when the last
+    one is settled or has given way) is re-posed and settled on the pool, its done queued after its frames;
+    until the client goes away."""
+    pool = get_pool(ws.app)
+    session.live = True
+    sender = asyncio.create_task(_live_sender(ws, session))
+    running = None
+    try:
+        while not session.cancelled.is_set():
+            taken = session.take_pose()
+            if taken is None:
+                session.pose_arrived.clear()
+                await session.pose_arrived.wait()
+                continue
+            update, pose, received_at = taken
+            guard = pool.guard(cancelled=session.cancelled, on_frame=session.on_frame)
+            try:
+                running = pool.submit(session.reposing.repose_to, update, pose, received_at, guard)
+            except PoolFull as e:
+                session.post_text(json.dumps({"type": "error", "reason": str(e), "update": update, "fatal": False}))
+                continue
+            try:
+                done = await asyncio.wrap_future(running)
+            except (asyncio.CancelledError, FutureCancelled, RunCancelled):
+                return
+            except Exception as e:  # this pose failed: say so, keep the session
+                session.post_text(json.dumps({"type": "error", "reason": failure_reason(e, None), "update": update,
+                                              "fatal": False}))
+                continue
+            if done is not None:
+                session.post_text(json.dumps(done, separators=(",", ":")))
+    finally:
+        session.stop()
+        if running is not None:
+            running.cancel()
+        sender.cancel()
 
 
 def close_reason(reason: str) -> str:
@@ -153,17 +244,35 @@ async def _close(ws: WebSocket) -> None:
 
 async def _replay(ws: WebSocket, cached: CachedTryOn, request: LiveTryOnRequest, catalogue: Catalogue) -> None:
     """Serve a cached try-on (asked for before over REST or this socket) in the requested encoding: init,
-    the final frame, done with ``cached: true``."""
+    the final frame, done with ``cached: true``; then a live request (``live``) goes on as a live session from
+    the cached final state (``live.resume_live``), else the connection closes."""
     started = time.perf_counter()
     result = cached.result
-    init_base, box = await asyncio.to_thread(lambda: replay_parts(cached, shown_model(catalogue, request, cached)))
+    model = shown_model(catalogue, request, cached)
+    init_base, box = await asyncio.to_thread(lambda: replay_parts(cached, model))
     codec = FrameCodec.around(request.encoding, box)
     await ws.send_text(with_encoding(init_base, codec, len(result.vertices)))
     frame = encode_frame(0, result.metrics.get("steps", 0), result.vertices, codec=codec)
     await ws.send_bytes(frame)
     done = {**done_message(result, None, time.perf_counter() - started), "frames_sent": 1, "bytes_sent": len(frame)}
-    await ws.send_text(json.dumps(done, separators=(",", ":")))
-    await ws.close(code=CLOSE_NORMAL)
+    if not request.live:
+        await ws.send_text(json.dumps(done, separators=(",", ":")))
+        await ws.close(code=CLOSE_NORMAL)
+        return
+    if piece_categories(model) is not None:
+        await _send_error(ws, "cannot run this try-on: live re-posing is not available for a garment file of "
+                              "several pieces (an outfit)")
+        return
+    session = LiveSession(asyncio.get_running_loop(), request.fps)
+    session.frames_sent, session.bytes_sent = 1, len(frame)
+    await asyncio.to_thread(resume_live, session, request, model, cached, codec)
+    await ws.send_text(json.dumps({**done, "update": 0}, separators=(",", ":")))
+    watcher = asyncio.create_task(_watch_disconnect(ws, session, live=True))
+    try:
+        await _live(ws, session)
+    finally:
+        session.stop()
+        watcher.cancel()
 
 
 @router.websocket("/ws/tryon")
@@ -240,7 +349,7 @@ async def _serve(ws: WebSocket) -> None:
     session.future = future
 
     sender = asyncio.create_task(_sender(ws, session))
-    watcher = asyncio.create_task(_watch_disconnect(ws, session))
+    watcher = asyncio.create_task(_watch_disconnect(ws, session, live=request.live))
     try:
         try:
             outcome = await asyncio.wrap_future(future)
@@ -267,8 +376,11 @@ async def _serve(ws: WebSocket) -> None:
         if guard.stopped_by is None:
             cache.put(key, run)
         try:
-            await ws.send_text(json.dumps(done, separators=(",", ":")))
+            await ws.send_text(json.dumps({**done, "update": 0} if request.live else done, separators=(",", ":")))
         except (WebSocketDisconnect, RuntimeError, OSError):
+            return
+        if request.live and session.reposing is not None:
+            await _live(ws, session)
             return
         await _close(ws)
     finally:

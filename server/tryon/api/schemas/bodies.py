@@ -18,7 +18,9 @@ from tryon.body.params import (
     MEASUREMENT_RANGES,
     OPTIONAL,
     POSE_DESCRIPTIONS,
+    NAMED_POSES,
     POSE_RANGES,
+    POSE_SHORTHAND,
     REQUIRED,
     Measurements,
     Pose,
@@ -82,28 +84,76 @@ MeasurementsIn = create_model(
 )
 
 
+# Every field a pose object may give: the side fields and the symmetric shorthand, each with its range.
+POSE_FIELD_RANGES: dict[str, tuple[float, float]] = {
+    **POSE_RANGES, **{name: POSE_RANGES[left] for name, (left, _) in POSE_SHORTHAND.items()},
+}
+
+
 def _pose_fields() -> dict:
     defaults = Pose()
-    return {
-        name: (float, Field(default=getattr(defaults, name), ge=lo, le=hi,
-                            description=f"{POSE_DESCRIPTIONS[name]}; range [{lo:g}, {hi:g}] degrees"))
-        for name, (lo, hi) in POSE_RANGES.items()
-    }
+    fields = {}
+    for name, (lo, hi) in POSE_FIELD_RANGES.items():
+        default = getattr(defaults, name) if name in POSE_RANGES else None
+        desc = f"{POSE_DESCRIPTIONS[name]}; range [{lo:g}, {hi:g}] degrees"
+        if name in POSE_RANGES:
+            desc += f"; default {default:g}"
+        fields[name] = (float | None, Field(default=None, ge=lo, le=hi, description=desc))
+    return fields
 
 
 class _PoseBase(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    """Validated pose: a named pose (a string, ``NAMED_POSES``) or angles. After validation every side field
+    holds its angle (the shorthand expanded, the defaults filled in) and the shorthand fields are None, so
+    ``model_dump()`` is the same for every way of asking for one pose (the result cache's key)."""
 
-    _in_range = field_validator("*", mode="before")(classmethod(_range_check("pose", POSE_RANGES, "degrees")))
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False,
+                              json_schema_extra={"description": "pose angles in degrees, or the name of a pose: "
+                                                                + ", ".join(NAMED_POSES)})
+
+    _in_range = field_validator("*", mode="before")(classmethod(_range_check("pose", POSE_FIELD_RANGES, "degrees")))
+
+    @model_validator(mode="before")
+    @classmethod
+    def _named(cls, data):
+        if isinstance(data, str):
+            if data not in NAMED_POSES:
+                raise ValueError(f"unknown pose '{data}': the named poses are {', '.join(NAMED_POSES)}")
+            return dict(NAMED_POSES[data])
+        return data
+
+    @model_validator(mode="after")
+    def _expand(self):
+        for name, sides in POSE_SHORTHAND.items():
+            value = getattr(self, name)
+            if value is None:
+                continue
+            given = [side for side in sides if getattr(self, side) is not None]
+            if given:
+                raise ValueError(f"pose.{name} (both sides) and pose.{given[0]} given together: give either "
+                                 f"{name} or {' and '.join(sides)}")
+            for side in sides:
+                setattr(self, side, value)
+            setattr(self, name, None)
+        defaults = Pose()
+        for name in POSE_RANGES:
+            if getattr(self, name) is None:
+                setattr(self, name, getattr(defaults, name))
+        return self
+
+    def angles(self) -> dict[str, float]:
+        """Every side field, degrees."""
+        return {name: float(getattr(self, name)) for name in POSE_RANGES}
 
 
-PoseIn = create_model("PoseIn", __base__=_PoseBase, __doc__="Pose angles in degrees.", **_pose_fields())
+PoseIn = create_model("PoseIn", __base__=_PoseBase,
+                      __doc__="Pose angles in degrees, each side on its own, or a named pose.", **_pose_fields())
 
 
 def to_body_params(measurements: BaseModel, pose: BaseModel | None = None) -> tuple[Measurements, Pose]:
     """The body stage's ``Measurements`` and ``Pose`` from the validated schemas (pose None: default)."""
     m = Measurements(**measurements.model_dump())
-    p = Pose(**pose.model_dump()) if pose is not None else Pose()
+    p = Pose(**pose.angles()) if pose is not None else Pose()
     return m, p
 
 
@@ -113,7 +163,8 @@ class BodyRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     measurements: MeasurementsIn = Field(description="body measurements, cm")
-    pose: PoseIn = Field(default_factory=PoseIn, description="pose angles, degrees")
+    pose: PoseIn = Field(default_factory=PoseIn, description="pose angles, degrees, or a named pose ("
+                                                             + ", ".join(NAMED_POSES) + ")")
     resolution: int = Field(default=DEFAULT_RESOLUTION, ge=MIN_RESOLUTION, le=API_MAX_RESOLUTION,
                             description=f"grid intervals across the front of the torso; about 11.3 * resolution^2 "
                                         f"vertices ({DEFAULT_RESOLUTION}: ~10,000)")
@@ -128,7 +179,8 @@ class BodyMeasurementsOut(BaseModel):
 
 
 class BodyPoseOut(BaseModel):
-    requested: dict[str, float] = Field(description="pose angles as given, degrees")
+    requested: dict[str, float] = Field(description="pose angles as asked, every side field (the shorthand or a "
+                                                    "named pose expanded), degrees")
     achieved: dict[str, float] = Field(description="pose angles of the built body, degrees: as given, except an "
                                                    "arm angle too low for the arm to clear the torso, raised to "
                                                    "where the arm rests against it")
@@ -154,8 +206,16 @@ class RangeOut(BaseModel):
     description: str
 
 
+class NamedPoseOut(BaseModel):
+    description: str
+    angles: dict[str, float] = Field(description="every side field of the pose, degrees")
+
+
 class RangesOut(BaseModel):
     measurements: dict[str, RangeOut] = Field(description="every measurement field, cm")
-    pose: dict[str, RangeOut] = Field(description="every pose field, degrees")
+    pose: dict[str, RangeOut] = Field(description="every pose field, degrees: each side's own (arm_angle_left, "
+                                                  "...), then the shorthand for both sides (arm_angle, ...)")
+    named_poses: dict[str, NamedPoseOut] = Field(description="the poses a request may name (\"pose\": "
+                                                             "\"hands_on_hips\"), with their angles")
     estimated_defaults: dict[str, float] = Field(description="optional measurements estimated for the defaults, cm")
     resolution: RangeOut = Field(description="mesh resolution of POST /api/bodies")

@@ -19,7 +19,8 @@ class FitRequest(BaseModel):
 
     style: str = Field(min_length=1, max_length=40, description="style id (GET /api/styles)")
     measurements: MeasurementsIn = Field(description="body measurements, cm")
-    pose: PoseIn = Field(default_factory=PoseIn, description="pose angles, degrees (default: the A-pose)")
+    pose: PoseIn = Field(default_factory=PoseIn, description="pose angles, degrees, or a named pose "
+                                                             "(default: the A-pose)")
 
 
 class SizeFitOut(BaseModel):

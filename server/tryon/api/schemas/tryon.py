@@ -53,6 +53,8 @@ class SimSettingsIn(BaseModel):
                            simplification=self.simplification, max_steps=self.max_steps)
 
 
+# Most poses one motion may ask for (each is a drape to rest: ~0.3-1 s of a worker).
+MAX_POSES = 10
 GarmentId = Annotated[str, StringConstraints(min_length=1, max_length=64)]
 
 
@@ -73,14 +75,26 @@ class TryOnRequest(BaseModel):
         "out", description="an outfit's top over its bottom: out (the top's hem falls over the waistband) or in "
                            "(the bottom's band holds the innermost top's hem inside)")
     measurements: MeasurementsIn = Field(description="body measurements, cm")
-    pose: PoseIn = Field(default_factory=PoseIn, description="pose angles, degrees")
+    pose: PoseIn = Field(default_factory=PoseIn, description="pose angles, degrees (each side its own, or the "
+                                                             "shorthand for both), or a named pose: see GET "
+                                                             "/api/bodies/ranges")
     settings: SimSettingsIn = Field(default_factory=SimSettingsIn, description="simulation settings")
+    poses: list[PoseIn] | None = Field(
+        None, min_length=2, max_length=MAX_POSES,
+        description=f"a motion: 2 to {MAX_POSES} poses (named or angles), instead of pose; the garment is draped "
+                    "in the first, then carried to each next one and draped on from where it is. format=glb: "
+                    "an animated GLB (one morph target per pose after the first, one second per pose); json: "
+                    "the first pose's answer and each pose's metrics (poses). One garment (garment_id)")
 
     @model_validator(mode="after")
     def _one_garment_or_an_outfit(self) -> "TryOnRequest":
         if (self.garment_id is None) == (self.garment_ids is None):
             raise ValueError("give either garment_id (one garment) or garment_ids (an outfit), not "
                              + ("both" if self.garment_id is not None else "neither"))
+        if self.poses is not None and "pose" in self.model_fields_set:
+            raise ValueError("give either pose (one pose) or poses (a motion), not both")
+        if self.poses is not None and self.garment_ids is not None:
+            raise ValueError("poses (a motion) takes one garment (garment_id), not an outfit (garment_ids)")
         if self.garment_ids is not None and len(set(self.garment_ids)) < len(self.garment_ids):
             raise ValueError("garment_ids: each garment at most once")
         return self
@@ -164,9 +178,16 @@ class TryOnMetricsOut(BaseModel):
                                                "arm rests against it")
 
 
+class PoseResultOut(BaseModel):
+    pose: dict[str, float] = Field(description="the pose built, degrees")
+    metrics: TryOnMetricsOut = Field(description="the fit in that pose, at rest")
+
+
 class TryOnOut(BaseModel):
     garment: MeshOut
     metrics: TryOnMetricsOut
+    poses: list[PoseResultOut] | None = Field(None, description="a motion (request poses): each pose's fit, in "
+                                                                "order; garment and metrics are the first pose's")
 
 
 class OutfitGarmentOut(BaseModel):

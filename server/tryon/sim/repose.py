@@ -1,0 +1,208 @@
+"""Re-posing a drape: the garment carried from one pose of a body to another, then stepped on from there.
+
+``repose(d, body)`` takes a drape ``d`` (at rest or in motion) and the same person's body in a new pose (same
+measurements and resolution: the same mesh topology, each part's vertices in the same order) and returns a new
+``Drape`` on that body whose garment starts where the old one is:
+
+1. each part's rigid motion between the poses (``part_motions``: the best rotation and translation between
+   the part's vertices in one pose and the other, Kabsch; the limbs move rigidly, torso and head not at all);
+2. the body moved from the old pose to the new over the first steps (``PoseTransition``, in the place of
+   the arms' turn back from the sleeves, ``arms.ArmSchedule``: gravity off, every point tested), each limb
+   turned about its joint a few degrees a step;
+3. every garment point carried by the parts near it each of those steps (``PoseTransition.weights``:
+   linear blend skinning, each part weighted by the inverse fourth power of the point's distance to it
+   where the part is that step, so a sleeve moves with its arm, the bodice stays with the torso, the
+   armhole between them blends, and a shirt a hand leaves behind stops following the hand), as ``arms.py``
+   carries a sleeve: cloth near a moving limb moves with it, so it is neither left behind nor pushed
+   through by it, and the collision and the springs settle the rest each step.
+
+``start`` builds the new drape on the new body (the springs packed again, its collider, no alignment); then
+``step`` continues as usual and ``relax`` and ``finish`` end it with the new pose's metrics.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from scipy.spatial.transform import Rotation
+
+from tryon.body.types import Body
+from tryon.sim.collision.collider import BodyCollider
+from tryon.sim.finish import TryOnResult, finish
+from tryon.sim.relax import relax
+from tryon.sim.start import start
+from tryon.sim.state import Drape
+from tryon.sim.step import step
+
+# Exponent of the inverse-distance weights of the parts on a garment point: 4 makes a point within a few
+# millimetres of one part and centimetres of the others follow that part almost alone (a sleeve on its arm),
+# and blends points about as far from two parts (the armhole between the torso and the arm).
+CARRY_POWER = 4.0
+# Distance (m) added to every point-to-part distance before the weights: points on the body (distance ~0)
+# would otherwise divide by zero, and within this distance of two parts a point blends them.
+CARRY_SOFTEN = 0.005
+# The body's motion from the old pose to the new is spread over steps: at most this many degrees of any
+# part's turn, and this many metres of a hip joint's shift, per step (the arms' turn back from the sleeves
+# goes at 1 degree per step, ``arms.ARM_DEG_PER_STEP``; here the cloth is carried along with the parts, so
+# twice that keeps the body's surface within ~2 cm per step at the hand).
+REPOSE_DEG_PER_STEP = 2.0
+REPOSE_M_PER_STEP = 0.01
+# A change smaller than this many steps' worth is not spread at all (the new body at once).
+REPOSE_MIN_CHANGE = 0.5
+
+
+def part_motions(old: Body, new: Body) -> np.ndarray:
+    """(P, 4, 4) rigid motion of every part from ``old`` to ``new`` (same topology): the rotation and
+    translation that best map the part's old vertices onto its new ones (Kabsch, least squares)."""
+    if old.faces.shape != new.faces.shape or len(old.vertices) != len(new.vertices):
+        raise ValueError("re-posing needs the same body in another pose (same measurements and resolution)")
+    out = np.tile(np.eye(4), (len(old.parts), 1, 1))
+    for k in range(len(old.parts)):
+        ids = np.unique(old.faces[old.face_part == k])
+        a, b = old.vertices[ids], new.vertices[ids]
+        ca, cb = a.mean(axis=0), b.mean(axis=0)
+        u, _, vt = np.linalg.svd((a - ca).T @ (b - cb))
+        d = np.sign(np.linalg.det(vt.T @ u.T))
+        rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+        out[k, :3, :3] = rot
+        out[k, :3, 3] = cb - rot @ ca
+    return out
+
+
+class PoseTransition:
+    """The body moved from an old pose to its own (new) pose over ``steps`` steps, carrying the garment:
+    the drape's ``arms`` in place of an ``arms.ArmSchedule`` (the same three calls: ``apply``, ``attach``,
+    ``carry``, and ``steps`` / ``turned_parts``), so ``step`` runs it as the start-up's arm turn.
+
+    Each limb is turned about its proximal joint (shoulder, elbow, hip, knee) by the fraction of its
+    rotation from the new pose back to the old one still left, the joint carried by the limb above it (so
+    forearm and upper arm stay joined all the way); torso and head do not move. Garment points move with
+    the parts near them (``weights``)."""
+
+    def __init__(self, old: Body, new: Body, collider: BodyCollider):
+        self.new, self.collider = new, collider
+        back = part_motions(new, old)  # (P, 4, 4): new pose -> old pose, per part
+        self.back_rot = Rotation.from_matrix(back[:, :3, :3]).as_rotvec()  # (P, 3) radians
+        self.chains = []  # (part, parent part | None, joint of the new body (3,))
+        for side in ("l", "r"):
+            for part, parent, joint in ((f"upper_arm_{side}", None, f"shoulder_{side}"),
+                                        (f"forearm_{side}", f"upper_arm_{side}", f"elbow_{side}"),
+                                        (f"thigh_{side}", None, f"hip_{side}"),
+                                        (f"shin_{side}", f"thigh_{side}", f"knee_{side}")):
+                if part in new.parts and joint in new.joints:
+                    k = new.parts.index(part)
+                    up = new.parts.index(parent) if parent is not None else None
+                    self.chains.append((k, up, np.asarray(new.joints[joint], dtype=np.float64),
+                                        np.asarray(old.joints[joint], dtype=np.float64)))
+        angles = np.linalg.norm(self.back_rot, axis=1)
+        shifts = [np.linalg.norm(j_old - j_new) for _, up, j_new, j_old in self.chains if up is None]
+        biggest = max(np.degrees(angles.max(initial=0.0)) / REPOSE_DEG_PER_STEP,
+                      max(shifts, default=0.0) / REPOSE_M_PER_STEP)
+        self.steps = int(np.ceil(biggest)) if biggest > REPOSE_MIN_CHANGE else 0
+        self._last: np.ndarray | None = None
+        self._moves = np.tile(np.eye(4), (len(new.parts), 1, 1))
+        self._attached = False
+        # each part's vertices in the new body's pose (the collider's rest), in a tree: a garment point is
+        # weighed against the parts where they are now, by taking it into each part's rest frame
+        self._trees = [cKDTree(new.vertices[np.unique(new.faces[new.face_part == k])])
+                       for k in range(len(new.parts))]
+
+    def turned_parts(self) -> list[int]:
+        return [k for k, _, _, _ in self.chains]
+
+    def _motions(self, fraction: float) -> np.ndarray:
+        """(P, 4, 4) motion of every part from the new pose with ``fraction`` of the way back left."""
+        out = np.tile(np.eye(4), (len(self.new.parts), 1, 1))
+        for k, up, j_new, j_old in self.chains:  # parents come before their children
+            rot = Rotation.from_rotvec(fraction * self.back_rot[k]).as_matrix()
+            joint = (out[up, :3, :3] @ j_new + out[up, :3, 3]) if up is not None else j_new + fraction * (j_old - j_new)
+            out[k, :3, :3] = rot
+            out[k, :3, 3] = joint - rot @ j_new
+        return out
+
+    def apply(self, step: int) -> None:
+        """Pose the body for ``step`` (0: the old pose; ``steps`` and after: its own)."""
+        fraction = 1.0 - min(1.0, step / self.steps) if self.steps else 0.0
+        moves = self._motions(fraction)
+        self.collider.pose_arms({k: (np.zeros(3), moves[k, :3, :3], moves[k, :3, 3]) for k in self.turned_parts()})
+        self._last, self._moves = self._moves, moves
+
+    def current(self) -> np.ndarray:
+        """(P, 4, 4) the motion of every part from the new pose as last applied (the body's shape now)."""
+        return self._moves
+
+    def attach(self, x: np.ndarray, faces: np.ndarray) -> None:
+        """Start carrying the garment (``faces`` unused: the weights are by distance, not over the cloth);
+        call after ``apply(0)``."""
+        self._attached = True
+
+    def weights(self, x: np.ndarray, moves: np.ndarray) -> np.ndarray:
+        """(k, P) weights, each row summing to 1, of the body's parts on the garment points x (k, 3), the body
+        posed by ``moves`` (P, 4, 4): ``(distance to the part + CARRY_SOFTEN) ** -CARRY_POWER``, normalised
+        (distance to the part's nearest vertex, m). Taken again every step, so cloth a hand leaves behind (a
+        shirt under a hand lifted off the hip) stops following it; taken once, the shirt was dragged along
+        and came out of the next pose with a sleeve off the arm. Every step, not every few: they cost ~8 ms
+        for the T-shirt's 874 points (twice a step's work), but taken every 2 or 4 steps, or with the queries
+        bounded to 15 cm, the shirt came off an arm somewhere in 18 re-poses in a row where it did not so."""
+        w = np.empty((len(x), len(self._trees)))
+        for k, tree in enumerate(self._trees):
+            rot, shift = moves[k, :3, :3], moves[k, :3, 3]
+            dist, _ = tree.query((x - shift) @ rot)  # into the part's rest frame: R^T (x - t)
+            w[:, k] = (dist + CARRY_SOFTEN) ** -CARRY_POWER
+        return w / w.sum(axis=1, keepdims=True)
+
+    def carry(self, x: np.ndarray, x_prev: np.ndarray) -> None:
+        """Move the garment points (x and x_prev (k, 3), in place) by the parts' motions between the last two
+        ``apply`` calls, blended by their weights on the body as it was before this motion."""
+        if not self._attached or self._last is None:
+            return
+        step = self._moves @ np.linalg.inv(self._last)  # (P, 4, 4)
+        moving = np.flatnonzero(np.abs(step - np.eye(4)).max(axis=(1, 2)) > 1e-12)
+        if not len(moving):
+            return
+        w = self.weights(x, self._last)[:, moving]  # (k, m)
+        for p in (x, x_prev):
+            moved = np.einsum("mij,kj->kmi", step[moving, :3, :3], p) + step[moving, :3, 3][None]  # (k, m, 3)
+            p += np.einsum("km,kmi->ki", w, moved - p[:, None, :])
+
+
+def repose(d: Drape, body: Body) -> Drape:
+    """A drape on ``body`` (``d``'s body in a new pose) whose garment starts where ``d``'s is and is carried
+    along as the body moves from the old pose to the new over the first steps (``PoseTransition``); see the
+    module doc. ``d`` is left as it was."""
+    old = d.body
+    return start(body, d.model, d.settings, d.tuning, initial=d.state.x.copy(),
+                 motion=lambda collider: PoseTransition(old, body, collider))
+
+
+def settle(d: Drape, on_frame=None, give_way=None) -> tuple[TryOnResult | None, bool]:
+    """Step ``d`` until it is at rest (or ``settings.max_steps``, or ``on_frame(step, x)`` returns False, as
+    for ``run.drape``), then relax and finish it: (the result, False). ``give_way()``: asked after every step
+    once the body's start-up motion is over; True ends the settle there without a result: (None, True)."""
+    stopped = False
+    for _ in range(d.settings.max_steps):
+        at_rest = step(d)
+        if on_frame is not None and on_frame(d.state.step, d.state.x) is False:
+            stopped = True
+            break
+        if at_rest:
+            break
+        if give_way is not None and d.state.step > d.startup and give_way():
+            return None, True
+    return finish(d, relax(d), stopped), False
+
+
+def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape, TryOnResult, bool]:
+    """A re-posed drape that came to rest with a sleeve or a trouser leg off its limb (``openings_on_limbs``
+    False) draped afresh in the same pose (aligned, as a new try-on) when that puts them on: (the drape, its
+    result, whether it was draped afresh). Carried through many poses in a row the cloth can end caught on
+    the way (the T-shirt M, six poses three times over: a sleeve came off at the tenth and stayed off), and a
+    later pose would start from there. A garment sized to the body (guessed units) is left as it is."""
+    if result is None or result.metrics.get("openings_on_limbs") is not False or d.sized:
+        return d, result, False
+    fresh = start(d.body, d.model, d.settings, d.tuning)
+    again, _ = settle(fresh, on_frame)
+    if again.metrics.get("openings_on_limbs") is False:
+        return d, result, False
+    return fresh, again, True

@@ -15,7 +15,8 @@ import pytest
 
 from tryon.cli import main
 
-SECTIONS = {"table1", "table2", "table3", "fit", "poses", "outfits", "pareto", "simplify", "peers", "stability", "scaling", "scale", "sizes"}
+SECTIONS = {"table1", "table2", "table3", "fit", "poses", "outfits", "live", "pareto", "simplify", "peers", "stability",
+            "scaling", "scale", "sizes"}
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
@@ -84,6 +85,12 @@ def test_sections_carry_their_figures(bench):
     assert all(p["rms_mm"] >= 0 for p in pareto["points"])
     ours = [r for r in _section(report, "peers")["data"]["cloth_on_ball"]["1024"] if r["engine"] == "ours"][0]
     assert ours["frames"] == 300 and ours["finite"]
+    # live re-posing through a real server: the T-shirt M carried to three named poses, each at rest with
+    # nothing in the body and both sleeves on the arms, a first frame before the done
+    live = _section(report, "live")["data"]["updates"]
+    assert [d["pose"] for d in live] == ["hands_on_hips", "arms_raised", "stride"]
+    assert all(d["rest"] and d["penetrating"] == 0 and d["on_limbs"] for d in live), live
+    assert all(0 < d["first_frame_s"] < d["done_s"] for d in live), live
     scaling = _section(report, "scaling")["data"]
     assert [r["vertices"] for r in scaling["garment"]] == sorted(r["vertices"] for r in scaling["garment"])
 

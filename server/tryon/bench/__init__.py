@@ -23,7 +23,7 @@ from tryon.bench.report import now, write_report
 def sections():
     """(name, title, function) of every section, in report order."""
     from tryon.bench import (
-        fit, outfits, pareto, peers, poses, scale, scaling, simplify_compare, sizes, stability, tables,
+        fit, live, outfits, pareto, peers, poses, scale, scaling, simplify_compare, sizes, stability, tables,
     )
 
     return [
@@ -33,6 +33,7 @@ def sections():
         ("fit", "Catalogue fit on three bodies", fit.run),
         ("poses", "Fit in other poses", poses.run),
         ("outfits", "Outfits: a top over a bottom", outfits.run),
+        ("live", "Live re-posing over the WebSocket", live.run),
         ("sizes", "Size advice against the chart", sizes.run),
         ("pareto", "Run time against error", pareto.run),
         ("simplify", "Simplification compared", simplify_compare.run),

@@ -28,8 +28,8 @@ from tryon.garment.model import GarmentModel
 from tryon.body.build import build_body
 from tryon.body.params import Measurements, Pose
 from tryon.sim.outfit import OutfitResult, drape_outfit, piece_categories
-from tryon.sim.repose import redrape_if_off, repose, settle
-from tryon.sim.run import TryOnResult, drape
+from tryon.sim.repose import redrape_if_off, repose
+from tryon.sim.run import TryOnResult, drape, settle
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
 from tryon.sim.state import Drape

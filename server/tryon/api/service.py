@@ -18,8 +18,8 @@ from tryon.body.types import Body
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
 from tryon.sim.outfit import OutfitResult, drape_outfit, piece_categories
-from tryon.sim.repose import redrape_if_off, repose, settle
-from tryon.sim.run import FrameCallback, TryOnResult, drape
+from tryon.sim.repose import redrape_if_off, repose
+from tryon.sim.run import FrameCallback, TryOnResult, drape, settle
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
 

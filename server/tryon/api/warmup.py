@@ -91,7 +91,8 @@ def _repose(body, model) -> None:
     from tryon.api.pool import RunGuard
     from tryon.body.build import build_body
     from tryon.body.params import Measurements, Pose, pose_from
-    from tryon.sim.repose import repose, settle
+    from tryon.sim.repose import repose
+    from tryon.sim.run import settle
     from tryon.sim.start import start
 
     d = start(body, model)

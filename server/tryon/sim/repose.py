@@ -17,7 +17,7 @@ measurements and resolution: the same mesh topology, each part's vertices in the
    through by it, and the collision and the springs settle the rest each step.
 
 ``start`` builds the new drape on the new body (the springs packed again, its collider, no alignment); then
-``step`` continues as usual and ``relax`` and ``finish`` end it with the new pose's metrics.
+``run.settle`` steps it on as usual and ``relax`` and ``finish`` end it with the new pose's metrics.
 """
 
 from __future__ import annotations
@@ -29,11 +29,10 @@ from scipy.spatial.transform import Rotation
 
 from tryon.body.types import Body
 from tryon.sim.collision.collider import BodyCollider
-from tryon.sim.finish import TryOnResult, finish
-from tryon.sim.relax import relax
+from tryon.sim.finish import TryOnResult
+from tryon.sim.run import settle
 from tryon.sim.start import start
 from tryon.sim.state import Drape
-from tryon.sim.step import step
 
 # Exponent of the inverse-distance weights of the parts on a garment point: 4 makes a point within a few
 # millimetres of one part and centimetres of the others follow that part almost alone (a sleeve on its arm),
@@ -174,23 +173,6 @@ def repose(d: Drape, body: Body) -> Drape:
     old = d.body
     return start(body, d.model, d.settings, d.tuning, initial=d.state.x.copy(),
                  motion=lambda collider: PoseTransition(old, body, collider))
-
-
-def settle(d: Drape, on_frame=None, give_way=None) -> tuple[TryOnResult | None, bool]:
-    """Step ``d`` until it is at rest (or ``settings.max_steps``, or ``on_frame(step, x)`` returns False, as
-    for ``run.drape``), then relax and finish it: (the result, False). ``give_way()``: asked after every step
-    once the body's start-up motion is over; True ends the settle there without a result: (None, True)."""
-    stopped = False
-    for _ in range(d.settings.max_steps):
-        at_rest = step(d)
-        if on_frame is not None and on_frame(d.state.step, d.state.x) is False:
-            stopped = True
-            break
-        if at_rest:
-            break
-        if give_way is not None and d.state.step > d.startup and give_way():
-            return None, True
-    return finish(d, relax(d), stopped), False
 
 
 def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape, TryOnResult, bool]:

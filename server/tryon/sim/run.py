@@ -82,6 +82,7 @@ from tryon.sim.outfit import drape_pieces, piece_categories
 from tryon.sim.relax import relax
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
+from tryon.sim.state import Drape
 from tryon.sim.step import step
 from tryon.sim.tuning import TUNING, Tuning
 
@@ -100,13 +101,22 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     if initial is None and (categories := piece_categories(model)) is not None:
         # a file of a top and a bottom (a MakeHuman outfit): its pieces as layers, the top over the bottom
         return drape_pieces(body, model, categories, settings, on_frame, tuning)
-    d = start(body, model, settings, tuning, initial)
+    return settle(start(body, model, settings, tuning, initial), on_frame)[0]
+
+
+def settle(d: Drape, on_frame=None, give_way=None) -> tuple[TryOnResult | None, bool]:
+    """Step ``d`` until it is at rest (or ``settings.max_steps``, or until ``on_frame(step, x)``, called after
+    every step, returns False), then relax and finish it: (the result, False). A fresh drape (``drape``) and a
+    re-posed one (``repose.repose``) alike. ``give_way()``: asked after every step once the body's start-up
+    motion is over; True ends the settle there without a result: (None, True)."""
     stopped = False
-    for _ in range(settings.max_steps):
+    for _ in range(d.settings.max_steps):
         at_rest = step(d)
         if on_frame is not None and on_frame(d.state.step, d.state.x) is False:
             stopped = True
             break
         if at_rest:
             break
-    return finish(d, relax(d), stopped)
+        if give_way is not None and d.state.step > d.startup and give_way():
+            return None, True
+    return finish(d, relax(d), stopped), False

@@ -3,27 +3,16 @@
 from __future__ import annotations
 
 import contextlib
-import os
-import socket
-import subprocess
-import sys
-import time
 from pathlib import Path
 
-import httpx
 import pytest
 
 from tryon.api.warmup import warm_up
+from tryon.bench.live import serving
 from tryon.config import Settings
 
 ROOT = Path(__file__).resolve().parents[1]
 ADMIN_TOKEN = "test-admin-token"
-
-
-def free_port() -> int:
-    with contextlib.closing(socket.socket()) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -42,33 +31,8 @@ def settings(tmp_path: Path) -> Settings:
 def serve_process(data_dir: Path, env: dict | None = None, timeout_s: float = 120.0):
     """Run ``tryon serve`` on a free port; yield its base URL once ``/api/health`` says ok (its kernels warm:
     loaded from the disk cache that ``warm_kernels`` filled); stop it afterwards."""
-    port = free_port()
-    full_env = {**os.environ, "TRYON_DATA_DIR": str(data_dir), "TRYON_ADMIN_TOKEN": ADMIN_TOKEN, **(env or {})}
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "tryon.cli", "serve", "--port", str(port), "--log-level", "warning"],
-        env=full_env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-    )
-    url = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + timeout_s
-        while True:
-            if proc.poll() is not None:
-                raise RuntimeError(f"tryon serve exited: {proc.stdout.read().decode(errors='replace')}")
-            try:
-                if httpx.get(f"{url}/api/health", timeout=1.0).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            if time.monotonic() > deadline:
-                raise RuntimeError("tryon serve did not answer /api/health in time")
-            time.sleep(0.1)
+    with serving(data_dir, {"TRYON_ADMIN_TOKEN": ADMIN_TOKEN, **(env or {})}, timeout_s, cwd=ROOT) as url:
         yield url
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
 
 
 @pytest.fixture(scope="session")

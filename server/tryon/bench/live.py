@@ -46,34 +46,39 @@ def random_pose(rng: np.random.Generator) -> dict:
     return pose
 
 
-def _free_port() -> int:
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 now."""
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
 
 
 @contextmanager
-def serving(data_dir: Path, timeout_s: float = TIMEOUT_S):
-    """``tryon serve`` on a free port over ``data_dir``; yields its ws URL of ``/ws/tryon`` once healthy."""
-    port = _free_port()
+def serving(data_dir: Path, env: dict | None = None, timeout_s: float = TIMEOUT_S, cwd: Path | None = None):
+    """``tryon serve`` on a free port over ``data_dir`` (``env``: more environment, ``cwd``: its working
+    directory); yields its base URL
+    (``http://127.0.0.1:PORT``) once ``/api/health`` says ok, and stops it afterwards. The tests' served
+    processes are started by this too (``tests/conftest.py``)."""
+    port = free_port()
     proc = subprocess.Popen([sys.executable, "-m", "tryon.cli", "serve", "--port", str(port), "--log-level",
-                             "warning"], env={**os.environ, "TRYON_DATA_DIR": str(data_dir)},
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                             "warning"], env={**os.environ, "TRYON_DATA_DIR": str(data_dir), **(env or {})},
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, cwd=cwd)
+    url = f"http://127.0.0.1:{port}"
     try:
         deadline = time.monotonic() + timeout_s
         while True:
             if proc.poll() is not None:
-                raise RuntimeError("tryon serve exited before it was healthy")
+                raise RuntimeError(f"tryon serve exited: {proc.stdout.read().decode(errors='replace')}")
             try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{port}/api/health", timeout=1.0) as r:
+                with urllib.request.urlopen(f"{url}/api/health", timeout=1.0) as r:
                     if r.status == 200:
                         break
             except OSError:
                 pass
             if time.monotonic() > deadline:
                 raise RuntimeError("tryon serve did not answer /api/health in time")
-            time.sleep(0.2)
-        yield f"ws://127.0.0.1:{port}/ws/tryon"
+            time.sleep(0.1)
+        yield url
     finally:
         proc.terminate()
         try:
@@ -113,7 +118,8 @@ def run(ctx: Context, sec: Section) -> None:
             e = entries[name]
             ids[name] = catalogue.ingest(garments_dir() / name, name=e["name"], category=e["category"],
                                          size=e.get("size"), units="m").id
-        with serving(Path(tmp) / "data") as url:
+        with serving(Path(tmp) / "data") as base:
+            url = "ws" + base[len("http"):] + "/ws/tryon"
             for name in garments:
                 poses = list(NAMED[:3] if ctx.quick else NAMED)
                 if not ctx.quick:

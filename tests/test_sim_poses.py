@@ -56,17 +56,12 @@ def test_a_drape_reposed_three_times_carries_the_garment_with_the_body(catalogue
     """The T-shirt M at rest on the medium body in the A-pose, then re-posed (``sim.repose``) three times,
     each time from where the last left it: the garment moves with the limbs and comes to rest in each new
     pose with nothing inside the body, each sleeve still round its own arm, no spring over its limit."""
-    from tryon.sim.finish import finish
-    from tryon.sim.relax import relax
     from tryon.sim.repose import repose
+    from tryon.sim.run import settle as run_settle
     from tryon.sim.start import start
-    from tryon.sim.step import step
 
     def settle(d):
-        for _ in range(d.settings.max_steps):
-            if step(d):
-                break
-        return finish(d, relax(d))
+        return run_settle(d)[0]
 
     model = _model(catalogue, "tshirt-m.obj", "top")
     d = start(build_body(MEDIUM), model, SimSettings())
@@ -80,3 +75,26 @@ def test_a_drape_reposed_three_times_carries_the_garment_with_the_body(catalogue
         assert sorted(o["around"] for o in m["limb_openings"]) == ["upper_arm_l", "upper_arm_r"], pose
         assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, (pose, m["strain_by_kind"])
         assert m["pose"] == body.pose
+
+
+def test_limbs_far_from_the_garment_take_their_new_pose_at_once(catalogue):
+    """The trousers M at rest in the A-pose, the arms then raised: the arms never come within reach of the
+    trousers on their way, so the body takes the new pose at once (no steps of motion, gravity kept) and the
+    trousers stay at rest where they are; the T-shirt in the same change moves with its arms over steps."""
+    from tryon.sim.repose import repose
+    from tryon.sim.run import settle
+    from tryon.sim.start import start
+
+    raised = build_body(MEDIUM, pose_from("arms_raised"))
+    trousers = start(build_body(MEDIUM), _model(catalogue, "trousers-m.obj", "bottom"), SimSettings())
+    before = settle(trousers)[0]
+    moved = repose(trousers, raised)
+    assert moved.arms.steps == 0 and moved.arms.turned_parts() == []
+    m = settle(moved)[0].metrics
+    assert m["rest_reached"] and m["penetrating_vertices"] == 0 and m["stays_up"], m
+    assert sorted(o["around"] for o in m["limb_openings"]) == ["shin_l", "shin_r"]
+    # stepped on at rest from where they were (slid_cm: from there): no fall, no transition to settle from
+    assert m["slid_cm"] < 2.0 and m["steps"] < before.metrics["steps"], (m["slid_cm"], m["steps"])
+    shirt = start(build_body(MEDIUM), _model(catalogue, "tshirt-m.obj", "top"), SimSettings())
+    settle(shirt)
+    assert repose(shirt, raised).arms.steps > 10

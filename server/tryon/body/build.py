@@ -82,6 +82,9 @@ LIMB_SHAPES = ("upper_arm", "forearm", "thigh", "shin")
 GIRTHS = {"chest": "torso", "waist": "torso", "hips": "torso", "neck": "head", "thigh": "thigh",
           "upper_arm": "upper_arm"}
 
+# The arms' parts (their names start so): raised above the head they are not part of the stature.
+ARM_PARTS = ("upper_arm", "forearm")
+
 
 @dataclass(frozen=True)
 class Grid:
@@ -290,12 +293,15 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
             return shape_axes[shape, "right" if mirrored else "left"] * (mirror if mirrored else 1.0)
         return shape_axes[shape, "left"]
 
-    vertices = np.concatenate([points(name) for name in PART_NAMES])
+    pieces = [points(name) for name in PART_NAMES]
+    vertices = np.concatenate(pieces)
     part_axes = np.stack([axis(name) for name in PART_NAMES])
 
     # ---- floor and stature -----------------------------------------------------------------------------
     y0 = vertices[:, 1].min()
-    stretch = (full.height / 100.0) / (vertices[:, 1].max() - y0)
+    # stature is the top of the head: hands raised above it (arms_raised) must not shrink the body to fit
+    top = max(float(p[:, 1].max()) for name, p in zip(PART_NAMES, pieces) if not name.startswith(ARM_PARTS))
+    stretch = (full.height / 100.0) / (top - y0)
 
     def to_floor(p):
         q = np.array(p, dtype=float, copy=True)

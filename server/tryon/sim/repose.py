@@ -8,7 +8,8 @@ measurements and resolution: the same mesh topology, each part's vertices in the
    the part's vertices in one pose and the other, Kabsch; the limbs move rigidly, torso and head not at all);
 2. the body moved from the old pose to the new over the first steps (``PoseTransition``, in the place of
    the arms' turn back from the sleeves, ``arms.ArmSchedule``: gravity off, every point tested), each limb
-   turned about its joint a few degrees a step;
+   turned about its joint a few degrees a step; a limb that never comes near the garment on its way (the
+   arms over trousers) takes its new pose at once, and if none does the garment steps on at rest;
 3. every garment point carried by the parts near it each of those steps (``PoseTransition.weights``:
    linear blend skinning, each part weighted by the inverse fourth power of the point's distance to it
    where the part is that step, so a sleeve moves with its arm, the bodice stays with the torso, the
@@ -49,6 +50,12 @@ REPOSE_DEG_PER_STEP = 2.0
 REPOSE_M_PER_STEP = 0.01
 # A change smaller than this many steps' worth is not spread at all (the new body at once).
 REPOSE_MIN_CHANGE = 0.5
+# m: a limb whose surface comes no nearer the garment than this anywhere on its way from the old pose to the
+# new is not moved over steps but at once: the garment cannot feel it (10 x the carry's softening, 10 x the
+# contact planes' ``near``). Its way is looked at every ``MOTION_SAMPLE_DEG`` degrees of the largest turn
+# (3 degrees: ~4 cm at the hand of a 75 cm arm, under the reach, so no pass by the garment goes unseen).
+CARRY_REACH = 0.05
+MOTION_SAMPLE_DEG = 3.0
 
 
 def part_motions(old: Body, new: Body) -> np.ndarray:
@@ -79,7 +86,7 @@ class PoseTransition:
     forearm and upper arm stay joined all the way); torso and head do not move. Garment points move with
     the parts near them (``weights``)."""
 
-    def __init__(self, old: Body, new: Body, collider: BodyCollider):
+    def __init__(self, old: Body, new: Body, collider: BodyCollider, garment: np.ndarray | None = None):
         self.new, self.collider = new, collider
         back = part_motions(new, old)  # (P, 4, 4): new pose -> old pose, per part
         self.back_rot = Rotation.from_matrix(back[:, :3, :3]).as_rotvec()  # (P, 3) radians
@@ -94,7 +101,10 @@ class PoseTransition:
                     up = new.parts.index(parent) if parent is not None else None
                     self.chains.append((k, up, np.asarray(new.joints[joint], dtype=np.float64),
                                         np.asarray(old.joints[joint], dtype=np.float64)))
-        angles = np.linalg.norm(self.back_rot, axis=1)
+        if garment is not None:
+            self.chains = self._near(self.chains, garment)
+        kept = [k for k, _, _, _ in self.chains]
+        angles = np.linalg.norm(self.back_rot[kept], axis=1) if kept else np.zeros(0)
         shifts = [np.linalg.norm(j_old - j_new) for _, up, j_new, j_old in self.chains if up is None]
         biggest = max(np.degrees(angles.max(initial=0.0)) / REPOSE_DEG_PER_STEP,
                       max(shifts, default=0.0) / REPOSE_M_PER_STEP)
@@ -106,6 +116,32 @@ class PoseTransition:
         # weighed against the parts where they are now, by taking it into each part's rest frame
         self._trees = [cKDTree(new.vertices[np.unique(new.faces[new.face_part == k])])
                        for k in range(len(new.parts))]
+
+    def _near(self, chains: list, garment: np.ndarray) -> list:
+        """The limbs of ``chains`` that move and come within ``CARRY_REACH`` of a garment point (``garment``
+        (k, 3) m) at some moment of their motion (every ``MOTION_SAMPLE_DEG`` degrees, both ends included): the
+        others take the new pose at once (trousers do not wait for the arms to rise, gravity off, nor settle
+        again after it). A limb is its upper part and the part hanging from it, kept or left together."""
+        tree = cKDTree(garment)
+        verts = {k: self.new.vertices[np.unique(self.new.faces[self.new.face_part == k])] for k, _, _, _ in chains}
+        near = set()
+        self.chains = chains
+        turn = np.degrees(np.linalg.norm(self.back_rot[[k for k, _, _, _ in chains]], axis=1).max(initial=0.0))
+        for fraction in np.linspace(0.0, 1.0, max(2, int(np.ceil(turn / MOTION_SAMPLE_DEG)) + 1)):
+            moves = self._motions(fraction)
+            for k, _, _, _ in chains:
+                if k in near:
+                    continue
+                dist, _ = tree.query(verts[k] @ moves[k, :3, :3].T + moves[k, :3, 3], distance_upper_bound=CARRY_REACH)
+                if np.isfinite(dist).any():
+                    near.add(k)
+        root = {}
+        for k, up, j_new, j_old in chains:
+            root[k] = root.get(up, up) if up is not None else k
+            if np.linalg.norm(self.back_rot[k]) < 1e-9 and np.linalg.norm(j_old - j_new) < 1e-9:
+                near.discard(k)  # it does not move: nothing to carry
+        keep_roots = {root[k] for k in near}
+        return [c for c in chains if root[c[0]] in keep_roots]
 
     def turned_parts(self) -> list[int]:
         return [k for k, _, _, _ in self.chains]
@@ -172,7 +208,7 @@ def repose(d: Drape, body: Body) -> Drape:
     module doc. ``d`` is left as it was."""
     old = d.body
     return start(body, d.model, d.settings, d.tuning, initial=d.state.x.copy(),
-                 motion=lambda collider: PoseTransition(old, body, collider))
+                 motion=lambda collider: PoseTransition(old, body, collider, garment=d.state.x))
 
 
 def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape, TryOnResult, bool]:

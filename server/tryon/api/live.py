@@ -191,7 +191,7 @@ class LiveReposing:
         d = repose(self.drape, body)
         self.settles += 1
         message = {"type": "body", "update": update, "pose": body.pose,
-                   **mesh_arrays(body.vertices, body.faces, decimals=5), "vertex_part": vertex_parts(body),
+                   **mesh_arrays(body.vertices, body.faces, decimals=5), "vertex_part": body.vertex_part,
                    "transition_steps": int(d.arms.steps)}
         message.pop("faces")  # the init message's body faces: the same body, another pose
         session.post_text(json_bytes(message).decode())
@@ -213,13 +213,6 @@ class LiveReposing:
         done["time_to_first_frame_s"] = None if first is None else round(first - received_at, 4)
         done["transition_steps"] = int(d.arms.steps)
         return done
-
-
-def vertex_parts(body) -> np.ndarray:
-    """(n,) int32: the part of each body vertex (``body.parts`` index)."""
-    out = np.zeros(len(body.vertices), dtype=np.int32)
-    out[body.faces.reshape(-1)] = np.repeat(body.face_part, 3)
-    return out
 
 
 def resume_live(session: "LiveSession", request: LiveTryOnRequest, model: GarmentModel, cached: CachedTryOn,

@@ -71,20 +71,18 @@ def simulate_motion(catalogue: Catalogue, request: TryOnRequest, on_frame: Frame
     if piece_categories(model) is not None:
         raise ValueError("a motion (poses) is not available for a garment file of several pieces (an outfit)")
     measurements = to_body_params(request.measurements)[0]
-    motion, bodies = [], []
+    motion, first_body = [], None
     d = None
     for pose in request.poses:
         body = build_body(measurements, Pose(**pose.angles()))
-        if d is None:
-            d = start(body, model, settings)
-            result, _ = settle(d, on_frame)
+        d = start(body, model, settings) if d is None else repose(d, body)
+        result, _ = settle(d, on_frame)
+        if first_body is None:
+            first_body = body
         else:
-            d = repose(d, body)
-            result, _ = settle(d, on_frame)
             d, result, _ = redrape_if_off(d, result, on_frame)
         motion.append((result, body.vertices))
-        bodies.append(body)
-    run = CachedTryOn(result=motion[0][0], body=body_mesh(bodies[0]), settings=settings)
+    run = CachedTryOn(result=motion[0][0], body=body_mesh(first_body), settings=settings)
     run.extra["motion"] = motion
     return run
 

@@ -46,3 +46,10 @@ class Body:
     estimated: dict = field(default_factory=dict)
     pose: dict = field(default_factory=dict)
     joints: dict = field(default_factory=dict)
+
+    @property
+    def vertex_part(self) -> np.ndarray:
+        """(n,) int64: the part (``parts`` index) of every vertex, that of the last face using it."""
+        out = np.zeros(len(self.vertices), dtype=np.int64)
+        out[self.faces.reshape(-1)] = np.repeat(self.face_part, 3)
+        return out

@@ -64,9 +64,7 @@ def body_json(body: Body, requested_pose: dict) -> dict:
 
 def body_glb(body: Body) -> bytes:
     """The body as GLB, vertex colours by part."""
-    vertex_part = np.zeros(len(body.vertices), dtype=np.int64)
-    vertex_part[body.faces.reshape(-1)] = np.repeat(body.face_part, 3)
-    return mesh_bytes(body.vertices, body.faces, "glb", colors=PART_COLOURS[vertex_part % len(PART_COLOURS)])
+    return mesh_bytes(body.vertices, body.faces, "glb", colors=PART_COLOURS[body.vertex_part % len(PART_COLOURS)])
 
 
 @router.post(

@@ -41,7 +41,9 @@ from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.garment.split import split_pieces
 from tryon.geometry import stack_meshes
-from tryon.sim.collision.cloth import build_tri_grid, face_sides, push_layer, signed_face_normals
+from tryon.sim.collision.cloth import (
+    build_tri_grid, face_sides, outward_from_axes, overlap, push_layer, signed_face_normals,
+)
 from tryon.sim.collision.crossings import layer_depths
 from tryon.sim.finish import TryOnResult, full_mesh, result
 from tryon.sim.pieces import bottom_mask, piece_labels, waistband_mask
@@ -161,14 +163,7 @@ def layer_order(categories: list[str], tuck: str = "out") -> list[int]:
 def outward_from_body(points: np.ndarray, body: Body) -> np.ndarray:
     """(k, 3) unit directions away from the body at ``points`` (k, 3) m: from the nearest point of the nearest
     body part's axis segment (``body.part_axes``) to the point."""
-    a, b = body.part_axes[:, 0], body.part_axes[:, 1]  # (P, 3)
-    ab = b - a
-    t = np.einsum("kpj,pj->kp", points[:, None, :] - a[None], ab) / np.maximum(np.einsum("pj,pj->p", ab, ab), 1e-12)
-    closest = a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]  # (k, P, 3)
-    gap = points[:, None, :] - closest
-    dist = np.einsum("kpj,kpj->kp", gap, gap)
-    out = gap[np.arange(len(points)), np.argmin(dist, axis=1)]
-    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
+    return outward_from_axes(np.ascontiguousarray(points, dtype=np.float64), body.part_axes)
 
 
 def collide_layers(points: list[np.ndarray], prev: list[np.ndarray], inv_mass: list[np.ndarray],
@@ -185,26 +180,20 @@ def collide_layers(points: list[np.ndarray], prev: list[np.ndarray], inv_mass: l
     (``DrapeState.planes``), where an outer point pushed, or within ``near`` m beyond ``gap``, gets the layer's
     plane (an inner point keeps its plane on the body); None: none kept. ``max_push`` m: the most a point moves
     in one call; ``pressed``: per layer (k_i,) bool out, its points an outer layer pressed on; ``reach`` m: how
-    far from a layer its grid finds points (default ``LAYER_REACH``). Returns how many points were pushed."""
+    far from a layer its grid finds points (default ``LAYER_REACH``). Only the triangles within ``reach`` of the
+    other layer's box are binned (a shirt's hem over trousers: the trousers' hips, not their legs). Returns how
+    many points were pushed."""
     reach = LAYER_REACH if reach is None else reach
-    surfaces: dict[int, tuple] = {}
-
-    def surface(k: int, sign: float):
-        if k not in surfaces:
-            normals = signed_face_normals(points[k], faces[k], sides[k])
-            lo = points[k].min(axis=0) - reach
-            hi = points[k].max(axis=0) + reach
-            surfaces[k] = (normals, build_tri_grid(points[k], faces[k], LAYER_CELL, reach), lo, hi)
-        normals, grid, lo, hi = surfaces[k]
-        return (normals if sign > 0 else -normals), grid, lo, hi
 
     def push(mover: int, under: int, sign: float, keep_planes: bool) -> int:
-        normals, grid, lo, hi = surface(under, sign)
-        active = np.all((points[mover] >= lo) & (points[mover] <= hi), axis=1)
+        active, close = overlap(points[mover], points[under], faces[under], reach)
         if not active.any():
             return 0
+        tris = np.ascontiguousarray(faces[under][close])
+        normals = signed_face_normals(points[under], tris, sign * sides[under][close])
+        grid = build_tri_grid(points[under], tris, LAYER_CELL, reach)
         return push_layer(points[mover], prev[mover], inv_mass[mover], active, points[under], prev[under],
-                          inv_mass[under], faces[under], normals, grid, gap, reach, near,
+                          inv_mass[under], tris, normals, grid, gap, reach, near,
                           planes[mover] if keep_planes and planes is not None else None, max_push,
                           pressed[under] if keep_planes and pressed is not None else None)
 

@@ -92,17 +92,91 @@ def build_tri_grid(vertices: np.ndarray, faces: np.ndarray, cell: float, pad: fl
     return TriGrid(lo, size, shape, start, tris)
 
 
-def face_sides(vertices: np.ndarray, faces: np.ndarray, outward: np.ndarray) -> np.ndarray:
+@njit(cache=True, nogil=True)
+def overlap(x, inner_x, inner_faces, reach):
+    """Where a layer x (k, 3) m and the layer under it (``inner_x`` (m, 3) m, triangles ``inner_faces``
+    (f, 3) int64) can touch: (active (k,) bool: the points within the inner layer's box grown by ``reach`` m,
+    close (f,) bool: the inner triangles whose boxes come within ``reach`` of the active points' box)."""
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for i in range(inner_x.shape[0]):
+        for a in range(3):
+            lo[a] = min(lo[a], inner_x[i, a])
+            hi[a] = max(hi[a], inner_x[i, a])
+    active = np.zeros(x.shape[0], dtype=np.bool_)
+    alo = np.full(3, np.inf)
+    ahi = np.full(3, -np.inf)
+    for i in range(x.shape[0]):
+        inside = True
+        for a in range(3):
+            if x[i, a] < lo[a] - reach or x[i, a] > hi[a] + reach:
+                inside = False
+        if inside:
+            active[i] = True
+            for a in range(3):
+                alo[a] = min(alo[a], x[i, a])
+                ahi[a] = max(ahi[a], x[i, a])
+    close = np.zeros(inner_faces.shape[0], dtype=np.bool_)
+    for f in range(inner_faces.shape[0]):
+        near = True
+        for a in range(3):
+            p0 = inner_x[inner_faces[f, 0], a]
+            p1 = inner_x[inner_faces[f, 1], a]
+            p2 = inner_x[inner_faces[f, 2], a]
+            if max(p0, max(p1, p2)) < alo[a] - reach or min(p0, min(p1, p2)) > ahi[a] + reach:
+                near = False
+        close[f] = near
+    return active, close
+
+
+@njit(cache=True, nogil=True)
+def outward_from_axes(points, axes):
+    """(k, 3) unit directions away from a body at ``points`` (k, 3) m: from the nearest point of the nearest
+    of its parts' axis segments ``axes`` (P, 2, 3) m to the point."""
+    out = np.zeros((points.shape[0], 3))
+    for i in range(points.shape[0]):
+        best = np.inf
+        for p in range(axes.shape[0]):
+            ax, ay, az = axes[p, 0, 0], axes[p, 0, 1], axes[p, 0, 2]
+            ux, uy, uz = axes[p, 1, 0] - ax, axes[p, 1, 1] - ay, axes[p, 1, 2] - az
+            uu = max(ux * ux + uy * uy + uz * uz, 1e-12)
+            t = min(1.0, max(0.0, ((points[i, 0] - ax) * ux + (points[i, 1] - ay) * uy + (points[i, 2] - az) * uz) / uu))
+            gx = points[i, 0] - (ax + t * ux)
+            gy = points[i, 1] - (ay + t * uy)
+            gz = points[i, 2] - (az + t * uz)
+            dd = gx * gx + gy * gy + gz * gz
+            if dd < best:
+                best = dd
+                out[i, 0], out[i, 1], out[i, 2] = gx, gy, gz
+        ln = max(math.sqrt(best), 1e-12)
+        out[i, 0] /= ln
+        out[i, 1] /= ln
+        out[i, 2] /= ln
+    return out
+
+
+@njit(cache=True, nogil=True)
+def face_sides(vertices, faces, outward):
     """(f,) +1 or -1 per triangle of ``faces`` (f, 3) int64 over ``vertices`` (m, 3): the sign that turns its
     winding normal (b - a) x (c - a) along ``outward`` (m, 3) (directions away from the body) summed over its
     corners. Each triangle by its own vote: a garment file's winding is not to be trusted, and a consistently
     wound garment turned as a whole by the vote of its piece did worse on the outfit bench (a skirt under a
     T-shirt, shorts under a long-sleeve: their triangles across the body's axes, at the crotch and between the
     legs, are better turned one by one)."""
-    v = vertices[faces]
-    normal = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
-    vote = np.einsum("ij,ij->i", normal, outward[faces].sum(axis=1))
-    return np.where(vote < 0.0, -1.0, 1.0)
+    out = np.empty(faces.shape[0])
+    for f in range(faces.shape[0]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        ux = vertices[b, 0] - vertices[a, 0]
+        uy = vertices[b, 1] - vertices[a, 1]
+        uz = vertices[b, 2] - vertices[a, 2]
+        wx = vertices[c, 0] - vertices[a, 0]
+        wy = vertices[c, 1] - vertices[a, 1]
+        wz = vertices[c, 2] - vertices[a, 2]
+        vote = ((uy * wz - uz * wy) * (outward[a, 0] + outward[b, 0] + outward[c, 0])
+                + (uz * wx - ux * wz) * (outward[a, 1] + outward[b, 1] + outward[c, 1])
+                + (ux * wy - uy * wx) * (outward[a, 2] + outward[b, 2] + outward[c, 2]))
+        out[f] = -1.0 if vote < 0.0 else 1.0
+    return out
 
 
 @njit(cache=True, nogil=True)

@@ -44,7 +44,7 @@ from tryon.geometry import stack_meshes
 from tryon.sim.collision.cloth import (
     build_tri_grid, face_sides, outward_from_axes, overlap, push_layer, signed_face_normals,
 )
-from tryon.sim.collision.crossings import layer_depths
+from tryon.sim.collision.crossings import layer_depths, signed_distances
 from tryon.sim.finish import TryOnResult, full_mesh, result
 from tryon.sim.pieces import bottom_mask, piece_labels, waistband_mask
 from tryon.sim.relax import collide_all, relax
@@ -78,13 +78,20 @@ LAYER_CELL = 0.03
 FINAL_LAYER_ROUNDS = 4
 # m: how far outside the inner shown meshes the outer shown meshes are put.
 SHOWN_LAYER_GAP = 0.0015
+# m: the most one push of the shown meshes moves a vertex in a round (``SHOWN_LAYER_ROUNDS``). Unbounded, they ran away where an outer hem meets a
+# flared inner garment: the hem's triangles pushed out along their tilted normals lay over more of the inner
+# cloth each round, and the long-sleeve's hem over the A-line skirt on the medium body grew spikes 30 cm
+# down (170 layer-penetrating vertices, and 14 garment vertices pushed into the body over the 36 outfits of
+# ``tryon bench --only outfits``; 3 mm: 0 in the body, 346 instead of 604 layer-penetrating).
+SHOWN_MAX_PUSH = 0.003
 # Pushes of the outer shown meshes off the inner ones (each moves only the points still too close).
 SHOWN_LAYER_ROUNDS = 10
 # m: a shown vertex of an outer garment more than this on the body's side of a garment under it is a layer
 # penetration (issue 29's tolerance, as for the body).
 LAYER_TOLERANCE = 0.002
 TUCKS = ("out", "in")
-# The share of the top's points near the band that must be on the tuck's side of it for ``tuck_as_asked``.
+# The share of the top's shown vertices at the band's height, over the bottom, that must be on the tuck's side of
+# its surface for ``tuck_as_asked``.
 TUCK_SHARE = 0.9
 
 OutfitFrameCallback = Callable[[int, list], bool]
@@ -268,8 +275,7 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
         for _ in range(SHOWN_LAYER_ROUNDS):
             moved = collide_layers(full[: j + 1], [f.copy() for f in full[: j + 1]],
                                    fixed[:j] + [np.ones(len(full[j]))], full_faces[: j + 1], full_sides[: j + 1],
-                                   SHOWN_LAYER_GAP,
-                                   both_ways=True)
+                                   SHOWN_LAYER_GAP, max_push=SHOWN_MAX_PUSH, both_ways=True)
             if not moved:
                 break
     results = [result(d, r, f, s[1], stopped) for d, r, f, s in zip(drapes, relaxations, full, shown)]
@@ -281,7 +287,10 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
         top, bottom = drapes[tops[0]], drapes[bottoms[0]]
         band = waistband_mask(bottom.state.x, bottom.model.coarse_faces, "bottom", bottom.model.coarse_loops,
                               bottom.piece)
-        tucked = tuck_as_asked(top.state.x, bottom.state.x[band], body, tuck)
+        b = bottoms[0]
+        heights = bottom.state.x[band, 1]
+        tucked = tuck_as_asked(full[tops[0]], full[b], full_faces[b], full_sides[b],
+                               (float(heights.min()), float(heights.max())) if band.any() else None, tuck)
     metrics = {
         "steps": int(n),
         "sim_seconds": float(n * float(settings.time_step)),
@@ -297,23 +306,26 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
     return OutfitResult(results=results, order=order, metrics=metrics)
 
 
-def tuck_as_asked(top: np.ndarray, band: np.ndarray, body: Body, tuck: str) -> bool | None:
-    """Whether the innermost top's points (k, 3) m at the bottom's waistband (its points ``band`` (b, 3) m)
-    lie outside it (tuck ``out``) or inside it (``in``): at least ``TUCK_SHARE`` of the top's points between the
-    band's lowest and highest point and within ``LAYER_REACH`` of a band point, judged along the body's outward
-    direction at that band point. None when no top point is there (a top that ends above the waist)."""
-    if not len(band):
+def tuck_as_asked(top: np.ndarray, bottom: np.ndarray, bottom_faces: np.ndarray, bottom_sides: np.ndarray,
+                  band: tuple[float, float] | None, tuck: str) -> bool | None:
+    """Whether the innermost top's shown vertices ``top`` (k, 3) m at the height of the bottom's waistband
+    (``band``: its lowest and highest y, m) lie outside the bottom's shown surface (tuck ``out``) or inside it
+    (``in``): at least ``TUCK_SHARE`` of those over the bottom's surface within ``LAYER_REACH``, judged by the
+    signed distance along the normal of the triangle each lies over (the bottom's points ``bottom`` (m, 3) m,
+    triangles ``bottom_faces`` turned outward by ``bottom_sides``, ``face_sides``). What a person sees: the
+    hem over the band or under it. None without a band, or when no top vertex is there (a top that ends
+    above the waist)."""
+    if band is None:
         return None
-    level = (top[:, 1] >= band[:, 1].min()) & (top[:, 1] <= band[:, 1].max())  # at the band's height
-    top = top[level]
-    gap = top[:, None, :] - band[None, :, :]
-    dist = np.einsum("ijk,ijk->ij", gap, gap)
-    nearest = np.argmin(dist, axis=1) if len(top) else np.zeros(0, dtype=np.int64)
-    near = dist[np.arange(len(top)), nearest] < LAYER_REACH ** 2
-    if not near.any():
+    level = top[(top[:, 1] >= band[0]) & (top[:, 1] <= band[1])]
+    if not len(level):
         return None
-    side = np.einsum("ij,ij->i", gap[near, nearest[near]], outward_from_body(band[nearest[near]], body))
-    share = float(np.mean(side > 0.0 if tuck == "out" else side < 0.0))
+    s = signed_distances(level, bottom, bottom_faces, signed_face_normals(bottom, bottom_faces, bottom_sides),
+                         LAYER_REACH)
+    s = s[np.isfinite(s)]
+    if not len(s):
+        return None
+    share = float(np.mean(s > 0.0 if tuck == "out" else s < 0.0))
     return share >= TUCK_SHARE
 
 

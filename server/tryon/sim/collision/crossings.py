@@ -10,15 +10,26 @@ from tryon.sim.collision.cloth import build_tri_grid, nearest_over
 
 
 @njit(cache=True, nogil=True)
-def _layer_depths(points, inner_x, inner_faces, normals, grid_lo, grid_cell, grid_shape, cell_start, cell_tris,
-                  reach):
-    out = np.zeros(points.shape[0])
+def _signed_distances(points, inner_x, inner_faces, normals, grid_lo, grid_cell, grid_shape, cell_start, cell_tris,
+                      reach):
+    out = np.full(points.shape[0], np.nan)
     for i in range(points.shape[0]):
         f, s, _, _ = nearest_over(points[i, 0], points[i, 1], points[i, 2], inner_x, inner_faces, normals, grid_lo,
                                   grid_cell, grid_shape, cell_start, cell_tris, reach)
-        if f >= 0 and s < 0.0:
-            out[i] = -s
+        if f >= 0:
+            out[i] = s
     return out
+
+
+def signed_distances(points: np.ndarray, inner_x: np.ndarray, inner_faces: np.ndarray, normals: np.ndarray,
+                     reach: float) -> np.ndarray:
+    """(n,) m: the signed distance of each of ``points`` (n, 3) m from another garment's surface (its points
+    ``inner_x`` (m, 3), triangles ``inner_faces`` (f, 3) int64, unit ``normals`` (f, 3) pointing to the positive
+    side) along the normal of the triangle it lies over (``cloth.nearest_over``); NaN where it lies over none
+    of its triangles within ``reach`` m (past its hem, beside it)."""
+    grid = build_tri_grid(inner_x, inner_faces, max(reach, 0.01), reach)
+    return _signed_distances(np.ascontiguousarray(points, dtype=np.float64), inner_x, inner_faces, normals, grid.lo,
+                             grid.cell, grid.shape, grid.cell_start, grid.cell_tris, reach)
 
 
 def layer_depths(points: np.ndarray, inner_x: np.ndarray, inner_faces: np.ndarray, normals: np.ndarray,
@@ -26,9 +37,8 @@ def layer_depths(points: np.ndarray, inner_x: np.ndarray, inner_faces: np.ndarra
     """(n,) m: how far each of ``points`` (n, 3) m lies on the body's side of the inner garment (its points
     ``inner_x`` (m, 3), triangles ``inner_faces`` (f, 3) int64, outward unit ``normals`` (f, 3)), 0 where it is
     outside it or over none of its triangles within ``reach`` m (past its hem, beside it)."""
-    grid = build_tri_grid(inner_x, inner_faces, max(reach, 0.01), reach)
-    return _layer_depths(np.ascontiguousarray(points, dtype=np.float64), inner_x, inner_faces, normals, grid.lo,
-                         grid.cell, grid.shape, grid.cell_start, grid.cell_tris, reach)
+    s = signed_distances(points, inner_x, inner_faces, normals, reach)
+    return np.where(s < 0.0, -s, 0.0)
 
 
 @njit(cache=True, nogil=True, inline="always")

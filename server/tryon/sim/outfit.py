@@ -6,7 +6,13 @@ ways: every point of an outer garment that lies less than ``LAYER_GAP`` outside 
 coarse surface (or inside it) is moved to ``LAYER_GAP`` outside it, and every point of the inner garment
 through the outer one's surface back under it; the triangle takes its share of each move by inverse mass
 (``collision.cloth.push_outside_layer``: the point-triangle constraint of position-based dynamics), so a
-waistband under a shirt's hem carries the hem's weight. Which side is outside is fixed by the layer order
+waistband under a shirt's hem carries the hem's weight. An outer point pushed gets a contact plane on the
+inner garment (``DrapeState.layer_planes``), which the next step takes instead of
+the body's where it asks more (``contacts.take_stricter_planes``): the substeps keep the point on the garment
+under it, not on the body it would fall back to between two layer collisions (a T-shirt under a long-sleeve,
+both M, fought like that every step and never came to rest). Only pushed points: planes also for the points
+lying within the body's ``near`` beyond the gap left a T-shirt's hem dipping 2 cm under a skirt at the back
+(the planes are a step old when taken, and the skirt's flare had moved). Which side is outside is fixed by the layer order
 and the body, not by the files' winding: each face's normal is turned away from the nearest body axis, by
 its own vote, every step (``outward_from_body``, ``collision.cloth.face_sides``). A one-sided push with a
 kept layer order is what Houdini Vellum and CLO do for layered garments; it needs no history and untangles
@@ -78,11 +84,12 @@ LAYER_CELL = 0.03
 FINAL_LAYER_ROUNDS = 4
 # m: how far outside the inner shown meshes the outer shown meshes are put.
 SHOWN_LAYER_GAP = 0.0015
-# m: the most one push of the shown meshes moves a vertex in a round (``SHOWN_LAYER_ROUNDS``). Unbounded, they ran away where an outer hem meets a
-# flared inner garment: the hem's triangles pushed out along their tilted normals lay over more of the inner
-# cloth each round, and the long-sleeve's hem over the A-line skirt on the medium body grew spikes 30 cm
-# down (170 layer-penetrating vertices, and 14 garment vertices pushed into the body over the 36 outfits of
-# ``tryon bench --only outfits``; 3 mm: 0 in the body, 346 instead of 604 layer-penetrating).
+# m: the most one push of the shown meshes moves a vertex in a round (``SHOWN_LAYER_ROUNDS``). Unbounded, they
+# ran away where an outer hem meets a flared inner garment: the hem's triangles pushed out along their tilted
+# normals lay over more of the inner cloth each round, and the long-sleeve's hem over the A-line skirt on the
+# medium body grew spikes 30 cm down (170 layer-penetrating vertices, and 14 garment vertices pushed into the
+# body over the 36 outfits of ``tryon bench --only outfits``; 3 mm: 0 in the body, 346 instead of 604
+# layer-penetrating).
 SHOWN_MAX_PUSH = 0.003
 # Pushes of the outer shown meshes off the inner ones (each moves only the points still too close).
 SHOWN_LAYER_ROUNDS = 10
@@ -242,9 +249,12 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
         if n > layered_from and len(drapes) > 1:
             before = [d.state.x.copy() for d in drapes]
             pressed = [np.zeros(len(d.state.x), dtype=np.bool_) for d in drapes]
+            for d in drapes:
+                d.state.layer_has[:] = False
             collide_layers([d.state.x for d in drapes], [d.state.x_prev for d in drapes],
-                           [d.state.inv_mass for d in drapes], faces, sides(), LAYER_GAP, tuning.near,
-                           [d.state.planes for d in drapes], LAYER_MAX_PUSH, pressed, both_ways=True)
+                           [d.state.inv_mass for d in drapes], faces, sides(), LAYER_GAP, 0.0,
+                           [d.state.layer_planes for d in drapes], LAYER_MAX_PUSH, pressed,
+                           both_ways=True)
             for k, d in enumerate(drapes):
                 gather(d, pressed[k], compression[k])
                 # pushed: awake (the push's move counts in its next step's rest test)

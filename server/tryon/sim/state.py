@@ -32,7 +32,8 @@ class DrapeState:
     x_step (k, 3) m: positions at the end of the last step; held (k,) bool: held in a pinch between two parts
     this step; flipping (k,) bool: held, and flipping between the parts (kept still); moves (2, k, 3) m: each
     point's move in the last step and in the one before; movers (k,) bool: work space of the within-step
-    test (``collision.movers``).
+    test (``collision.movers``); layer_has (k,) bool, layer_point (k, 3) m, layer_normal (k, 3): contact
+    planes on a garment under this one (an outfit's layer collision), taken where stricter than the body's.
     step: steps done; rest_run: consecutive steps under the rest energy; rest_reached; energy J/kg: the last
     step's kinetic energy per kilogram; collided: how many points the last collision moved.
     """
@@ -53,6 +54,9 @@ class DrapeState:
     flipping: np.ndarray
     moves: np.ndarray
     movers: np.ndarray
+    layer_has: np.ndarray
+    layer_point: np.ndarray
+    layer_normal: np.ndarray
     step: int = 0
     rest_run: int = 0
     rest_reached: bool = False
@@ -68,7 +72,13 @@ class DrapeState:
                    push=np.zeros(k), active=np.ones(k, dtype=np.bool_), reused=np.zeros(k, dtype=np.bool_),
                    x_checked=x.copy(), x_step=x.copy(), held=np.zeros(k, dtype=np.bool_),
                    flipping=np.zeros(k, dtype=np.bool_), moves=np.zeros((2, k, 3)),
-                   movers=np.zeros(k, dtype=np.bool_))
+                   movers=np.zeros(k, dtype=np.bool_), layer_has=np.zeros(k, dtype=np.bool_),
+                   layer_point=np.zeros((k, 3)), layer_normal=np.zeros((k, 3)))
+
+    @property
+    def layer_planes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(layer_has, layer_point, layer_normal), as an outfit's layer collision fills them."""
+        return self.layer_has, self.layer_point, self.layer_normal
 
     @property
     def planes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tryon.sim.collision.contacts import flipped, points_to_test, reuse_planes
+from tryon.sim.collision.contacts import flipped, points_to_test, reuse_planes, take_stricter_planes
 from tryon.sim.constraints import (
     cap_stretch, contact_springs, pack_sweep, solve_listed, sweep_springs, top_down_order,
 )
@@ -58,6 +58,8 @@ def step(d: Drape) -> bool:
                                    st.contact, near=tu.near, planes=st.planes, hold_pinched=not changing,
                                    held=st.held)
     st.x_checked[st.active] = x[st.active]
+    if st.layer_has.any():
+        take_stricter_planes(x, *st.planes, *st.layer_planes)
     touching = np.flatnonzero(st.has_plane)  # the points with a contact plane this step
     # a point flipping in a pinch stays still for the whole step, springs included (``tuning.pinch_flip``)
     st.flipping &= st.held

@@ -140,7 +140,8 @@ def outward_from_axes(points, axes):
             ax, ay, az = axes[p, 0, 0], axes[p, 0, 1], axes[p, 0, 2]
             ux, uy, uz = axes[p, 1, 0] - ax, axes[p, 1, 1] - ay, axes[p, 1, 2] - az
             uu = max(ux * ux + uy * uy + uz * uz, 1e-12)
-            t = min(1.0, max(0.0, ((points[i, 0] - ax) * ux + (points[i, 1] - ay) * uy + (points[i, 2] - az) * uz) / uu))
+            t = ((points[i, 0] - ax) * ux + (points[i, 1] - ay) * uy + (points[i, 2] - az) * uz) / uu
+            t = min(1.0, max(0.0, t))
             gx = points[i, 0] - (ax + t * ux)
             gy = points[i, 1] - (ay + t * uy)
             gz = points[i, 2] - (az + t * uz)

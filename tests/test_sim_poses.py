@@ -106,6 +106,7 @@ def test_a_reposed_body_starts_where_the_garment_was_draped():
     it is part of the forearm): moved back rigidly, the hand stood up to 13.5 cm off the old body's, through
     the long sleeve's cuff. The transition's body starts as the old body and ends as the new one, exactly."""
     from tryon.sim.collision.collider import BodyCollider
+    from tryon.sim.collision.kernels import cell_max_radius
     from tryon.sim.repose import PoseTransition
 
     old, new = build_body(MEDIUM), build_body(MEDIUM, pose_from("hands_on_hips"))
@@ -116,6 +117,11 @@ def test_a_reposed_body_starts_where_the_garment_was_draped():
     motion.apply(motion.steps // 2)
     halfway = np.linalg.norm(collider.vertices - new.vertices, axis=1).max()
     assert 0.01 < halfway < np.linalg.norm(old.vertices - new.vertices, axis=1).max()
+    radii = np.empty_like(collider.rest_rmax)  # only the reshaped parts' cells were measured again
+    frames = collider.rest_frames
+    cell_max_radius(frames["cyl_origin"], frames["cyl_axes"], collider.cyl_shape, collider.cell_base,
+                    collider.cell_start, collider.cell_faces, collider.faces, collider.rest_vertices, radii)
+    assert np.array_equal(radii, collider.rest_rmax)
     motion.apply(motion.steps)
     assert np.array_equal(collider.vertices, new.vertices)
     assert np.array_equal(collider.cell_faces, new.maps.cell_faces)

@@ -119,6 +119,7 @@ class PoseTransition:
         shifts = [np.linalg.norm(j_old - j_new) for _, up, j_new, j_old in self.chains if up is None]
         self.reshaping = self._shape_change(old, kept)  # (n, 3) m
         self._reshape_max = float(np.linalg.norm(self.reshaping, axis=1).max(initial=0.0))
+        self._reshaped_parts = np.unique(new.vertex_part[self.reshaping.any(axis=1)])
         biggest = max(np.degrees(angles.max(initial=0.0)) / REPOSE_DEG_PER_STEP,
                       max(shifts, default=0.0) / REPOSE_M_PER_STEP,
                       self._reshape_max / REPOSE_M_PER_STEP)
@@ -195,8 +196,9 @@ class PoseTransition:
         if self.reshaping.any() and fraction != self._shaped and (
                 fraction in (0.0, 1.0) or abs(fraction - self._shaped) * self._reshape_max >= RESHAPE_STEP):
             shape = self.new.vertices + fraction * self.reshaping
-            self.collider.reshape(shape if fraction > 0.0 else None)
-            self._trees = [cKDTree(shape[ids]) for ids in self._ids]
+            self.collider.reshape(shape if fraction > 0.0 else None, self._reshaped_parts)
+            for k in self._reshaped_parts:
+                self._trees[k] = cKDTree(shape[self._ids[k]])
             self._shaped = fraction
         self.collider.pose_arms({k: (np.zeros(3), moves[k, :3, :3], moves[k, :3, 3]) for k in self.turned_parts()})
         self._last, self._moves = self._moves, moves

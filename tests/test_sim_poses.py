@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from tryon.body.build import build_body
@@ -98,3 +99,46 @@ def test_limbs_far_from_the_garment_take_their_new_pose_at_once(catalogue):
     shirt = start(build_body(MEDIUM), _model(catalogue, "tshirt-m.obj", "top"), SimSettings())
     settle(shirt)
     assert repose(shirt, raised).arms.steps > 10
+
+
+def test_a_reposed_body_starts_where_the_garment_was_draped():
+    """From the A-pose to hands_on_hips the forearm is not rigid (the hand turns 90 degrees at the wrist, and
+    it is part of the forearm): moved back rigidly, the hand stood up to 13.5 cm off the old body's, through
+    the long sleeve's cuff. The transition's body starts as the old body and ends as the new one, exactly."""
+    from tryon.sim.collision.collider import BodyCollider
+    from tryon.sim.collision.kernels import cell_max_radius
+    from tryon.sim.repose import PoseTransition
+
+    old, new = build_body(MEDIUM), build_body(MEDIUM, pose_from("hands_on_hips"))
+    collider = BodyCollider(new, SimSettings().collision_margin)
+    motion = PoseTransition(old, new, collider)
+    motion.apply(0)
+    assert np.abs(collider.vertices - old.vertices).max() < 1e-9
+    motion.apply(motion.steps // 2)
+    halfway = np.linalg.norm(collider.vertices - new.vertices, axis=1).max()
+    assert 0.01 < halfway < np.linalg.norm(old.vertices - new.vertices, axis=1).max()
+    radii = np.empty_like(collider.rest_rmax)  # only the reshaped parts' cells were measured again
+    frames = collider.rest_frames
+    cell_max_radius(frames["cyl_origin"], frames["cyl_axes"], collider.cyl_shape, collider.cell_base,
+                    collider.cell_start, collider.cell_faces, collider.faces, collider.rest_vertices, radii)
+    assert np.array_equal(radii, collider.rest_rmax)
+    motion.apply(motion.steps)
+    assert np.array_equal(collider.vertices, new.vertices)
+    assert np.array_equal(collider.cell_faces, new.maps.cell_faces)
+
+
+def test_long_sleeves_stay_round_the_forearms_into_hands_on_hips(catalogue):
+    """The long-sleeve M at rest in the A-pose, re-posed to hands_on_hips (elbows bent 100 degrees, the
+    forearms across onto the hips, the hands turned at the wrist): the hand turns with the motion, so each
+    cuff ends round its own forearm, and nothing is inside the body. With the hand turned at once the cuffs
+    ended beside the hands, 13-18 cm from the forearms' axes."""
+    from tryon.sim.repose import repose
+    from tryon.sim.run import settle
+    from tryon.sim.start import start
+
+    d = start(build_body(MEDIUM), _model(catalogue, "longsleeve-m.obj", "top"), SimSettings())
+    settle(d)
+    m = settle(repose(d, build_body(MEDIUM, pose_from("hands_on_hips"))))[0].metrics
+    assert m["rest_reached"] and m["penetrating_vertices"] == 0, m
+    assert {o["opening"]: o["around"] for o in m["limb_openings"]} == {"left arm": "forearm_l",
+                                                                      "right arm": "forearm_r"}

@@ -3,7 +3,8 @@
 ``BodyCollider`` owns mutable copies of the arrays the collision kernels read, so that the growth phase
 (each part scaled toward its axis) and the arm posing (upper arm and forearm turned rigidly about the
 shoulder) can change them without touching the immutable ``Body``. Both keep the cylinder maps valid:
-growth keeps every vertex's (theta, z), and a rigid turn of a part carries its frame and box along.
+growth keeps every vertex's (theta, z), and a rigid turn of a part carries its frame and box along. A
+change of shape within a part (``reshape``: a re-posed hand turning at the wrist) builds the maps again.
 """
 
 from __future__ import annotations
@@ -12,11 +13,12 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.sim.collision.kernels import (
-    BodySurface, cell_max_radius, collide_points, face_boxes, grow_vertices, offset_body, penetration_depth,
-    vertex_parts,
+    BodySurface, cell_max_radius, collide_points, face_boxes, grow_vertices, offset_body, part_max_radius,
+    penetration_depth, vertex_parts,
 )
 from tryon.sim.collision.movers import Movers
-from tryon.geometry import face_normals
+from tryon.body.maps import build_part_maps
+from tryon.geometry import face_normals, face_vertex_normals
 
 
 class BodyCollider:
@@ -30,11 +32,29 @@ class BodyCollider:
     def __init__(self, body: Body, margin: float):
         self.body = body
         self.margin = float(margin)
-        m = body.maps
         self.faces = np.ascontiguousarray(body.faces, dtype=np.int64)
         self.vertex_part = vertex_parts(self.faces, body.face_part.astype(np.int64), len(body.vertices))
-        self.rest_vertices = np.ascontiguousarray(body.vertices, dtype=np.float64)
-        self.rest_normals = np.ascontiguousarray(body.vertex_normals, dtype=np.float64)
+        self.face_part = np.ascontiguousarray(body.face_part, dtype=np.int64)
+        self._rest(body.vertices, body.vertex_normals, body.maps)
+        self._built = (self.cell_base, self.cyl_shape, self.rest_rmax)  # the body as built: its cells' radii
+        self.vertices = self.rest_vertices.copy()
+        self.offset = np.empty_like(self.vertices)
+        self.offset_normals = np.empty((len(self.faces), 3))
+        self.offset_boxes = np.empty((len(self.faces), 4))
+        self.corners = np.empty((len(self.vertices), 3))  # face_boxes' work space
+        self.plain_boxes = np.empty((len(self.faces), 4))
+        self.plain_normals = np.empty((len(self.faces), 3))
+        self.scale = 1.0
+        self._pose_vertices = self.rest_vertices
+        self._pose_normals = self.rest_normals
+        self.update()
+
+    def _rest(self, vertices: np.ndarray, normals: np.ndarray, m, changed: np.ndarray | None = None) -> None:
+        """Take ``vertices`` (n, 3) m with their unit ``normals`` (n, 3) and their part maps ``m`` as the rest
+        shape that posing starts from. ``changed`` (q,) int64: the only parts whose shape differs from the
+        body as built (their cells' radii are measured again, the others' kept)."""
+        self.rest_vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+        self.rest_normals = np.ascontiguousarray(normals, dtype=np.float64)
         # map arrays that posing may change (copies), and the ones it never does
         self.rest_frames = {
             "obb_normals": m.obb_normals, "obb_offsets": m.obb_offsets, "cyl_origin": m.cyl_origin,
@@ -50,24 +70,34 @@ class BodyCollider:
         self.cell_start = np.ascontiguousarray(m.cell_start, dtype=np.int64)
         self.cell_faces = np.ascontiguousarray(m.cell_faces, dtype=np.int64)
         self.rest_rmax = np.empty(len(self.cell_start) - 1)
-        cell_max_radius(self.cyl_origin, self.cyl_axes, self.cyl_shape, self.cell_base, self.cell_start,
-                        self.cell_faces, self.faces, self.rest_vertices, self.rest_rmax)
-        self.vertices = self.rest_vertices.copy()
-        self.offset = np.empty_like(self.vertices)
-        self.offset_normals = np.empty((len(self.faces), 3))
-        self.face_part = np.ascontiguousarray(body.face_part, dtype=np.int64)
-        self.offset_boxes = np.empty((len(self.faces), 4))
-        self.corners = np.empty((len(self.vertices), 3))  # face_boxes' work space
-        self.plain_boxes = np.empty((len(self.faces), 4))
-        self.plain_normals = np.empty((len(self.faces), 3))
         self.cell_rmax = np.empty(len(self.cell_start) - 1)
         self.plain_rmax = np.empty(len(self.cell_start) - 1)
-        self.scale = 1.0
+        maps = (self.cyl_origin, self.cyl_axes, self.cyl_shape, self.cell_base, self.cell_start, self.cell_faces,
+                self.faces, self.rest_vertices)
+        if changed is None:
+            cell_max_radius(*maps, self.rest_rmax)
+        else:
+            base, shape, rmax = self._built
+            for k in np.setdiff1d(np.arange(len(shape)), changed):  # the same cells as built
+                count = shape[k, 0] * shape[k, 1]
+                self.rest_rmax[self.cell_base[k]:self.cell_base[k] + count] = rmax[base[k]:base[k] + count]
+            part_max_radius(np.asarray(changed, dtype=np.int64), *maps, self.rest_rmax)
         # how far beyond its cell each cell's face list reaches around the offset surface, m (>= 0)
         self.cover = max(0.0, float(m.margin) - self.margin)
+
+    def reshape(self, vertices: np.ndarray | None, changed: np.ndarray | None = None) -> None:
+        """Give the body the rest shape ``vertices`` (n, 3) m (the same mesh, each part's vertices moved within
+        the part: a hand turned at the wrist, an upper arm a little longer; None: the body as built), its maps
+        built again for it (~10 ms at the default resolution); posing (``pose_arms``) starts from it. The offset
+        surface follows at the next ``pose_arms`` or ``update``. ``changed`` (q,) int64: the parts whose shape
+        differs from the body as built, if known (the others' cell radii are not measured again)."""
+        if vertices is None:
+            self._rest(self.body.vertices, self.body.vertex_normals, self.body.maps)
+        else:
+            maps = build_part_maps(vertices, self.faces, self.face_part, self.body.part_axes, self.body.maps.margin)
+            self._rest(vertices, face_vertex_normals(vertices, self.faces)[1], maps, changed)
         self._pose_vertices = self.rest_vertices
         self._pose_normals = self.rest_normals
-        self.update()
 
     @property
     def vertex_normals(self) -> np.ndarray:

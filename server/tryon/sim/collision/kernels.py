@@ -127,17 +127,31 @@ def cell_max_radius(cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell
     most garment points are outside, so most tests stop there.
     """
     for k in range(cyl_shape.shape[0]):
-        for c in range(cell_base[k], cell_base[k] + cyl_shape[k, 0] * cyl_shape[k, 1]):
-            r_max = 0.0
-            for m in range(cell_start[c], cell_start[c + 1]):
-                f = cell_faces[m]
-                for j in range(3):
-                    v = faces[f, j]
-                    lx, ly, lz = _to_local(bv[v, 0], bv[v, 1], bv[v, 2], cyl_origin, cyl_axes, k)
-                    r = lx * lx + ly * ly
-                    if r > r_max:
-                        r_max = r
-            out[c] = math.sqrt(r_max)
+        _part_max_radius(k, cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell_faces, faces, bv, out)
+
+
+@njit(cache=True, nogil=True)
+def part_max_radius(parts, cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell_faces, faces, bv, out):
+    """``cell_max_radius`` of the cells of the parts ``parts`` (q,) int64 only (a reshaped limb); the other
+    cells of ``out`` are left as they are."""
+    for i in range(parts.shape[0]):
+        _part_max_radius(parts[i], cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell_faces, faces, bv,
+                         out)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _part_max_radius(k, cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell_faces, faces, bv, out):
+    for c in range(cell_base[k], cell_base[k] + cyl_shape[k, 0] * cyl_shape[k, 1]):
+        r_max = 0.0
+        for m in range(cell_start[c], cell_start[c + 1]):
+            f = cell_faces[m]
+            for j in range(3):
+                v = faces[f, j]
+                lx, ly, lz = _to_local(bv[v, 0], bv[v, 1], bv[v, 2], cyl_origin, cyl_axes, k)
+                r = lx * lx + ly * ly
+                if r > r_max:
+                    r_max = r
+        out[c] = math.sqrt(r_max)
 
 
 @njit(cache=True, nogil=True)

@@ -125,14 +125,18 @@ def motion_stress(models: list, sequences: int, poses: int, seed: int = SEED, me
     rng = np.random.default_rng(seed)
     plans = [[random_pose(rng) for _ in range(poses)] for _ in range(sequences)]
     records = []
-    for model in models:
-        for s, plan in enumerate(plans):
-            for rec in run_sequence(model, measurements, plan):
-                records.append({"garment": model.meta.name, "sequence": s + 1, **rec})
+    # sequence after sequence, every garment in each: a run stopped early has seen every garment alike
+    for s, plan in enumerate(plans):
+        for model in models:
+            mine = [{"garment": model.meta.name, "sequence": s + 1, **rec}
+                    for rec in run_sequence(model, measurements, plan)]
+            records += mine
             if log is not None:
-                mine = [r for r in records if r["garment"] == model.meta.name and r["sequence"] == s + 1]
                 log(f"  motion {model.meta.name} sequence {s + 1}: {sum(r['ok'] for r in mine)}/{len(mine)} ok, "
-                    f"deepest {fmt(max((r.get('motion_mm', 0.0) for r in mine), default=0.0))} mm")
+                    f"deepest {fmt(max((r.get('motion_mm', 0.0) for r in mine), default=0.0))} mm, "
+                    f"{sum(r['wall_s'] for r in mine):.1f} s"
+                    + "".join(f"; pose {r['pose_index']} ({_angles(r['angles'])}): {_failure(r)}"
+                              for r in mine if not r["ok"]))
     return {"sequences": sequences, "poses": poses, "seed": seed, "garments": summarise(records),
             "all": summarise(records)["all"], "records": records}
 

@@ -36,6 +36,35 @@ SEED = 30
 MOTION_PENETRATION_TARGET_MM = 10.0
 
 
+# Body parts that join at a joint and overlap there by construction (the upper arm goes into the torso at the
+# shoulder): a vertex of one inside the other is not a crossing. Any other pair does not touch in a real body.
+JOINED = {frozenset(p) for p in (("head", "torso"), ("torso", "upper_arm_l"), ("torso", "upper_arm_r"),
+                                 ("upper_arm_l", "forearm_l"), ("upper_arm_r", "forearm_r"), ("torso", "thigh_l"),
+                                 ("torso", "thigh_r"), ("thigh_l", "shin_l"), ("thigh_r", "shin_r"),
+                                 ("thigh_l", "thigh_r"))}
+# m: a part's vertex deeper than this inside a part it does not join makes the pose's body cross itself (the
+# metrics' penetration tolerance).
+CROSSING_TOLERANCE = 0.002
+
+
+def body_crossing_mm(body) -> float:
+    """How far the body of a pose goes through itself, mm: the deepest vertex of any part inside a part it does
+    not join (``JOINED``; a forearm through the torso, the two forearms through each other), 0 when none is
+    deeper than ``CROSSING_TOLERANCE``. The full ranges allow such poses (arms swung forwards, turned in and
+    bent: the forearms cross in front of the chest); no cloth can lie between the two there."""
+    from tryon.sim.collision.collider import BodyCollider
+
+    collider = BodyCollider(body, 0.0)
+    part = body.vertex_part
+    deepest = 0.0
+    for k, name in enumerate(body.parts):
+        others = np.array([j for j, other in enumerate(body.parts)
+                           if j != k and frozenset((name, other)) not in JOINED], dtype=np.int64)
+        depth = collider.depth(body.vertices[part == k], others, offset=False)
+        deepest = max(deepest, float(depth.max(initial=0.0)))
+    return 1000.0 * deepest if deepest > CROSSING_TOLERANCE else 0.0
+
+
 def random_pose(rng: np.random.Generator):
     """A ``Pose`` with every angle uniform over its range (``POSE_RANGES``), to 0.1 degree."""
     from tryon.body.params import POSE_RANGES, Pose
@@ -116,29 +145,38 @@ def run_sequence(model, measurements, poses: list, settings=None) -> list[dict]:
 
 
 def motion_stress(models: list, sequences: int, poses: int, seed: int = SEED, measurements=None,
-                  log=None) -> dict:
+                  log=None, crossing: bool = True) -> dict:
     """``sequences`` random sequences of ``poses`` poses (seeded: the same poses for every garment) on each of
-    ``models`` (``run_sequence``); the summary (per garment and in all) and every pose's record."""
+    ``models`` (``run_sequence``); the summary (per garment and in all) and every pose's record, with how far
+    the pose's body goes through itself (``body_crossing_mm``; ``crossing=False``: not measured, 0)."""
     from tryon.body.params import Measurements
 
     measurements = measurements or Measurements(**BODIES["medium"])
+    from tryon.body.build import build_body
+
     rng = np.random.default_rng(seed)
     plans = [[random_pose(rng) for _ in range(poses)] for _ in range(sequences)]
+    crossing = [[body_crossing_mm(build_body(measurements, pose)) if crossing else 0.0 for pose in plan]
+                for plan in plans]
     records = []
     # sequence after sequence, every garment in each: a run stopped early has seen every garment alike
     for s, plan in enumerate(plans):
         for model in models:
-            mine = [{"garment": model.meta.name, "sequence": s + 1, **rec}
+            mine = [{"garment": model.meta.name, "sequence": s + 1, **rec,
+                     "body_crossing_mm": crossing[s][rec["pose_index"] - 1]}
                     for rec in run_sequence(model, measurements, plan)]
             records += mine
             if log is not None:
                 log(f"  motion {model.meta.name} sequence {s + 1}: {sum(r['ok'] for r in mine)}/{len(mine)} ok, "
                     f"deepest {fmt(max((r.get('motion_mm', 0.0) for r in mine), default=0.0))} mm, "
                     f"{sum(r['wall_s'] for r in mine):.1f} s"
-                    + "".join(f"; pose {r['pose_index']} ({_angles(r['angles'])}): {_failure(r)}"
+                    + "".join(f"; pose {r['pose_index']} ({_angles(r['angles'])}"
+                              + (f", body crossing {fmt(r['body_crossing_mm'])} mm" if r["body_crossing_mm"] else "")
+                              + f"): {_failure(r)}"
                               for r in mine if not r["ok"]))
     return {"sequences": sequences, "poses": poses, "seed": seed, "garments": summarise(records),
-            "all": summarise(records)["all"], "records": records}
+            "all": summarise(records)["all"], "records": records,
+            "crossing_poses": sum(c > 0 for plan in crossing for c in plan)}
 
 
 def summarise(records: list[dict]) -> dict:
@@ -227,9 +265,13 @@ def run(ctx: Context, sec: Section) -> None:
     if failures:
         sec.tables.append(Table(
             f"Settles missing a target ({len(failures)}; first 40)",
-            ["garment", "sequence", "pose", "angles (left/right, degrees)", "transition steps", "what"],
-            [[r["garment"], r["sequence"], r["pose_index"], _angles(r["angles"]), r.get("transition_steps", "-"),
-              _failure(r)] for r in failures[:40]]))
+            ["garment", "sequence", "pose", "angles (left/right, degrees)", "body crossing (mm)", "transition steps",
+             "what"],
+            [[r["garment"], r["sequence"], r["pose_index"], _angles(r["angles"]), fmt(r["body_crossing_mm"]),
+              r.get("transition_steps", "-"), _failure(r)] for r in failures[:40]],
+            note=("body crossing: how far the pose's body goes through itself (a limb inside a part it does not "
+                  "join, e.g. a forearm in the torso); cloth cannot lie between the two there. "
+                  f"{summary['crossing_poses']} of the {SEQUENCES[mode] * POSES[mode]} poses cross.")))
     a = summary["all"]
     sec.headline.append(
         f"motion: {a['settles']} re-poses ({len(models)} garments x {SEQUENCES[mode]} random sequences of "
@@ -237,4 +279,5 @@ def run(ctx: Context, sec: Section) -> None:
         f"(limit {MAX_STRETCH:g}), hangs {a['hangs']}, deepest motion penetration {fmt(a['motion_max_penetration_mm'])}"
         f" mm (median {fmt(a['motion_median_mm'])}; over {MOTION_PENETRATION_TARGET_MM:g} mm in "
         f"{a['over_motion_target']}), ending inside {a['ending_inside']}, off a limb at the end {a['off_limbs']} "
-        f"(draped afresh {a['redraped']}), every check met {a['ok']}/{a['settles']}")
+        f"(draped afresh {a['redraped']}), every check met {a['ok']}/{a['settles']}; "
+        f"{summary['crossing_poses']} of the {SEQUENCES[mode] * POSES[mode]} poses put a limb through the body")

@@ -103,7 +103,7 @@ def deepest_inside(collider, x: np.ndarray) -> float:
     none is inside. Every part is tested, not only those the drape collides with: a point inside a part the
     garment was not expected to reach counts too. The collision's own inside test and nearest-surface depth
     (``collision.kernels.penetration_depth``); the surface is recomputed only when the body moved since the
-    last call (~0.5 ms for the T-shirt's 874 points on a resting body)."""
+    last call (the T-shirt M's 874 points: ~0.4 ms a call on a resting body, ~1.2 ms while it moves)."""
     parts = np.arange(len(collider.body.parts), dtype=np.int64)
     depth = collider.depth(x, parts, offset=False)
     return float(depth.max()) if len(depth) else 0.0

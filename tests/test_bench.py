@@ -15,7 +15,7 @@ import pytest
 
 from tryon.cli import main
 
-SECTIONS = {"table1", "table2", "table3", "fit", "poses", "outfits", "live", "pareto", "simplify", "peers", "stability",
+SECTIONS = {"table1", "table2", "table3", "fit", "poses", "outfits", "live", "motion", "pareto", "simplify", "peers", "stability",
             "scaling", "scale", "sizes"}
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

@@ -88,6 +88,10 @@ def test_a_motion_as_json_gives_each_poses_fit(client_and_id):
     assert [p["pose"]["elbow_bend_left"] for p in poses] == [0.0, 90.0, 40.0]
     for p in poses:
         assert p["metrics"]["penetrating_vertices"] == 0 and p["metrics"]["openings_on_limbs"] is True
+    # how deep the cloth went into the moving body on the way to each pose after the first (the first did not
+    # move); at rest each time nothing is inside
+    motion = [p["metrics"]["motion_max_penetration_mm"] for p in poses]
+    assert motion[0] is None and all(isinstance(m, float) and m >= 0.0 for m in motion[1:]), motion
 
 
 @pytest.mark.parametrize("extra, words", [

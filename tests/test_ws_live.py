@@ -80,6 +80,7 @@ def open_live(ws, gid: str) -> dict:
     assert init["type"] == "init", init
     first = read_until_done(ws, {0: Settle(0, time.monotonic())}, [], 0)
     assert first["metrics"]["penetrating_vertices"] == 0  # drapes, or from the cache after the first test
+    assert first["metrics"]["motion_max_penetration_mm"] is None  # a drape, not a motion
     return init
 
 
@@ -100,6 +101,8 @@ def test_three_pose_updates_each_settle_with_nothing_inside_the_body(server):
             s = settles[update]
             m = done["metrics"]
             assert m["rest_reached"] and m["penetrating_vertices"] == 0, (pose, m)
+            # and on the way: no step had cloth 10 mm inside the moving body (the target)
+            assert 0.0 <= m["motion_max_penetration_mm"] < 10.0, (pose, m["motion_max_penetration_mm"])
             assert sorted(o["around"] for o in m["limb_openings"]) == ["upper_arm_l", "upper_arm_r"], pose
             expected = Pose(**(NAMED_POSES[pose] if isinstance(pose, str) else pose)).as_dict()
             assert s.body["pose"]["arm_angle_right"] >= expected["arm_angle_right"] and m["pose"] == s.body["pose"]

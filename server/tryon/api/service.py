@@ -134,6 +134,8 @@ def result_json(result: TryOnResult | OutfitResult, cached_answer_s: float | Non
         "stays_up": bool(m["stays_up"]),
         "sized_to_body": bool(m.get("sized_to_body", False)),
         "pose": m.get("pose", {}),
+        "motion_max_penetration_mm": (None if m.get("motion_max_penetration_mm") is None
+                                      else round(float(m["motion_max_penetration_mm"]), 3)),
     }
     if "layer_penetrating_vertices" in m:  # a file of a top and a bottom, draped as layers
         metrics["layer_penetrating_vertices"] = int(m["layer_penetrating_vertices"])

@@ -1,7 +1,8 @@
 """``tryon bench``: the service's speed and accuracy measured on this machine in one run.
 
 Sections (one module each): the paper's tables 1-3 (``tables``), the catalogue's fit on three bodies (``fit``)
-and in other poses (``poses``), outfits of a top over a bottom (``outfits``), run time against error and the
+and in other poses (``poses``), live re-posing over a WebSocket (``live``) and random pose sequences through
+the re-pose (``motion``), outfits of a top over a bottom (``outfits``), run time against error and the
 default settings (``pareto``), the paper's simplification against quadric edge collapse
 (``simplify_compare``), peer engines (``peers``: Taichi, Newton), the stability stress summary
 (``stability``), and scaling (``scaling``), fit-table throughput on Ray (``scale``), size advice against the
@@ -23,7 +24,7 @@ from tryon.bench.report import now, write_report
 def sections():
     """(name, title, function) of every section, in report order."""
     from tryon.bench import (
-        fit, live, outfits, pareto, peers, poses, scale, scaling, simplify_compare, sizes, stability, tables,
+        fit, live, motion, outfits, pareto, peers, poses, scale, scaling, simplify_compare, sizes, stability, tables,
     )
 
     return [
@@ -34,6 +35,7 @@ def sections():
         ("poses", "Fit in other poses", poses.run),
         ("outfits", "Outfits: a top over a bottom", outfits.run),
         ("live", "Live re-posing over the WebSocket", live.run),
+        ("motion", "Motion stress: random pose sequences", motion.run),
         ("sizes", "Size advice against the chart", sizes.run),
         ("pareto", "Run time against error", pareto.run),
         ("simplify", "Simplification compared", simplify_compare.run),

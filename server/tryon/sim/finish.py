@@ -78,4 +78,6 @@ def result(d: Drape, relaxation: Relaxation, full: np.ndarray, full_parts: np.nd
         "relaxed": bool(relaxation.relaxed),
         "pose": dict(body.pose),
     }
+    if d.moving:  # a re-pose: the deepest any coarse point went inside the body on the way (``run.settle``)
+        metrics["motion_max_penetration_mm"] = 1000.0 * d.motion_depth
     return TryOnResult(vertices=full, faces=model.faces, strain=per_vertex, coarse=x, metrics=metrics)

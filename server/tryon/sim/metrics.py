@@ -97,6 +97,18 @@ def penetration_metrics(depth: np.ndarray) -> dict:
     }
 
 
+def deepest_inside(collider, x: np.ndarray) -> float:
+    """Depth (m) of the deepest of the points ``x`` (k, 3) m inside the real (un-offset) body as ``collider`` (a
+    ``collision.collider.BodyCollider``) has it now, its limbs where a re-pose has turned them this step; 0 when
+    none is inside. Every part is tested, not only those the drape collides with: a point inside a part the
+    garment was not expected to reach counts too. The collision's own inside test and nearest-surface depth
+    (``collision.kernels.penetration_depth``); the surface is recomputed only when the body moved since the
+    last call (the T-shirt M's 874 points: ~0.4 ms a call on a resting body, ~1.2 ms while it moves)."""
+    parts = np.arange(len(collider.body.parts), dtype=np.int64)
+    depth = collider.depth(x, parts, offset=False)
+    return float(depth.max()) if len(depth) else 0.0
+
+
 # cm: a garment whose top ended lower than this under where it was put on does not stay up on the body (a
 # waistband wider than the hips, straps wider than the shoulders). In the default pose the catalogue's and
 # the real garments that stay up slid at most 8 cm (the small body's skirt M, its band on the hips); the

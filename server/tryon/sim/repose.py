@@ -257,11 +257,14 @@ def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape,
     False) draped afresh in the same pose (aligned, as a new try-on) when that puts them on: (the drape, its
     result, whether it was draped afresh). Carried through many poses in a row the cloth can end caught on
     the way (the T-shirt M, six poses three times over: a sleeve came off at the tenth and stayed off), and a
-    later pose would start from there. A garment sized to the body (guessed units) is left as it is."""
+    later pose would start from there. A garment sized to the body (guessed units) is left as it is. The result
+    draped afresh keeps the re-pose's ``motion_max_penetration_mm``."""
     if result is None or result.metrics.get("openings_on_limbs") is not False or d.sized:
         return d, result, False
     fresh = start(d.body, d.model, d.settings, d.tuning)
     again, _ = settle(fresh, on_frame)
     if again.metrics.get("openings_on_limbs") is False:
         return d, result, False
+    # the motion the client saw was the re-pose's (the fresh drape's start grows the body inside the cloth)
+    again.metrics["motion_max_penetration_mm"] = result.metrics.get("motion_max_penetration_mm")
     return fresh, again, True

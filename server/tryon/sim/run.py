@@ -78,6 +78,7 @@ import numpy as np
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.sim.finish import TryOnResult, finish
+from tryon.sim.metrics import deepest_inside
 from tryon.sim.outfit import drape_pieces, piece_categories
 from tryon.sim.relax import relax
 from tryon.sim.settings import SimSettings
@@ -108,10 +109,15 @@ def settle(d: Drape, on_frame=None, give_way=None) -> tuple[TryOnResult | None, 
     """Step ``d`` until it is at rest (or ``settings.max_steps``, or until ``on_frame(step, x)``, called after
     every step, returns False), then relax and finish it: (the result, False). A fresh drape (``drape``) and a
     re-posed one (``repose.repose``) alike. ``give_way()``: asked after every step once the body's start-up
-    motion is over; True ends the settle there without a result: (None, True)."""
+    motion is over; True ends the settle there without a result: (None, True). A re-posed drape (``d.moving``)
+    has its coarse points' depth inside the body measured after every step (``metrics.deepest_inside``, the
+    body as it is at that step), the deepest kept in ``d.motion_depth``: the result's
+    ``motion_max_penetration_mm``."""
     stopped = False
     for _ in range(d.settings.max_steps):
         at_rest = step(d)
+        if d.moving:  # a re-pose: how deep the cloth is inside the body as it is at this step
+            d.motion_depth = max(d.motion_depth, deepest_inside(d.collider, d.state.x))
         if on_frame is not None and on_frame(d.state.step, d.state.x) is False:
             stopped = True
             break

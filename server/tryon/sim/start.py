@@ -105,4 +105,4 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                  table=table, openings=openings, placed_tops=placed_tops, floor_y=floor_y, n_sub=n_sub,
                  per_sub=max(1, settings.passes // n_sub), h=float(settings.time_step) / n_sub,
                  grow_steps=grow_steps, startup=max(grow_steps, arms.steps), pinned_until=pinned_until,
-                 saved_inv_mass=saved_inv_mass, sized=sized, state=state, started=started)
+                 saved_inv_mass=saved_inv_mass, sized=sized, state=state, started=started, moving=motion is not None)

@@ -103,6 +103,9 @@ class Drape:
     body_table (the contact passes' springs, both ends on the body), ordered_ends, ordered_lmax (every
     spring from the top down, refreshed every ``tuning.order_refresh`` steps) and sweep_ends, sweep_lmax (the
     hanging springs the top-down sweep visits). started: ``time.perf_counter()`` at the start.
+    moving: a re-posed drape (``start``'s ``motion``: the body moves from another pose while the garment steps
+    on); for these ``run.settle`` measures after every step how deep the garment's coarse points are inside
+    the body as it is at that step, and ``motion_depth`` (m) keeps the deepest (``motion_max_penetration_mm``).
     """
 
     body: Body
@@ -140,3 +143,5 @@ class Drape:
     sweep_ends: np.ndarray = field(default_factory=lambda: np.empty((0, 2), dtype=np.uint32))
     sweep_lmax: np.ndarray = field(default_factory=lambda: np.empty(0))
     started: float = 0.0
+    moving: bool = False
+    motion_depth: float = 0.0

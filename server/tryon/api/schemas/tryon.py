@@ -136,6 +136,12 @@ class TryOnMetricsOut(BaseModel):
     rest_reached: bool = Field(description="whether the garment came to rest before the step limit")
     penetrating_vertices: int = Field(description="garment vertices inside the body by more than 2 mm")
     max_penetration_mm: float = Field(description="deepest garment vertex inside the body, mm")
+    motion_max_penetration_mm: float | None = Field(
+        None, description="a re-pose (a live pose update, or a motion's pose after the first): the deepest any "
+                          "simulated (coarse) garment point went inside the body over every step of the way there, "
+                          "the body as it was at that step (its limbs moving), mm; null for a drape that did not "
+                          "move (a try-on, a motion's first pose). A re-pose draped afresh (redraped) keeps the "
+                          "re-pose's")
     body_through_vertices: int = Field(0, description="the opposite fault, on the shown mesh: body vertices that "
                                                       "poke out through the garment by more than 2 mm where it "
                                                       "covers them (the outermost cloth along the skin's normal "

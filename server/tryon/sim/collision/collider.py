@@ -47,6 +47,11 @@ class BodyCollider:
         self.scale = 1.0
         self._pose_vertices = self.rest_vertices
         self._pose_normals = self.rest_normals
+        # the body's shape, counted up by every change (``update``), and the shape the real (un-offset)
+        # surface's normals, radii and boxes were last computed for (``depth``): a drape's per-step depth
+        # (``run.settle``'s motion penetration) recomputes them only while the body moves
+        self.shape = 0
+        self._plain_shape = -1
         self.update()
 
     def _rest(self, vertices: np.ndarray, normals: np.ndarray, m, changed: np.ndarray | None = None) -> None:
@@ -98,6 +103,7 @@ class BodyCollider:
             self._rest(vertices, face_vertex_normals(vertices, self.faces)[1], maps, changed)
         self._pose_vertices = self.rest_vertices
         self._pose_normals = self.rest_normals
+        self.shape += 1
 
     @property
     def vertex_normals(self) -> np.ndarray:
@@ -108,6 +114,7 @@ class BodyCollider:
 
     def update(self) -> None:
         """Recompute the offset surface from the current posed vertices and the growth scale."""
+        self.shape += 1
         if self.scale != 1.0:
             grow_vertices(self._pose_vertices, self.vertex_part, self.cyl_origin, self.cyl_axes, self.scale,
                           self.vertices)
@@ -184,14 +191,19 @@ class BodyCollider:
             bv, fn, rmax, boxes = self.offset, self.offset_normals, self.cell_rmax, self.offset_boxes
         else:
             bv = self.vertices
-            face_normals(bv, self.faces, self.plain_normals)
-            if self.scale == 1.0 and self._pose_vertices is self.rest_vertices:
-                self.plain_rmax[:] = self.rest_rmax  # the body as built: its radii are known (5.5 ms a call)
-            else:
-                cell_max_radius(self.cyl_origin, self.cyl_axes, self.cyl_shape, self.cell_base, self.cell_start,
-                                self.cell_faces, self.faces, bv, self.plain_rmax)
-            face_boxes(bv, self.faces, self.face_part, self.vertex_part, self.cyl_origin, self.cyl_axes, self.corners,
-                       self.plain_boxes)
+            if self._plain_shape != self.shape:  # the body changed since the last call
+                face_normals(bv, self.faces, self.plain_normals)
+                if self.scale == 1.0:
+                    # the body as built or with parts turned rigidly (``pose_arms``): a cell lists only its own
+                    # part's faces, and a part's vertices turn with its frame, so the radii are the built
+                    # body's (cell_max_radius costs 5.5 ms a call)
+                    self.plain_rmax[:] = self.rest_rmax
+                else:
+                    cell_max_radius(self.cyl_origin, self.cyl_axes, self.cyl_shape, self.cell_base, self.cell_start,
+                                    self.cell_faces, self.faces, bv, self.plain_rmax)
+                face_boxes(bv, self.faces, self.face_part, self.vertex_part, self.cyl_origin, self.cyl_axes,
+                           self.corners, self.plain_boxes)
+                self._plain_shape = self.shape
             fn, rmax, boxes = self.plain_normals, self.plain_rmax, self.plain_boxes
         return penetration_depth(np.ascontiguousarray(points, dtype=np.float64), parts,
                                  self._surface(bv, fn, rmax, boxes))

@@ -1,0 +1,106 @@
+"""Accurate in motion (issue 30): how deep the cloth goes inside the body while the body moves
+(``motion_max_penetration_mm``, measured against the body as it is at each step), and the motion stress
+(``tryon bench --only motion``) in small: seeded random pose sequences through the sim-level re-pose."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from tryon.bench.motion import MOTION_PENETRATION_TARGET_MM, motion_stress
+from tryon.bench.stress import MAX_STRETCH, catalogue_models
+from tryon.body.build import build_body
+from tryon.body.params import Measurements, pose_from
+from tryon.sim.collision.collider import BodyCollider
+from tryon.sim.metrics import deepest_inside
+from tryon.sim.repose import repose
+from tryon.sim.run import settle
+from tryon.sim.settings import SimSettings
+from tryon.sim.start import start
+
+MEDIUM = Measurements(height=170, chest=96, waist=82, hips=100)
+
+
+def test_a_point_inside_a_turned_forearm_is_as_deep_as_it_was_put():
+    """A point 5 mm under the skin of the middle of the left forearm (along the vertex normal, inwards) is 5 mm
+    deep; with the forearm turned 60 degrees about the elbow, the point turned with it is still 5 mm deep and
+    the point left where it was is outside: the depth is taken against the body as it is now."""
+    body = build_body(MEDIUM)
+    collider = BodyCollider(body, SimSettings().collision_margin)
+    k = body.parts.index("forearm_l")
+    ids = np.flatnonzero(body.vertex_part == k)
+    elbow, wrist = np.asarray(body.joints["elbow_l"]), np.asarray(body.joints["wrist_l"])
+    axis = (wrist - elbow) / np.linalg.norm(wrist - elbow)
+    along = (body.vertices[ids] - elbow) @ axis / np.linalg.norm(wrist - elbow)
+    v = ids[np.argmin(np.abs(along - 0.5))]  # halfway down the forearm, away from its ends
+    point = body.vertices[v] - 0.005 * body.vertex_normals[v]
+    assert deepest_inside(collider, point[None]) == pytest.approx(0.005, abs=0.001)
+    assert deepest_inside(collider, (body.vertices[v] + 0.005 * body.vertex_normals[v])[None]) == 0.0
+
+    rot = Rotation.from_rotvec(np.radians(60.0) * np.array([0.0, 0.0, 1.0])).as_matrix()
+    collider.pose_arms({k: (elbow, rot)})
+    turned = elbow + rot @ (point - elbow)
+    assert np.linalg.norm(turned - point) > 0.05
+    assert deepest_inside(collider, turned[None]) == pytest.approx(0.005, abs=0.001)
+    assert deepest_inside(collider, point[None]) == 0.0
+    assert deepest_inside(collider, np.stack([point, turned])) == pytest.approx(0.005, abs=0.001)
+
+
+def test_a_repose_reports_the_deepest_point_of_any_of_its_steps(tmp_path):
+    """The T-shirt M at rest in the A-pose (a fresh drape: no motion, no figure), then re-posed to each named
+    pose: the result's ``motion_max_penetration_mm`` is the deepest any coarse point was inside the body as the
+    collider had it after each step (the limbs where the transition had them), and under the issue's 10 mm for
+    arms raised and hands on hips."""
+    model = catalogue_models(data_dir=tmp_path, names=["tshirt-m.obj"])[0]
+    d = start(build_body(MEDIUM), model, SimSettings())
+    first, _ = settle(d)
+    assert "motion_max_penetration_mm" not in first.metrics
+    parts = np.arange(len(d.body.parts), dtype=np.int64)
+    for name in ("arms_raised", "hands_on_hips"):
+        d = repose(d, build_body(MEDIUM, pose_from(name)))
+        frames = []
+
+        def watch(step, x, d=d):
+            frames.append(float(d.collider.depth(x, parts, offset=False).max()))  # the body as it is this step
+            return True
+
+        result, _ = settle(d, watch)
+        reported = result.metrics["motion_max_penetration_mm"]
+        assert reported == pytest.approx(1000.0 * max(frames), abs=1e-9), name
+        assert 0.0 <= reported < MOTION_PENETRATION_TARGET_MM, (name, reported)
+
+
+@pytest.fixture(scope="module")
+def small_stress(tmp_path_factory):
+    """The motion stress in small: a seeded sequence of ten random poses (every angle over its whole range) on
+    the T-shirt, the trousers and the skirt M, through repose and settle as a live session (the section's first
+    sequence; ~40 s: a re-pose of a top is ~1 s)."""
+    models = catalogue_models(data_dir=tmp_path_factory.mktemp("motion"),
+                              names=["tshirt-m.obj", "trousers-m.obj", "skirt-m.obj"])
+    return motion_stress(models, sequences=1, poses=10, seed=30, crossing=False)
+
+
+@pytest.mark.slow
+def test_random_pose_sequences_never_blow_up_nor_hang(small_stress):
+    """Never a NaN, no spring over 3x its length in any frame, every settle at rest within its max steps, none
+    raises."""
+    a = small_stress["all"]
+    bad = [r for r in small_stress["records"] if not r["finite"] or r["hang"] or r["max_stretch"] >= MAX_STRETCH]
+    assert a["settles"] == 30 and a["errors"] == 0, bad
+    assert a["never_nan"] and a["max_stretch"] < MAX_STRETCH and a["hangs"] == 0, bad
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 30, not met yet: carried through random poses, tops go 10-55 mm into "
+                                       "the moving body (cloth at the armpit pressed into the torso's side by an arm "
+                                       "coming down to it), a few end with a vertex inside, long sleeves come off "
+                                       "(tryon bench --only motion; the T-shirt M's pose 4 here: 34 mm, and 1 vertex "
+                                       "8 mm inside at rest, a pose whose right forearm is 9 mm through the torso)")
+def test_random_pose_sequences_keep_the_cloth_out_of_the_body_and_on_the_limbs(small_stress):
+    """No frame with cloth 10 mm inside the body, and at every settle's end nothing inside the body and every
+    sleeve and leg round its limb."""
+    a = small_stress["all"]
+    bad = [r for r in small_stress["records"] if not r["ok"]]
+    assert a["motion_max_penetration_mm"] < MOTION_PENETRATION_TARGET_MM, bad
+    assert a["ending_inside"] == 0 and a["off_limbs"] == 0, bad

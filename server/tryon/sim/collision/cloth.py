@@ -164,18 +164,12 @@ def face_sides(vertices, faces, outward):
     wound garment turned as a whole by the vote of its piece did worse on the outfit bench (a skirt under a
     T-shirt, shorts under a long-sleeve: their triangles across the body's axes, at the crotch and between the
     legs, are better turned one by one)."""
+    normal = signed_face_normals(vertices, faces, np.ones(faces.shape[0]))
     out = np.empty(faces.shape[0])
     for f in range(faces.shape[0]):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        ux = vertices[b, 0] - vertices[a, 0]
-        uy = vertices[b, 1] - vertices[a, 1]
-        uz = vertices[b, 2] - vertices[a, 2]
-        wx = vertices[c, 0] - vertices[a, 0]
-        wy = vertices[c, 1] - vertices[a, 1]
-        wz = vertices[c, 2] - vertices[a, 2]
-        vote = ((uy * wz - uz * wy) * (outward[a, 0] + outward[b, 0] + outward[c, 0])
-                + (uz * wx - ux * wz) * (outward[a, 1] + outward[b, 1] + outward[c, 1])
-                + (ux * wy - uy * wx) * (outward[a, 2] + outward[b, 2] + outward[c, 2]))
+        vote = 0.0
+        for a in range(3):
+            vote += normal[f, a] * (outward[faces[f, 0], a] + outward[faces[f, 1], a] + outward[faces[f, 2], a])
         out[f] = -1.0 if vote < 0.0 else 1.0
     return out
 

@@ -1,33 +1,32 @@
 """An outfit: up to three garments draped at once, each over the ones under it (issue 29).
 
-Method. Every garment is its own drape (``start``, ``step``, ``relax``: its springs, its contacts with the
-body, its own start-up), stepped in lockstep; after each step the layers collide, innermost first, both
-ways: every point of an outer garment that lies less than ``LAYER_GAP`` outside an inner garment's current
-coarse surface (or inside it) is moved to ``LAYER_GAP`` outside it, and every point of the inner garment
-through the outer one's surface back under it; the triangle takes its share of each move by inverse mass
-(``collision.cloth.push_outside_layer``: the point-triangle constraint of position-based dynamics), so a
-waistband under a shirt's hem carries the hem's weight. An outer point pushed gets a contact plane on the
-inner garment (``DrapeState.layer_planes``), which the next step takes instead of
-the body's where it asks more (``contacts.take_stricter_planes``): the substeps keep the point on the garment
-under it, not on the body it would fall back to between two layer collisions (a T-shirt under a long-sleeve,
-both M, fought like that every step and never came to rest). Only pushed points: planes also for the points
-lying within the body's ``near`` beyond the gap left a T-shirt's hem dipping 2 cm under a skirt at the back
-(the planes are a step old when taken, and the skirt's flare had moved). Which side is outside is fixed by the layer order
-and the body, not by the files' winding: each face's normal is turned away from the nearest body axis, by
-its own vote, every step (``outward_from_body``, ``collision.cloth.face_sides``). A one-sided push with a
-kept layer order is what Houdini Vellum and CLO do for layered garments; it needs no history and untangles
-two layers that started crossed (an outer garment aligned partly inside the inner one ends outside it),
-which a side-keeping test would lock in. The layers collide only once every garment's start-up is over
-(each drape grows the body and turns the arms on its own schedule), on the body all garments share.
+Method. Every garment is its own drape (``start``, ``step``, ``relax``: its springs, its contacts with the body,
+its own start-up), stepped in lockstep; after each step the layers collide, innermost first, both ways: every point
+of an outer garment that lies less than ``LAYER_GAP`` outside an inner garment's current coarse surface (or inside
+it) is moved to ``LAYER_GAP`` outside it, and every point of the inner garment through the outer one's surface back
+under it; the triangle takes its share of each move by inverse mass (``collision.cloth.push_outside_layer``: the
+point-triangle constraint of position-based dynamics), so a waistband under a shirt's hem carries the hem's weight.
+An outer point pushed gets a contact plane on the inner garment (``DrapeState.layer_planes``), which the next step
+takes instead of the body's where it asks more (``contacts.take_stricter_planes``): the substeps keep the point on
+the garment under it, not on the body it would fall back to between two layer collisions (a T-shirt under a
+long-sleeve, both M, fought like that every step and never came to rest). Only pushed points: planes also for the
+points lying within the body's ``near`` beyond the gap left a T-shirt's hem dipping 2 cm under a skirt at the back
+(the planes are a step old when taken, and the skirt's flare had moved). Which side is outside is fixed by the
+layer order and the body, not by the files' winding: each face's normal is turned away from the nearest body axis,
+by its own vote, every step (``outward_from_body``, ``collision.cloth.face_sides``). A one-sided push with a kept
+layer order is what Houdini Vellum and CLO do for layered garments; it needs no history and untangles two layers
+that started crossed (an outer garment aligned partly inside the inner one ends outside it), which a side-keeping
+test would lock in. The layers collide only once every garment's start-up is over (each drape grows the body and
+turns the arms on its own schedule), on the body all garments share.
 
 Skip what the scene does not need: only the outer points inside an inner garment's box (plus ``LAYER_REACH``)
-are tested, through a grid of the inner triangles; a garment at rest that no layer pushed is not stepped
+are tested, through a grid of the inner triangles within reach of their box; a garment at rest that no layer pushed is not stepped
 (it sleeps until a push moves it by more than ``tuning.rest_move``).
 
 The end: each garment relaxes on its own, the layers collide ``FINAL_LAYER_ROUNDS`` more times with the body
 collision after each (nothing through the body either), then each garment's shown mesh is built and the outer
-shown meshes are pushed ``SHOWN_LAYER_GAP`` outside the inner shown meshes (the inner ones fixed), as the
-body collision does for one garment's shown mesh. ``layer_penetrating_vertices`` counts what is still more
+shown meshes are pushed ``SHOWN_LAYER_GAP`` outside the inner shown meshes (the inner ones fixed, at most
+``SHOWN_MAX_PUSH`` a round), as the body collision does for one garment's shown mesh. ``layer_penetrating_vertices`` counts what is still more
 than ``LAYER_TOLERANCE`` on the body's side of a garment under it.
 
 Tuck: a top and a bottom in one outfit are layered by ``tuck``: ``out`` (the default) puts the bottom under
@@ -294,7 +293,7 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
     bottoms = [k for k, d in enumerate(drapes) if d.model.meta.category == "bottom"]
     tucked = None
     if tops and bottoms:
-        top, bottom = drapes[tops[0]], drapes[bottoms[0]]
+        bottom = drapes[bottoms[0]]
         band = waistband_mask(bottom.state.x, bottom.model.coarse_faces, "bottom", bottom.model.coarse_loops,
                               bottom.piece)
         b = bottoms[0]

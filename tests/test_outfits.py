@@ -20,6 +20,8 @@ from tryon.config import Settings
 from tryon.garment.catalogue import Catalogue
 from tryon.sim.outfit import drape_outfit, layer_order
 
+from test_cloth_collision import tube
+
 ROOT = Path(__file__).resolve().parents[1]
 BODY = {"height": 170, "chest": 96, "waist": 82, "hips": 100}
 GARMENTS = {"tshirt": ("tshirt-m.obj", "T-shirt M", "top"), "longsleeve": ("longsleeve-s.obj", "Long-sleeve S", "top"),
@@ -81,19 +83,6 @@ def test_an_outer_layer_that_starts_inside_the_inner_one_ends_outside_it(catalog
     assert m["rest_reached"]
 
 
-def _tube(radius: float, y0: float, y1: float, n: int = 24, rows: int = 6) -> tuple[np.ndarray, np.ndarray]:
-    """A vertical open tube round the y axis: (vertices (rows * n, 3) m, faces (f, 3) int64)."""
-    a = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
-    ys = np.linspace(y0, y1, rows)
-    v = np.array([[radius * np.cos(t), y, radius * np.sin(t)] for y in ys for t in a])
-    f = []
-    for r in range(rows - 1):
-        for k in range(n):
-            i, j = r * n + k, r * n + (k + 1) % n
-            f += [[i, j, i + n], [j, j + n, i + n]]
-    return v, np.array(f, dtype=np.int64)
-
-
 @pytest.mark.parametrize("top_radius, out_ok, in_ok", [(0.16, True, False), (0.14, False, True)])
 def test_tuck_is_judged_on_the_bands_surface(body, top_radius, out_ok, in_ok):
     """A tube 1 cm outside a band-like tube is over it (out), 1 cm inside is under it (in); a top that ends above
@@ -101,9 +90,9 @@ def test_tuck_is_judged_on_the_bands_surface(body, top_radius, out_ok, in_ok):
     from tryon.sim.outfit import face_sides, outward_from_body, tuck_as_asked
 
     centre = body.part_axes[body.parts.index("torso")].mean(axis=0) * [1.0, 0.0, 1.0]
-    bottom, faces = _tube(0.15, 0.9, 1.0)
+    bottom, faces = tube(0.15, n_around=24, n_along=6, height=0.1, y0=0.9)
     bottom += centre
-    top = _tube(top_radius, 0.85, 1.05)[0] + centre
+    top = tube(top_radius, n_around=24, n_along=6, height=0.2, y0=0.85)[0] + centre
     sides = face_sides(bottom, faces, outward_from_body(bottom, body))
     band = (0.95, 1.0)
     assert tuck_as_asked(top, bottom, faces, sides, band, "out") is out_ok

@@ -181,6 +181,36 @@ def test_finish_step_is_the_substeps_kernels_one_by_one():
     assert np.array_equal(a, b) and np.array_equal(a_prev, b_prev) and np.array_equal(a_push, b_push)
 
 
+def test_the_within_step_test_takes_points_with_a_plane_too_while_a_reposed_body_moves():
+    """A point that got a contact plane at the step's collision (on another part, here anywhere) and was then
+    pulled 2 cm into the post by the springs: the within-step test passes it over as before (its plane is
+    trusted), unless ``retest_planes`` (a re-posed body moving), which pushes it out onto the post's surface and
+    gives it the post's plane; a point with a plane that has not moved past the reach is not tested at all."""
+    from tryon.sim.collision.movers import collide_movers
+
+    x = np.array([[0.03, 0.5, 0.0], [0.0, 0.5, 0.052]])  # 2 cm inside the 5 cm post; just outside it
+    checked = np.array([[0.08, 0.5, 0.0], [0.0, 0.5, 0.052]])  # where the step's collision tested them
+    inv_mass = np.ones(2)
+    parts = np.zeros(1, dtype=np.int64)
+    collider = BodyCollider(_post(), 0.004)
+    for retest in (False, True):
+        state = DrapeState.at(x.copy(), inv_mass)
+        state.x_checked[:] = checked
+        has_plane = np.ones(2, dtype=np.bool_)
+        point = np.tile([0.0, 2.0, 0.0], (2, 1))  # a plane far above: it holds nothing here
+        normal = np.tile([0.0, 1.0, 0.0], (2, 1))
+        movers = collider.movers(state, parts, 0.0005, 0.005, 0.006, False, retest_planes=retest)
+        y, y_prev = x.copy(), x.copy()
+        tested = collide_movers(y, y_prev, inv_mass, movers, 0.6, 0.4, has_plane, point, normal)
+        assert np.array_equal(y[1], x[1]) and normal[1, 1] == 1.0  # not moved past the reach: untouched
+        if not retest:
+            assert tested == 0 and np.array_equal(y, x)
+        else:
+            assert tested == 1 and has_plane[0]
+            assert collider.depth(y[:1], parts, offset=True)[0] < 1e-6  # out of the post and its 4 mm offset
+            assert normal[0] @ np.array([1.0, 0.0, 0.0]) > 0.9  # the post's plane, facing the point
+
+
 def test_top_down_order_is_a_stable_sort_of_the_steep_springs_by_upper_end():
     x, springs, ends, table, on_body = _cloth()
     x[::7, 1] = x[0, 1]  # some exact height ties: they keep spring order

@@ -88,7 +88,7 @@ def step(d: Drape) -> bool:
                 d.table, contact_passes, d.body_ends, d.body_table, touching, st.plane_point, st.plane_normal,
                 st.has_plane, st.push, mu_s, mu_k, not changing, tu.sweep_every_substep, d.sweep_ends, d.sweep_lmax,
                 d.floor_y, d.collider.movers(st, d.parts, s.contact_offset, tu.near, s.collision_margin + tu.frame_depth,
-                                             hold_pinched=not changing))
+                                             hold_pinched=not changing, retest_planes=d.moving))
     # guard: collision wins over the springs within the step, so a garment far too small for its body (a
     # size S shirt on the largest body) would be stretched without bound; past ``tear_guard`` x its natural
     # length a spring wins instead (the point may stay inside the body: the metrics report it). Never active

@@ -178,11 +178,11 @@ class BodyCollider:
         return collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, mu_kinetic, contact, near,
                               planes[0], planes[1], planes[2], hold_pinched, held)
 
-    def movers(self, state, parts, lam, near, reach, hold_pinched) -> Movers:
+    def movers(self, state, parts, lam, near, reach, hold_pinched, retest_planes=False) -> Movers:
         """The within-step test's argument (``collision.movers``) for a drape's ``state`` (a ``DrapeState``)."""
         surface = self._surface(self.offset, self.offset_normals, self.cell_rmax, self.offset_boxes)
         return Movers(surface, parts, state.x_checked, state.contact, state.held, state.movers, float(reach),
-                      float(lam), float(near), bool(hold_pinched))
+                      float(lam), float(near), bool(hold_pinched), bool(retest_planes))
 
     def depth(self, points: np.ndarray, parts: np.ndarray, offset: bool = False) -> np.ndarray:
         """Depth (m) of each point (n, 3) inside the body (``offset=False``: the real, un-offset surface of

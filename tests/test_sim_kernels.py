@@ -211,6 +211,37 @@ def test_the_within_step_test_takes_points_with_a_plane_too_while_a_reposed_body
             assert normal[0] @ np.array([1.0, 0.0, 0.0]) > 0.9  # the post's plane, facing the point
 
 
+def test_a_pinched_point_is_held_only_where_it_is_not_deep():
+    """Points in the overlap of a post and an arm pressed 1.5 cm into its front (cloth squeezed between a forearm
+    and the torso): held where they were (a drape from scratch), most stay deeper than the reach of a step's
+    collision (6 mm in the offset body); with ``hold_depth`` (a re-posed drape) those are put where the pushes
+    left them least deep instead; points not held (the body moving) end at the least deep push, never deeper
+    than at the last one."""
+    body = body_from_parts(np.array([[[0, 0.2, 0], [0, 0.8, 0]], [[-0.15, 0.5, 0.065], [0.15, 0.5, 0.065]]], float),
+                           np.array([0.05, 0.03]))
+    collider = BodyCollider(body, 0.004)
+    parts = np.arange(2, dtype=np.int64)
+    rng = np.random.default_rng(0)
+    pts = np.column_stack([rng.uniform(-0.06, 0.06, 4000), rng.uniform(0.45, 0.55, 4000),
+                           rng.uniform(0.02, 0.06, 4000)])
+    both = (collider.depth(pts, parts[:1], offset=True) > 0) & (collider.depth(pts, parts[1:], offset=True) > 0)
+    pts = pts[both][:300]
+    assert len(pts) == 300
+
+    def deep_after(hold: bool, hold_depth: float) -> np.ndarray:
+        x, n = pts.copy(), len(pts)
+        planes = (np.zeros(n, dtype=np.bool_), np.zeros((n, 3)), np.zeros((n, 3)))
+        collider.collide(x, pts.copy(), np.ones(n), np.ones(n, dtype=np.bool_), parts, 0.0005, 0.0, 0.0,
+                         np.zeros(n, dtype=np.bool_), planes=planes, hold_pinched=hold,
+                         held=np.zeros(n, dtype=np.bool_), hold_depth=hold_depth)
+        return collider.depth(x, parts, offset=True)
+
+    held, limited = deep_after(True, 1e9), deep_after(True, 0.006)
+    assert (held > 0.006).sum() > 200 and (limited > 0.006).sum() < 30
+    assert np.all(limited <= held + 1e-9)
+    assert np.all(deep_after(False, 0.006) <= deep_after(False, 1e9) + 1e-9)
+
+
 def test_top_down_order_is_a_stable_sort_of_the_steep_springs_by_upper_end():
     x, springs, ends, table, on_body = _cloth()
     x[::7, 1] = x[0, 1]  # some exact height ties: they keep spring order

@@ -44,6 +44,9 @@ def step(d: Drape) -> bool:
     # the first substep's prediction, collision and passes here; its tail and the other substeps in one
     # kernel (``finish_step``)
     verlet_step(x, x_prev, inv_mass, d.h, gravity, s.air_drag, s.max_speed)
+    # a re-posed drape does not leave a pinched point deeper in the body than the collision's reach within a
+    # step (``collide_points``' hold_depth); a drape from scratch holds it wherever it is
+    hold_depth = s.collision_margin + tu.frame_depth if d.moving else 1e9
     # collision (paper 3.3-3.4) on the predicted positions, leaving a contact plane for every point pushed
     # out or lying within ``near`` of the body; the substeps keep to those planes
     if changing:
@@ -56,7 +59,7 @@ def step(d: Drape) -> bool:
         st.active |= st.held
     st.collided = collider.collide(x, x_prev, inv_mass, st.active, d.parts, s.contact_offset, mu_s, mu_k,
                                    st.contact, near=tu.near, planes=st.planes, hold_pinched=not changing,
-                                   held=st.held)
+                                   held=st.held, hold_depth=hold_depth)
     st.x_checked[st.active] = x[st.active]
     if st.layer_has.any():
         take_stricter_planes(x, *st.planes, *st.layer_planes)
@@ -88,7 +91,8 @@ def step(d: Drape) -> bool:
                 d.table, contact_passes, d.body_ends, d.body_table, touching, st.plane_point, st.plane_normal,
                 st.has_plane, st.push, mu_s, mu_k, not changing, tu.sweep_every_substep, d.sweep_ends, d.sweep_lmax,
                 d.floor_y, d.collider.movers(st, d.parts, s.contact_offset, tu.near, s.collision_margin + tu.frame_depth,
-                                             hold_pinched=not changing, retest_planes=d.moving))
+                                             hold_pinched=not changing, retest_planes=d.moving,
+                                             hold_depth=hold_depth))
     # guard: collision wins over the springs within the step, so a garment far too small for its body (a
     # size S shirt on the largest body) would be stretched without bound; past ``tear_guard`` x its natural
     # length a spring wins instead (the point may stay inside the body: the metrics report it). Never active

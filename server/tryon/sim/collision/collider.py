@@ -168,21 +168,21 @@ class BodyCollider:
     # ------------------------------------------------------------------ queries
 
     def collide(self, x, x_prev, inv_mass, active, parts, lam, mu_static, mu_kinetic, contact,
-                near=0.0, planes=None, hold_pinched=False, held=None) -> int:
+                near=0.0, planes=None, hold_pinched=False, held=None, hold_depth=1e9) -> int:
         """Push points ``x`` out of the offset body in place; returns how many moved (see collide_points).
         planes: optional (has_plane (k,), plane_point (k, 3), plane_normal (k, 3)) filled with contact planes;
-        hold_pinched, held: see collide_points (only for a body that does not move)."""
+        hold_pinched, held, hold_depth: see collide_points (only for a body that does not move)."""
         if planes is None:
             planes = (np.zeros(len(x), dtype=np.bool_), np.empty((len(x), 3)), np.empty((len(x), 3)))
         surface = self._surface(self.offset, self.offset_normals, self.cell_rmax, self.offset_boxes)
         return collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, mu_kinetic, contact, near,
-                              planes[0], planes[1], planes[2], hold_pinched, held)
+                              planes[0], planes[1], planes[2], hold_pinched, held, float(hold_depth))
 
-    def movers(self, state, parts, lam, near, reach, hold_pinched, retest_planes=False) -> Movers:
+    def movers(self, state, parts, lam, near, reach, hold_pinched, retest_planes=False, hold_depth=1e9) -> Movers:
         """The within-step test's argument (``collision.movers``) for a drape's ``state`` (a ``DrapeState``)."""
         surface = self._surface(self.offset, self.offset_normals, self.cell_rmax, self.offset_boxes)
         return Movers(surface, parts, state.x_checked, state.contact, state.held, state.movers, float(reach),
-                      float(lam), float(near), bool(hold_pinched), bool(retest_planes))
+                      float(lam), float(near), bool(hold_pinched), bool(retest_planes), float(hold_depth))
 
     def depth(self, points: np.ndarray, parts: np.ndarray, offset: bool = False) -> np.ndarray:
         """Depth (m) of each point (n, 3) inside the body (``offset=False``: the real, un-offset surface of

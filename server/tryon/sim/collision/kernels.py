@@ -432,8 +432,21 @@ def part_query(p, k, surface, target, normal, hit, q, trust, near, tbuf, fbuf):
 
 
 @njit(cache=True, nogil=True)
+def _depth_at(p, parts, surface, scratch, tbuf, fbuf):
+    """Depth (m) of the point p (3,) in the deepest of ``parts`` (q,) of the body ``surface`` (``part_query``
+    with the nearest-face second opinion), 0 outside every one. scratch (4, 3): work space."""
+    worst = 0.0
+    for kk in range(parts.shape[0]):
+        k = parts[kk]
+        if _in_obb(p[0], p[1], p[2], surface.obb_normals, surface.obb_offsets, k):
+            worst = max(worst, part_query(p, k, surface, scratch[0], scratch[1], scratch[2], scratch[3], 0.0, 0.0,
+                                          tbuf, fbuf))
+    return worst
+
+
+@njit(cache=True, nogil=True)
 def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, mu_kinetic, contact, near, has_plane,
-                   plane_point, plane_normal, hold_pinched=False, held=None):
+                   plane_point, plane_normal, hold_pinched=False, held=None, hold_depth=1e9):
     """Push garment points out of the offset body, in place (paper 3.4, eq. 4 plus the fallbacks above).
 
     x, x_prev (k, 3) m (x_prev: positions at the start of the step; both updated in place); inv_mass (k,)
@@ -449,7 +462,11 @@ def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, 
     hold_pinched: a point pushed out of one part into another in every round (``ROUNDS``) stays where it
     was at the start of the step (only while the body does not move: a growing body would grow into it);
     held (k,) bool out, if given: which tested points were held so (``run.drape`` keeps those flipping
-    between two parts still for the step).
+    between two parts still for the step). hold_depth: m, given (under 1e8) a pinched point ends where the
+    rounds' pushes left it least deep, with that push's plane, instead of where the last push left it (inside
+    the other part) or, if held, where it was at the start of the step when that is deeper than hold_depth in
+    the offset body (a re-posed body: cloth squeezed between a forearm and the torso where they press into each
+    other was left 1-2 cm inside one of them).
     One point at a time, each writing only its own row: safe to split the loop across threads.
     """
     obb_normals, obb_offsets = surface.obb_normals, surface.obb_offsets
@@ -460,6 +477,10 @@ def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, 
     tbuf = np.empty(MAX_HITS)
     fbuf = np.empty(MAX_HITS, dtype=np.int64)
     x0 = np.empty(3)
+    # where each push of a point's rounds left it, and the push's normal (for ``hold_depth``)
+    cand = np.empty((ROUNDS * parts.shape[0], 3))
+    cand_n = np.empty((ROUNDS * parts.shape[0], 3))
+    scratch = np.empty((4, 3))
     moved = 0
     for i in range(x.shape[0]):
         if inv_mass[i] == 0.0 or not active[i]:
@@ -472,6 +493,7 @@ def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, 
         x0[0] = p[0]
         x0[1] = p[1]
         x0[2] = p[2]
+        n_cand = 0
         for _ in range(ROUNDS):
             any_inside = False
             for kk in range(parts.shape[0]):
@@ -499,8 +521,29 @@ def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, 
                         p[ax] = target[ax] + lam * normal[ax]
                         plane_point[i, ax] = p[ax]
                         plane_normal[i, ax] = normal[ax]
+                        cand[n_cand, ax] = p[ax]
+                        cand_n[n_cand, ax] = normal[ax]
+                    n_cand += 1
             if not any_inside:
                 break
+        if any_inside and hold_depth < 1e8 and n_cand > 0:
+            # held: only if where it was is not too deep; not held (the body moving): the least deep push
+            best, best_depth = -1, _depth_at(x_prev[i], parts, surface, scratch, tbuf, fbuf) if hold_pinched \
+                else np.inf
+            if best_depth > hold_depth:
+                for c in range(n_cand):
+                    depth = _depth_at(cand[c], parts, surface, scratch, tbuf, fbuf)
+                    if depth < best_depth:
+                        best, best_depth = c, depth
+            if best >= 0:
+                for ax in range(3):
+                    p[ax] = cand[best, ax]
+                    x_prev[i, ax] = p[ax]  # no velocity from the move
+                    plane_point[i, ax] = p[ax]
+                    plane_normal[i, ax] = cand_n[best, ax]
+                has_plane[i] = True
+                moved += 1
+                continue
         if any_inside and hold_pinched:
             # pinched: pushed out of one part into another in every round (cloth between touching
             # thighs, in the crotch), no way out nearby. Pushed on, it flips between the parts every step

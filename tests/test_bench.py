@@ -171,6 +171,20 @@ def test_fit_with_fewer_substeps_says_so(tmp_path, capsys):
     assert report["command"].endswith("--substeps 8")
 
 
+def test_motion_with_more_sequences_says_so(tmp_path, capsys):
+    assert main(["bench", "--quick", "--only", "motion", "--sequences", "21", "--out", str(tmp_path / "bad")]) == 2
+    assert "--sequences must be 1 to 20, got 21" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+    out = tmp_path / "out"
+    assert main(["bench", "--quick", "--only", "motion", "--sequences", "2", "--out", str(out)]) == 0
+    report = json.loads((out / "bench.json").read_text())
+    motion = _section(report, "motion")
+    assert motion["data"]["mode"] == "quick, 2 sequences" and motion["data"]["sequences"] == 2
+    assert motion["data"]["all"]["settles"] == 2 * 2 * 3  # two garments, two sequences of three poses
+    assert "x 2 random sequences of 3 poses" in motion["headline"][0]
+    assert report["command"].endswith("--sequences 2")
+
+
 def test_the_figures_page_is_written_from_bench_json(bench, tmp_path, capsys):
     out, _, report = bench
     page = tmp_path / "docs" / "benchmarks.md"

@@ -48,13 +48,15 @@ def sections():
 
 def run_bench(out_dir: Path | str = "bench-results", quick: bool = False, stress: bool = False,
               only: list[str] | None = None, log=print, substeps: int | None = None,
-              bodies: Path | None = None) -> tuple[dict, int]:
+              bodies: Path | None = None, sequences: int | None = None) -> tuple[dict, int]:
     """Run the benchmark into ``out_dir``; returns (report dict, exit code). The exit code is 1 when a
     section failed (our code raised), 0 otherwise (skipped optional peers are not failures). ``substeps``:
-    the fit section's substeps per step (one spring pass each) instead of the default settings."""
+    the fit section's substeps per step (one spring pass each) instead of the default settings; ``sequences``:
+    the motion section's random pose sequences per garment instead of its mode's."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    ctx = Context(out_dir=out, quick=quick, stress=stress, log=log, substeps=substeps, bodies=bodies)
+    ctx = Context(out_dir=out, quick=quick, stress=stress, log=log, substeps=substeps, bodies=bodies,
+                  sequences=sequences)
     started = now()
     info = machine()
     # every kernel compiled (or loaded) before the first section times anything, as the service does
@@ -73,7 +75,8 @@ def run_bench(out_dir: Path | str = "bench-results", quick: bool = False, stress
     cmd = ("tryon bench" + (" --quick" if quick else "") + (" --stress" if stress else "")
            + (f" --only {' '.join(only)}" if only else "")
            + (f" --bodies {bodies}" if bodies is not None else "")
-           + (f" --substeps {substeps}" if substeps is not None else ""))
+           + (f" --substeps {substeps}" if substeps is not None else "")
+           + (f" --sequences {sequences}" if sequences is not None else ""))
     report = write_report(out, done, {
         "started": started, "mode": mode, "command": cmd, "seconds": time.perf_counter() - t0,
         "machine": info, "argv": sys.argv,

@@ -63,7 +63,8 @@ class SkipSection(Exception):
 class Context:
     """What every section gets: the output directory, the run mode, and a cache shared between sections
     (bodies, prepared garments) so that nothing is built twice in one run. ``substeps``: the fit section's
-    substeps per step (one spring pass each), None for the default settings."""
+    substeps per step (one spring pass each), None for the default settings; ``sequences``: the motion section's
+    random pose sequences per garment, None for its mode's."""
 
     out_dir: Path
     quick: bool
@@ -72,6 +73,7 @@ class Context:
     log: Callable[[str], None] = print
     substeps: int | None = None
     bodies: Path | None = None  # the sizes section's people (an ANSUR II style CSV); None: the shipped sample
+    sequences: int | None = None
 
     def cached(self, key, make):
         if key not in self.cache:

@@ -11,6 +11,9 @@ done of a live pose update says: vertices more than 2 mm inside the body (target
 trouser leg round its limb (``openings_on_limbs``; ``redraped``: the carried garment had one off and was
 draped afresh in that pose).
 
+``tryon bench --only motion --sequences N`` runs each garment's first N sequences (~4 minutes each over the
+catalogue) instead of all twenty.
+
 Random poses are uniform over the real ranges (``POSE_RANGES``: every angle of each side on its own, wrists and
 arm turn included; an arm asked lower than it can rest is raised by ``build_body``). Quick mode: the T-shirt
 and the trousers M, one sequence of three poses.
@@ -239,9 +242,11 @@ def run(ctx: Context, sec: Section) -> None:
     if ctx.quick:
         entries = [e for e in entries if e["file"] in QUICK_GARMENTS]
     models = [prepared(ctx, e)[0] for e in entries]
-    summary = motion_stress(models, SEQUENCES[mode], POSES[mode], log=ctx.log)
+    sequences = ctx.sequences or SEQUENCES[mode]
+    summary = motion_stress(models, sequences, POSES[mode], log=ctx.log)
     # every settle's record for the ones missing a target; the others are in the per-garment figures
-    sec.data = {"mode": mode, "body": BODIES["medium"], **{k: v for k, v in summary.items() if k != "records"},
+    sec.data = {"mode": mode if ctx.sequences is None else f"{mode}, {sequences} sequences", "body": BODIES["medium"],
+                **{k: v for k, v in summary.items() if k != "records"},
                 "failures": [r for r in summary["records"] if not r["ok"]]}
     rows = []
     for name, g in summary["garments"].items():
@@ -249,7 +254,7 @@ def run(ctx: Context, sec: Section) -> None:
                      fmt(g["motion_max_penetration_mm"]), fmt(g["motion_median_mm"]), g["over_motion_target"],
                      g["ending_inside"], g["carried_off_limbs"], g["off_limbs"], g["ok"], fmt(g["wall_s"])])
     sec.tables.append(Table(
-        f"Random pose sequences ({SEQUENCES[mode]} of {POSES[mode]} poses per garment, seed {SEED}, medium body)",
+        f"Random pose sequences ({sequences} of {POSES[mode]} poses per garment, seed {SEED}, medium body)",
         ["garment", "settles", "never NaN", "max stretch (x)", "hangs", "motion penetration max (mm)",
          "median (mm)", f"over {MOTION_PENETRATION_TARGET_MM:g} mm", "ending inside", "off a limb carried",
          "off a limb at the end", "ok", "seconds"], rows,
@@ -271,13 +276,13 @@ def run(ctx: Context, sec: Section) -> None:
               r.get("transition_steps", "-"), _failure(r)] for r in failures[:40]],
             note=("body crossing: how far the pose's body goes through itself (a limb inside a part it does not "
                   "join, e.g. a forearm in the torso); cloth cannot lie between the two there. "
-                  f"{summary['crossing_poses']} of the {SEQUENCES[mode] * POSES[mode]} poses cross.")))
+                  f"{summary['crossing_poses']} of the {sequences * POSES[mode]} poses cross.")))
     a = summary["all"]
     sec.headline.append(
-        f"motion: {a['settles']} re-poses ({len(models)} garments x {SEQUENCES[mode]} random sequences of "
+        f"motion: {a['settles']} re-poses ({len(models)} garments x {sequences} random sequences of "
         f"{POSES[mode]} poses), {'no NaN' if a['never_nan'] else 'NaN seen'}, max stretch {fmt(a['max_stretch'])}x "
         f"(limit {MAX_STRETCH:g}), hangs {a['hangs']}, deepest motion penetration {fmt(a['motion_max_penetration_mm'])}"
         f" mm (median {fmt(a['motion_median_mm'])}; over {MOTION_PENETRATION_TARGET_MM:g} mm in "
         f"{a['over_motion_target']}), ending inside {a['ending_inside']}, off a limb at the end {a['off_limbs']} "
         f"(draped afresh {a['redraped']}), every check met {a['ok']}/{a['settles']}; "
-        f"{summary['crossing_poses']} of the {SEQUENCES[mode] * POSES[mode]} poses put a limb through the body")
+        f"{summary['crossing_poses']} of the {sequences * POSES[mode]} poses put a limb through the body")

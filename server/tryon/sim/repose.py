@@ -15,8 +15,9 @@ measurements and resolution: the same mesh topology, each part's vertices in the
    the body starts exactly where the garment was draped on it, not with a hand 13 cm through its cuff;
 3. every garment point carried by the parts near it each of those steps (``PoseTransition.weights``:
    linear blend skinning, each part weighted by the inverse fourth power of the point's distance to it
-   where the part is that step, so a sleeve moves with its arm, the bodice stays with the torso, the
-   armhole between them blends, and a shirt a hand leaves behind stops following the hand), as ``arms.py``
+   where the part is that step (its nearest vertex, looked up in grids of the parts, ``nearest.py``; a part
+   ten times farther than the nearest left out), so a sleeve moves with its arm, the bodice stays with the
+   torso, the armhole between them blends, and a shirt a hand leaves behind stops following the hand), as ``arms.py``
    carries a sleeve: cloth near a moving limb moves with it, so it is neither left behind nor pushed
    through by it, and the collision and the springs settle the rest each step.
 
@@ -27,13 +28,13 @@ measurements and resolution: the same mesh topology, each part's vertices in the
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
-
 from scipy.spatial.transform import Rotation
 
 from tryon.body.types import Body
+from tryon.geometry import rotation
 from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.finish import TryOnResult
+from tryon.sim.nearest import any_within, build_grids, nearest_distances
 from tryon.sim.run import settle
 from tryon.sim.start import start
 from tryon.sim.state import Drape
@@ -53,6 +54,11 @@ REPOSE_DEG_PER_STEP = 2.0
 REPOSE_M_PER_STEP = 0.01
 # A change smaller than this many steps' worth is not spread at all (the new body at once).
 REPOSE_MIN_CHANGE = 0.5
+# A part more than this many times farther from a garment point (distance + CARRY_SOFTEN) than the point's
+# nearest part weighs under CARRY_SPREAD ** -CARRY_POWER = 1e-4 of it and is left out of the point's weights: it
+# would move the point by under 1e-4 of its own motion in a step (~2 um of a hand's 2 cm). Its distance is then
+# not looked up at all (``nearest.nearest_distances``): the far parts cost most of an exact lookup.
+CARRY_SPREAD = 10.0
 # m: a limb's shape differing from the old pose's by less than this everywhere is taken as rigid (its maps
 # are not built again; a quarter of the collision margin, 4 mm).
 SHAPE_TOLERANCE = 0.001
@@ -113,6 +119,11 @@ class PoseTransition:
                     up = new.parts.index(parent) if parent is not None else None
                     self.chains.append((k, up, np.asarray(new.joints[joint], dtype=np.float64),
                                         np.asarray(old.joints[joint], dtype=np.float64)))
+        # each part's vertices in the collider's rest shape (the new body's pose), binned in grids
+        # (``nearest``): a garment point is weighed against the parts where they are now, by taking it into each
+        # part's rest frame
+        self._vertex_part = np.ascontiguousarray(new.vertex_part, dtype=np.int64)
+        self._grids = build_grids(new.vertices, self._vertex_part, len(new.parts))
         if garment is not None:
             self.chains = self._near(self.chains, garment)
         kept = [k for k, _, _, _ in self.chains]
@@ -129,28 +140,21 @@ class PoseTransition:
         self._shaped = 0.0  # the fraction of the old shape the collider was last given (``apply``)
         self._moves = np.tile(np.eye(4), (len(new.parts), 1, 1))
         self._attached = False
-        # each part's vertices in the collider's rest shape (the new body's pose), in a tree: a garment point
-        # is weighed against the parts where they are now, by taking it into each part's rest frame
-        self._ids = [np.unique(new.faces[new.face_part == k]) for k in range(len(new.parts))]
-        self._trees = [cKDTree(new.vertices[ids]) for ids in self._ids]
 
     def _near(self, chains: list, garment: np.ndarray) -> list:
         """The limbs of ``chains`` that move and come within ``CARRY_REACH`` of a garment point (``garment``
         (k, 3) m) at some moment of their motion (every ``MOTION_SAMPLE_DEG`` degrees, both ends included): the
         others take the new pose at once (trousers do not wait for the arms to rise, gravity off, nor settle
-        again after it). A limb is its upper part and the part hanging from it, kept or left together."""
-        tree = cKDTree(garment)
-        verts = {k: self.new.vertices[np.unique(self.new.faces[self.new.face_part == k])] for k, _, _, _ in chains}
+        again after it). A limb is its upper part and the part hanging from it, kept or left together. The
+        garment is looked up in each part's grid (``nearest.any_within``), taken into the part's rest frame."""
+        garment = np.ascontiguousarray(garment, dtype=np.float64)
         near = set()
         self.chains = chains
         turn = np.degrees(np.linalg.norm(self.back_rot[[k for k, _, _, _ in chains]], axis=1).max(initial=0.0))
         for fraction in np.linspace(0.0, 1.0, max(2, int(np.ceil(turn / MOTION_SAMPLE_DEG)) + 1)):
             moves = self._motions(fraction)
             for k, _, _, _ in chains:
-                if k in near:
-                    continue
-                dist, _ = tree.query(verts[k] @ moves[k, :3, :3].T + moves[k, :3, 3], distance_upper_bound=CARRY_REACH)
-                if np.isfinite(dist).any():
+                if k not in near and any_within(garment, moves[k], k, *self._grids, CARRY_REACH):
                     near.add(k)
         root = {}
         for k, up, j_new, j_old in chains:
@@ -183,7 +187,8 @@ class PoseTransition:
         """(P, 4, 4) motion of every part from the new pose with ``fraction`` of the way back left."""
         out = np.tile(np.eye(4), (len(self.new.parts), 1, 1))
         for k, up, j_new, j_old in self.chains:  # parents come before their children
-            rot = Rotation.from_rotvec(fraction * self.back_rot[k]).as_matrix()
+            angle = fraction * float(np.linalg.norm(self.back_rot[k]))
+            rot = rotation(self.back_rot[k], angle) if angle > 0.0 else np.eye(3)
             joint = (out[up, :3, :3] @ j_new + out[up, :3, 3]) if up is not None else j_new + fraction * (j_old - j_new)
             out[k, :3, :3] = rot
             out[k, :3, 3] = joint - rot @ j_new
@@ -198,8 +203,7 @@ class PoseTransition:
                 fraction in (0.0, 1.0) or abs(fraction - self._shaped) * self._reshape_max >= RESHAPE_STEP):
             shape = self.new.vertices + fraction * self.reshaping
             self.collider.reshape(shape if fraction > 0.0 else None, self._reshaped_parts)
-            for k in self._reshaped_parts:
-                self._trees[k] = cKDTree(shape[self._ids[k]])
+            self._grids = build_grids(shape, self._vertex_part, len(self.new.parts))
             self._shaped = fraction
         self.collider.pose_arms({k: (np.zeros(3), moves[k, :3, :3], moves[k, :3, 3]) for k in self.turned_parts()})
         self._last, self._moves = self._moves, moves
@@ -213,20 +217,22 @@ class PoseTransition:
         call after ``apply(0)``."""
         self._attached = True
 
-    def weights(self, x: np.ndarray, moves: np.ndarray) -> np.ndarray:
-        """(k, P) weights, each row summing to 1, of the body's parts on the garment points x (k, 3), the body
-        posed by ``moves`` (P, 4, 4): ``(distance to the part + CARRY_SOFTEN) ** -CARRY_POWER``, normalised
-        (distance to the part's nearest vertex, m). Taken again every step, so cloth a hand leaves behind (a
-        shirt under a hand lifted off the hip) stops following it; taken once, the shirt was dragged along
-        and came out of the next pose with a sleeve off the arm. Every step, not every few: they cost ~8 ms
-        for the T-shirt's 874 points (twice a step's work), but taken every 2 or 4 steps, or with the queries
-        bounded to 15 cm, the shirt came off an arm somewhere in 18 re-poses in a row where it did not so."""
-        w = np.empty((len(x), len(self._trees)))
-        for k, tree in enumerate(self._trees):
-            rot, shift = moves[k, :3, :3], moves[k, :3, 3]
-            dist, _ = tree.query((x - shift) @ rot)  # into the part's rest frame: R^T (x - t)
-            w[:, k] = (dist + CARRY_SOFTEN) ** -CARRY_POWER
-        return w / w.sum(axis=1, keepdims=True)
+    def weights(self, x: np.ndarray, moves: np.ndarray, moving: np.ndarray) -> np.ndarray:
+        """(k, m) weights of the ``moving`` (m,) parts on the garment points x (k, 3) m, the body posed by
+        ``moves`` (P, 4, 4): ``(distance to the part + CARRY_SOFTEN) ** -CARRY_POWER`` over the sum of every
+        part's (distance to the part's nearest vertex, m: ``nearest.nearest_distances``, a part over
+        ``CARRY_SPREAD`` x farther than the nearest left out). Taken again every step, so cloth a hand leaves
+        behind (a shirt under a hand lifted off the hip) stops following it; taken once, the shirt was dragged
+        along and came out of the next pose with a sleeve off the arm. Every step, not every few: taken every 2
+        or 4 steps the shirt came off an arm somewhere in 18 re-poses in a row where it did not so. With a k-d
+        tree per part and every part they cost ~8 ms a step for the T-shirt's 874 points, with the grids ~2 ms."""
+        dist = np.empty((len(x), len(self.new.parts)))
+        wanted = np.zeros(len(self.new.parts), dtype=np.bool_)
+        wanted[moving] = True
+        nearest_distances(np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(moves), wanted,
+                          *self._grids, CARRY_SOFTEN, CARRY_SPREAD, dist)
+        w = (dist + CARRY_SOFTEN) ** -CARRY_POWER  # 0 for the parts left out (inf)
+        return w[:, moving] / w.sum(axis=1, keepdims=True)
 
     def carry(self, x: np.ndarray, x_prev: np.ndarray) -> None:
         """Move the garment points (x and x_prev (k, 3), in place) by the parts' motions between the last two
@@ -237,7 +243,7 @@ class PoseTransition:
         moving = np.flatnonzero(np.abs(step - np.eye(4)).max(axis=(1, 2)) > 1e-12)
         if not len(moving):
             return
-        w = self.weights(x, self._last)[:, moving]  # (k, m)
+        w = self.weights(x, self._last, moving)  # (k, m)
         for p in (x, x_prev):
             moved = np.einsum("mij,kj->kmi", step[moving, :3, :3], p) + step[moving, :3, 3][None]  # (k, m, 3)
             p += np.einsum("km,kmi->ki", w, moved - p[:, None, :])

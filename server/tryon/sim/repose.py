@@ -31,7 +31,6 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from tryon.body.types import Body
-from tryon.geometry import rotation
 from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.finish import TryOnResult
 from tryon.sim.nearest import any_within, build_grids, nearest_distances
@@ -82,8 +81,9 @@ def part_motions(old: Body, new: Body) -> np.ndarray:
     if old.faces.shape != new.faces.shape or len(old.vertices) != len(new.vertices):
         raise ValueError("re-posing needs the same body in another pose (same measurements and resolution)")
     out = np.tile(np.eye(4), (len(old.parts), 1, 1))
+    vertex_part = old.vertex_part
     for k in range(len(old.parts)):
-        ids = np.unique(old.faces[old.face_part == k])
+        ids = np.flatnonzero(vertex_part == k)
         a, b = old.vertices[ids], new.vertices[ids]
         ca, cb = a.mean(axis=0), b.mean(axis=0)
         u, _, vt = np.linalg.svd((a - ca).T @ (b - cb))
@@ -104,10 +104,24 @@ class PoseTransition:
     forearm and upper arm stay joined all the way); torso and head do not move. Garment points move with
     the parts near them (``weights``)."""
 
-    def __init__(self, old: Body, new: Body, collider: BodyCollider, garment: np.ndarray | None = None):
+    def __init__(self, old: Body, new: Body, collider: BodyCollider | None = None, garment: np.ndarray | None = None):
+        """The motion from ``old`` to ``new`` (the limbs that move near the ``garment`` (k, 3) m, how many steps,
+        the limbs' change of shape): all of it known before the drape's collider is (``bind``), so a live
+        session can tell the client the new body's first frame while the drape is set up."""
         self.new, self.collider = new, collider
         back = part_motions(new, old)  # (P, 4, 4): new pose -> old pose, per part
         self.back_rot = Rotation.from_matrix(back[:, :3, :3]).as_rotvec()  # (P, 3) radians
+        # each part's turn as Rodrigues' terms: R(f) = I + sin(f angle) K + (1 - cos(f angle)) K^2, K the cross
+        # product with the unit axis (``geometry.rotation``'s terms, so the same matrices to the bit)
+        # (P,) radians, each norm on its own: np.linalg.norm(..., axis=1) rounds differently in the last bit, and
+        # the cloth's path through a re-pose is that sensitive (step counts 88 -> 92 for hands_on_hips)
+        self._angle = np.array([np.linalg.norm(r) for r in self.back_rot])
+        self._k1 = np.zeros((len(new.parts), 3, 3))
+        self._k2 = np.zeros((len(new.parts), 3, 3))
+        for k in np.flatnonzero(self._angle > 0.0):
+            a = self.back_rot[k] / np.linalg.norm(self.back_rot[k])
+            self._k1[k] = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+            self._k2[k] = self._k1[k] @ self._k1[k]
         self.chains = []  # (part, parent part | None, joint of the new body (3,))
         for side in ("l", "r"):
             for part, parent, joint in ((f"upper_arm_{side}", None, f"shoulder_{side}"),
@@ -131,7 +145,7 @@ class PoseTransition:
         shifts = [np.linalg.norm(j_old - j_new) for _, up, j_new, j_old in self.chains if up is None]
         self.reshaping = self._shape_change(old, kept)  # (n, 3) m
         self._reshape_max = float(np.linalg.norm(self.reshaping, axis=1).max(initial=0.0))
-        self._reshaped_parts = np.unique(new.vertex_part[self.reshaping.any(axis=1)])
+        self._reshaped_parts = np.unique(self._vertex_part[self.reshaping.any(axis=1)])
         biggest = max(np.degrees(angles.max(initial=0.0)) / REPOSE_DEG_PER_STEP,
                       max(shifts, default=0.0) / REPOSE_M_PER_STEP,
                       self._reshape_max / REPOSE_M_PER_STEP)
@@ -172,13 +186,19 @@ class PoseTransition:
         shape goes from the old to the new along with the motion (``apply``), so it starts where the garment
         was draped and not a hand's turn away from it. Zero where the shapes agree (within
         ``SHAPE_TOLERANCE``)."""
-        vp = self.new.vertex_part
+        vp = self._vertex_part
         back = np.linalg.inv(self._motions(1.0))[vp]  # (n, 4, 4): old pose -> new pose, per vertex's part
         change = np.einsum("nij,nj->ni", back[:, :3, :3], old.vertices) + back[:, :3, 3] - self.new.vertices
         change[~np.isin(vp, kept)] = 0.0
         if np.linalg.norm(change, axis=1).max(initial=0.0) < SHAPE_TOLERANCE:
             change[:] = 0.0
         return change
+
+    def bind(self, collider: BodyCollider) -> "PoseTransition":
+        """Move the drape's ``collider`` (its body is ``new``) from now on; this transition, for ``start``'s
+        ``motion``."""
+        self.collider = collider
+        return self
 
     def turned_parts(self) -> list[int]:
         return [k for k, _, _, _ in self.chains]
@@ -187,8 +207,9 @@ class PoseTransition:
         """(P, 4, 4) motion of every part from the new pose with ``fraction`` of the way back left."""
         out = np.tile(np.eye(4), (len(self.new.parts), 1, 1))
         for k, up, j_new, j_old in self.chains:  # parents come before their children
-            angle = fraction * float(np.linalg.norm(self.back_rot[k]))
-            rot = rotation(self.back_rot[k], angle) if angle > 0.0 else np.eye(3)
+            angle = fraction * float(self._angle[k])
+            rot = np.eye(3) + np.sin(angle) * self._k1[k] + (1 - np.cos(angle)) * self._k2[k] if angle > 0.0 \
+                else np.eye(3)
             joint = (out[up, :3, :3] @ j_new + out[up, :3, 3]) if up is not None else j_new + fraction * (j_old - j_new)
             out[k, :3, :3] = rot
             out[k, :3, 3] = joint - rot @ j_new
@@ -249,13 +270,14 @@ class PoseTransition:
             p += np.einsum("km,kmi->ki", w, moved - p[:, None, :])
 
 
-def repose(d: Drape, body: Body) -> Drape:
+def repose(d: Drape, body: Body, transition: PoseTransition | None = None) -> Drape:
     """A drape on ``body`` (``d``'s body in a new pose) whose garment starts where ``d``'s is and is carried
-    along as the body moves from the old pose to the new over the first steps (``PoseTransition``); see the
-    module doc. ``d`` is left as it was."""
-    old = d.body
-    return start(body, d.model, d.settings, d.tuning, initial=d.state.x.copy(),
-                 motion=lambda collider: PoseTransition(old, body, collider, garment=d.state.x))
+    along as the body moves from the old pose to the new over the first steps (``transition``, made here if
+    not given: ``PoseTransition(d.body, body, garment=d.state.x)``); see the module doc. ``d`` is left as it
+    was."""
+    if transition is None:
+        transition = PoseTransition(d.body, body, garment=d.state.x)
+    return start(body, d.model, d.settings, d.tuning, initial=d.state.x.copy(), motion=transition.bind)
 
 
 def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape, TryOnResult, bool]:

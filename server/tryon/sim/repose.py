@@ -15,11 +15,11 @@ measurements and resolution: the same mesh topology, each part's vertices in the
    the body starts exactly where the garment was draped on it, not with a hand 13 cm through its cuff;
 3. every garment point carried by the parts near it each of those steps (``PoseTransition.weights``:
    linear blend skinning, each part weighted by the inverse fourth power of the point's distance to it
-   where the part is that step (its nearest vertex, looked up in grids of the parts, ``nearest.py``; a part
-   ten times farther than the nearest left out), so a sleeve moves with its arm, the bodice stays with the
-   torso, the armhole between them blends, and a shirt a hand leaves behind stops following the hand), as ``arms.py``
-   carries a sleeve: cloth near a moving limb moves with it, so it is neither left behind nor pushed
-   through by it, and the collision and the springs settle the rest each step.
+   where the part is that step (its nearest vertex, looked up in grids of the parts, ``nearest.py``), so a
+   sleeve moves with its arm, the bodice stays with the torso, the armhole between them blends, and a shirt
+   a hand leaves behind stops following the hand), as ``arms.py`` carries a sleeve: cloth near a moving limb
+   moves with it, so it is neither left behind nor pushed through by it, and the collision and the springs
+   settle the rest each step.
 
 ``start`` builds the new drape on the new body (the springs packed again, its collider, no alignment); then
 ``run.settle`` steps it on as usual and ``relax`` and ``finish`` end it with the new pose's metrics.
@@ -54,10 +54,13 @@ REPOSE_M_PER_STEP = 0.01
 # A change smaller than this many steps' worth is not spread at all (the new body at once).
 REPOSE_MIN_CHANGE = 0.5
 # A part more than this many times farther from a garment point (distance + CARRY_SOFTEN) than the point's
-# nearest part weighs under CARRY_SPREAD ** -CARRY_POWER = 1e-4 of it and is left out of the point's weights: it
-# would move the point by under 1e-4 of its own motion in a step (~2 um of a hand's 2 cm). Its distance is then
-# not looked up at all (``nearest.nearest_distances``): the far parts cost most of an exact lookup.
-CARRY_SPREAD = 10.0
+# nearest part would weigh under CARRY_SPREAD ** -CARRY_POWER of it, and could be left out of the point's weights
+# without looking its distance up (``nearest.nearest_distances``: the far parts cost most of a lookup). None is:
+# at 10 (weights under 1e-4 left out, ~2 um of a hand's 2 cm step) the weights took ~2 ms a step instead of ~4,
+# but the cloth's path through a re-pose changes with any last-bit change, and on that path the asymmetric pose
+# of tests/test_ws_live.py had a point 10.5 mm inside the torso two steps after the motion (3.6 mm before, with
+# k-d trees; 8.7 mm with every distance exact): every distance is looked up, as the trees did.
+CARRY_SPREAD = np.inf
 # m: a limb's shape differing from the old pose's by less than this everywhere is taken as rigid (its maps
 # are not built again; a quarter of the collision margin, 4 mm).
 SHAPE_TOLERANCE = 0.001
@@ -241,12 +244,12 @@ class PoseTransition:
     def weights(self, x: np.ndarray, moves: np.ndarray, moving: np.ndarray) -> np.ndarray:
         """(k, m) weights of the ``moving`` (m,) parts on the garment points x (k, 3) m, the body posed by
         ``moves`` (P, 4, 4): ``(distance to the part + CARRY_SOFTEN) ** -CARRY_POWER`` over the sum of every
-        part's (distance to the part's nearest vertex, m: ``nearest.nearest_distances``, a part over
-        ``CARRY_SPREAD`` x farther than the nearest left out). Taken again every step, so cloth a hand leaves
-        behind (a shirt under a hand lifted off the hip) stops following it; taken once, the shirt was dragged
-        along and came out of the next pose with a sleeve off the arm. Every step, not every few: taken every 2
-        or 4 steps the shirt came off an arm somewhere in 18 re-poses in a row where it did not so. With a k-d
-        tree per part and every part they cost ~8 ms a step for the T-shirt's 874 points, with the grids ~2 ms."""
+        part's (distance to the part's nearest vertex, m: ``nearest.nearest_distances``; see ``CARRY_SPREAD``).
+        Taken again every step, so cloth a hand leaves behind (a shirt under a hand lifted off the hip) stops
+        following it; taken once, the shirt was dragged along and came out of the next pose with a sleeve off
+        the arm. Every step, not every few: taken every 2 or 4 steps the shirt came off an arm somewhere in 18
+        re-poses in a row where it did not so. With a k-d tree per part they cost ~6-9 ms a step for the
+        T-shirt's 874 points, with the grids ~3-4 ms."""
         dist = np.empty((len(x), len(self.new.parts)))
         wanted = np.zeros(len(self.new.parts), dtype=np.bool_)
         wanted[moving] = True

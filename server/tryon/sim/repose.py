@@ -203,6 +203,12 @@ class PoseTransition:
         self.collider = collider
         return self
 
+    def start_motion(self) -> np.ndarray | None:
+        """(P, 4, 4) the motion of every part from the new pose at step 0 (the body still in the old pose, as
+        ``apply(0)`` leaves it), or None when there is no motion over steps (the body takes its new pose at
+        once)."""
+        return self._motions(1.0) if self.steps else None
+
     def turned_parts(self) -> list[int]:
         return [k for k, _, _, _ in self.chains]
 

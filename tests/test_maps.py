@@ -108,3 +108,23 @@ def test_theta_wraps_around():
     first = set(maps.cell_faces[maps.cell_start[n_z // 2]:maps.cell_start[n_z // 2 + 1]])
     last = set(maps.cell_faces[maps.cell_start[(n_theta - 1) * n_z + n_z // 2]:maps.cell_start[(n_theta - 1) * n_z + n_z // 2 + 1]])
     assert first & last  # the face across the seam is in both end sectors
+
+
+def test_rebuilding_the_parts_that_changed_gives_the_maps_of_a_full_build():
+    """A re-posed limb changing shape (``rebuild_part_maps``): only its parts built again, the others copied from
+    the maps of the body as built, and the arrays are those of a full ``build_part_maps`` of the new shape."""
+    from tryon.body.build import build_body
+    from tryon.body.maps import build_part_maps, rebuild_part_maps
+    from tryon.body.params import Measurements, Pose
+
+    body = build_body(Measurements(height=170, chest=96, waist=82, hips=100), Pose(), resolution=16)
+    arms = [body.parts.index(name) for name in ("upper_arm_l", "forearm_l", "forearm_r")]
+    rng = np.random.default_rng(5)
+    moved = np.isin(body.vertex_part, arms)
+    for scale in (0.002, 0.03):  # a hand turning a little, a lot (the cells' count along the axis changes)
+        vertices = body.vertices.copy()
+        vertices[moved] += rng.normal(0.0, scale, (moved.sum(), 3)) + [0.0, -scale, 0.0]
+        full = build_part_maps(vertices, body.faces, body.face_part, body.part_axes, body.maps.margin)
+        part = rebuild_part_maps(body.maps, vertices, body.faces, body.face_part, body.part_axes, np.array(arms))
+        for name in full.__dataclass_fields__:
+            assert np.array_equal(getattr(full, name), getattr(part, name)), name

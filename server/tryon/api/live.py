@@ -28,11 +28,19 @@ from tryon.garment.model import GarmentModel
 from tryon.body.build import build_body
 from tryon.body.params import Measurements, Pose
 from tryon.sim.outfit import OutfitResult, drape_outfit, piece_categories
-from tryon.sim.repose import redrape_if_off, repose
+from tryon.sim.repose import PoseTransition, redrape_if_off, repose
 from tryon.sim.run import TryOnResult, drape, settle
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
 from tryon.sim.state import Drape
+
+# s: how long a re-pose's set-up waits for the sender to put the motion's step 0 on the wire (``post_start``)
+# before it goes on. The set-up is Python-heavy and holds the GIL most of the time, and the event loop gets it
+# back only every 5 ms switch interval: sent meanwhile, the body message and the frame reached the client ~40
+# ms after they were handed over (the bench's client clock against the server's); waiting, the set-up starts
+# a few ms later and they go at once. A bound, not a pause: it returns as soon as the frame is sent.
+FIRST_FRAME_WAIT_S = 0.05
+
 
 class LiveTryOnRequest(TryOnRequest):
     """``POST /api/tryon``'s body plus the frame rate the client wants, and whether the connection stays open
@@ -169,10 +177,12 @@ class LiveReposing:
     """A live session's re-posing (``"live": true``): the drape at rest (or given way) on the last pose's body,
     the measurements its bodies are built from, and the latest pose update waiting (latest wins: one slot).
 
-    ``repose_to`` runs on a pool thread: it builds the new pose's body, sends it (a ``body`` message, before
-    the frames of that pose), carries the garment to it (``sim.repose``) and settles it, each frame with the
-    body's part motions while the body moves (a ``body_pose`` message before the frame); it gives way to a
-    newer pose once the body has reached its own (no done for that one)."""
+    ``repose_to`` runs on a pool thread: it builds the new pose's body and plans the motion to it
+    (``repose.PoseTransition``), sends the body (a ``body`` message, before the frames of that pose) and at once
+    the motion's first frame (step 0: the garment where it is, the body still in the old pose), then sets the
+    drape up, carries the garment to the new pose (``sim.repose``) and settles it, each frame with the body's
+    part motions while the body moves (a ``body_pose`` message before the frame); it gives way to a newer pose
+    once the body has reached its own (no done for that one)."""
 
     def __init__(self, session: "LiveSession", measurements: Measurements, drape: Drape):
         self.session = session
@@ -186,15 +196,18 @@ class LiveReposing:
         guard.start()
         session = self.session
         session.update_received_at = received_at
-        session.update_first_frame_at = None
+        session.update_first_frame_at = session.update_first_step_at = None
         body = build_body(self.measurements, pose)
-        d = repose(self.drape, body)
-        self.settles += 1
+        transition = PoseTransition(self.drape.body, body, garment=self.drape.state.x)
         message = {"type": "body", "update": update, "pose": body.pose,
                    **mesh_arrays(body.vertices, body.faces, decimals=5), "vertex_part": body.vertex_part,
-                   "transition_steps": int(d.arms.steps)}
+                   "transition_steps": int(transition.steps)}
         message.pop("faces")  # the init message's body faces: the same body, another pose
         session.post_text(json_bytes(message).decode())
+        # the motion's step 0 right away, before the drape is set up (its collider, maps, springs: ~30 ms)
+        session.post_start(self.drape.state.x, transition.start_motion())
+        d = repose(self.drape, body, transition)
+        self.settles += 1
         session.moving = d
         try:
             result, gave_way = settle(d, guard, give_way=lambda: session.pending is not None)
@@ -208,9 +221,10 @@ class LiveReposing:
         self.drape = d
         session.post_final(d.state.step, result.vertices)
         done = {**done_message(result, guard.stopped_by), "update": update, "redraped": redraped}
-        first = session.update_first_frame_at
+        first, stepped = session.update_first_frame_at, session.update_first_step_at
         done["metrics"]["wall_seconds"] = round(time.monotonic() - received_at, 4)
         done["time_to_first_frame_s"] = None if first is None else round(first - received_at, 4)
+        done["time_to_first_step_s"] = None if stepped is None else round(stepped - received_at, 4)
         done["transition_steps"] = int(d.arms.steps)
         return done
 
@@ -224,6 +238,16 @@ def resume_live(session: "LiveSession", request: LiveTryOnRequest, model: Garmen
     d = start(body, model, cached.settings, initial=cached.result.coarse)
     session.codec, session._model = codec, model
     session.reposing = LiveReposing(session, measurements, d)
+
+
+def _body_pose(moves: np.ndarray | None, step: int) -> str:
+    """The ``body_pose`` message of a frame: each part's rigid motion ``moves`` (P, 4, 4) from the body message's
+    pose (rows of R (3, 3) then t (3,), metres), or the body in that pose (None)."""
+    if moves is None:
+        return '{"type":"body_pose","parts":null}'
+    parts = np.concatenate([moves[:, :3, :3].reshape(-1, 9), moves[:, :3, 3]], axis=1)
+    return json.dumps({"type": "body_pose", "step": int(step), "parts": np.round(parts, 6).tolist()},
+                      separators=(",", ":"))
 
 
 def failure_reason(error: BaseException, request: TryOnRequest) -> str:
@@ -271,8 +295,10 @@ class LiveSession:
         self.updates = 0
         self.pose_arrived = asyncio.Event()
         self.moving: Drape | None = None  # sim thread: the re-posed drape while it settles
+        self.frame_sent = threading.Event()  # set by the live sender after each frame it sends
         self.update_received_at = 0.0
-        self.update_first_frame_at: float | None = None
+        self.update_first_frame_at: float | None = None  # the update's first frame (its step 0)
+        self.update_first_step_at: float | None = None  # its first simulated step's frame
 
     # -- called on the simulation thread ---------------------------------------------------------
     def offer_init(self, init_base: str, model: Any, codec: FrameCodec) -> None:
@@ -294,6 +320,8 @@ class LiveSession:
         if self.live:
             if self.update_first_frame_at is None:
                 self.update_first_frame_at = now
+            if self.update_first_step_at is None:
+                self.update_first_step_at = now
             self.loop.call_soon_threadsafe(self._put_live_frame, (step, payload, self._motion_text()))
         else:
             self.loop.call_soon_threadsafe(self._put_frame, (step, payload))
@@ -306,12 +334,17 @@ class LiveSession:
         d = self.moving
         if d is None:
             return None
-        moves = d.arms.current() if d.state.step <= d.arms.steps else None
-        if moves is None:
-            return '{"type":"body_pose","parts":null}'
-        parts = np.concatenate([moves[:, :3, :3].reshape(-1, 9), moves[:, :3, 3]], axis=1)
-        return json.dumps({"type": "body_pose", "step": int(d.state.step),
-                           "parts": np.round(parts, 6).tolist()}, separators=(",", ":"))
+        return _body_pose(d.arms.current() if d.state.step <= d.arms.steps else None, d.state.step)
+
+    def post_start(self, x: np.ndarray, moves: np.ndarray | None) -> None:
+        """A re-pose's step 0 for the live outbox (sim thread), before its drape is set up: the garment's coarse
+        points x (k, 3) m where they are, the body posed by ``moves`` (P, 4, 4) from its new pose (None: in
+        it)."""
+        self.update_first_frame_at = time.monotonic()
+        payload = self.codec.encode(self._model.expand(x))
+        self.frame_sent.clear()
+        self.loop.call_soon_threadsafe(self._put_live_frame, (0, payload, _body_pose(moves, 0)))
+        self.frame_sent.wait(FIRST_FRAME_WAIT_S)
 
     def post_text(self, text: str) -> None:
         """A text message for the live outbox, after everything handed over before it (any thread)."""

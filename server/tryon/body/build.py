@@ -19,7 +19,7 @@ from functools import lru_cache
 import numpy as np
 
 from tryon.body import nurbs
-from tryon.body.kernels import section_depths
+from tryon.body.sections import SectionHulls
 from tryon.geometry import face_vertex_normals
 from tryon.body.maps import build_part_maps
 from tryon.body.measure import horizontal_breadth, horizontal_girth, hull_perimeter, mesh_edges, section_girth
@@ -251,10 +251,12 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
             evaluate(("thigh", "shin"), side)
     # Arms no lower than where they rest against the torso (``ARM_PRESS``), each side on its own; the torso
     # does not depend on the arms, so only the arms are evaluated again.
-    torso = (shape_points["torso", "left"], g.part_edges[PART_NAMES.index("torso")])
+    torso_vertices, torso_edges = shape_points["torso", "left"], g.part_edges[PART_NAMES.index("torso")]
     start, stop = g.part_faces[PART_NAMES.index("torso")]
     torso_faces = g.faces[start:stop] - g.part_vertices[PART_NAMES.index("torso")][0]
-    grown = (torso[0] + HAND_GAP * face_vertex_normals(torso[0], torso_faces)[1], torso[1])
+    torso = SectionHulls(torso_vertices, torso_edges, SECTION_STEP)
+    grown = SectionHulls(torso_vertices + HAND_GAP * face_vertex_normals(torso_vertices, torso_faces)[1], torso_edges,
+                         SECTION_STEP)
     chest_y = layouts["left"].landmarks["levels"]["chest"]
 
     def pressing(side: str) -> bool:
@@ -337,10 +339,10 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
     )
 
 
-def arm_press(arm: np.ndarray, joint: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, torso: tuple,
+def arm_press(arm: np.ndarray, joint: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, torso: SectionHulls,
               chest_y: float) -> tuple[float, float]:
-    """How far (m) an arm's points ``arm`` (n, 3) go into the torso (its vertices and edge list ``torso``; for
-    the hand, the torso grown by ``HAND_GAP``):
+    """How far (m) an arm's points ``arm`` (n, 3) go into the torso (its sections every ``SECTION_STEP``,
+    ``torso``; for the hand, the torso grown by ``HAND_GAP``):
     the deepest of them inside the torso's horizontal section at its height, (the arm's, the hand's). The
     hand: the points farther from the ``elbow`` than the ``wrist`` joint is (3,) each. Counted: every point
     below ``chest_y`` and, above it, those farther than ``SHOULDER_REACH`` x the upper arm's length from the
@@ -348,7 +350,7 @@ def arm_press(arm: np.ndarray, joint: np.ndarray, elbow: np.ndarray, wrist: np.n
     hanging at the side may touch the torso at the armpit."""
     reach = SHOULDER_REACH * float(np.linalg.norm(elbow - joint))
     counted = arm[(arm[:, 1] < chest_y) | (np.linalg.norm(arm - joint, axis=1) > reach)]
-    depth = section_depths(counted, *torso, SECTION_STEP)
+    depth = torso.depths(counted)
     hand = np.linalg.norm(counted - elbow, axis=1) > np.linalg.norm(wrist - elbow)
     return float(depth[~hand].max(initial=0.0)), float(depth[hand].max(initial=0.0))
 

@@ -283,3 +283,68 @@ def build_part_maps(
         cell_faces=cell_faces,
         margin=margin,
     )
+
+
+def rebuild_part_maps(maps: PartMaps, vertices: np.ndarray, faces: np.ndarray, face_part: np.ndarray,
+                      part_axes: np.ndarray, changed: np.ndarray) -> PartMaps:
+    """``build_part_maps`` of a body whose ``vertices`` (n, 3) m moved, since ``maps`` were built for it, only
+    in the parts ``changed`` (q,) int: those parts' boxes and cells are built again from their own faces, every
+    other part's are ``maps``' (its cell lists copied as they are), the same arrays as a full build gives. A
+    re-posed limb changing shape step by step (``sim.repose``) rebuilds only its 2-4 parts: ~2.5 ms instead of
+    ~8 ms for the whole body."""
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    face_part = np.ascontiguousarray(face_part, dtype=np.int64)
+    n_parts = len(part_axes)
+    redo = np.zeros(n_parts, dtype=bool)
+    redo[np.asarray(changed, dtype=np.int64)] = True
+    ids = np.flatnonzero(redo[face_part])  # the changed parts' faces, in order
+    sub_faces, sub_part = faces[ids], face_part[ids]
+    margin = float(maps.margin)
+    origin, axes = part_frames(part_axes)
+    lo, hi = _local_bounds(vertices, sub_faces, sub_part, origin, axes, n_parts)
+    empty = ~np.isfinite(lo[:, 0])
+    lo[empty] = 0.0
+    hi[empty] = 0.0
+    lo_g = lo - margin
+    hi_g = hi + margin
+    half = 0.5 * (hi_g - lo_g)
+    center = origin + np.einsum("pa,pab->pb", 0.5 * (lo_g + hi_g), axes)
+    corners = center[:, None, :] + np.einsum("ca,pa,pab->pcb", _CORNER_SIGNS, half, axes)
+    normals = np.concatenate([axes, -axes], axis=1)
+    offsets = np.einsum("pjb,pb->pj", normals, center) + np.concatenate([half, half], axis=1)
+    offsets[empty] = -np.inf
+    zrange = np.stack([lo_g[:, 2], hi_g[:, 2]], axis=1)
+    zrange[empty] = (0.0, 1.0)
+    n_z = np.maximum(1, np.ceil((zrange[:, 1] - zrange[:, 0]) / CELL_HEIGHT)).astype(np.int64)
+    n_z[empty] = 1
+    shape = np.stack([np.full(n_parts, N_THETA, dtype=np.int64), n_z], axis=1)
+    keep = ~redo  # the parts as they were
+    center[keep], half[keep], corners[keep] = maps.obb_center[keep], maps.obb_half[keep], maps.obb_corners[keep]
+    normals[keep], offsets[keep] = maps.obb_normals[keep], maps.obb_offsets[keep]
+    zrange[keep], shape[keep] = maps.cyl_zrange[keep], maps.cyl_shape[keep]
+    sizes = shape[:, 0] * shape[:, 1]
+    cell_base = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    n_cells = int(sizes.sum())
+    face_range = np.empty((len(ids), 4), dtype=np.int64)
+    _face_cells(vertices, sub_faces, sub_part, origin, axes, zrange, shape, margin, face_range)
+    sub_start, sub_faces_of = _fill_cells(sub_part, face_range, shape, cell_base, n_cells)
+    # splice: each part's per-cell counts and face lists, from the old maps or the new build
+    counts, lists = [], []
+    for k in range(n_parts):
+        if redo[k]:
+            a, b = cell_base[k], cell_base[k] + sizes[k]
+            start = sub_start[a:b + 1]
+            lists.append(ids[sub_faces_of[start[0]:start[-1]]].astype(np.int32))
+        else:
+            a, b = maps.cell_base[k], maps.cell_base[k] + sizes[k]
+            start = maps.cell_start[a:b + 1]
+            lists.append(maps.cell_faces[start[0]:start[-1]])
+        counts.append(np.diff(start))
+    cell_start = np.zeros(n_cells + 1, dtype=np.int64)
+    np.cumsum(np.concatenate(counts), out=cell_start[1:])
+    return PartMaps(
+        obb_center=center, obb_axes=axes.copy(), obb_half=half, obb_corners=corners, obb_normals=normals,
+        obb_offsets=offsets, cyl_origin=origin, cyl_axes=axes, cyl_zrange=zrange, cyl_shape=shape,
+        cell_base=cell_base, cell_start=cell_start, cell_faces=np.concatenate(lists), margin=margin,
+    )

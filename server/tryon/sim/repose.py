@@ -15,10 +15,11 @@ measurements and resolution: the same mesh topology, each part's vertices in the
    the body starts exactly where the garment was draped on it, not with a hand 13 cm through its cuff;
 3. every garment point carried by the parts near it each of those steps (``PoseTransition.weights``:
    linear blend skinning, each part weighted by the inverse fourth power of the point's distance to it
-   where the part is that step, so a sleeve moves with its arm, the bodice stays with the torso, the
-   armhole between them blends, and a shirt a hand leaves behind stops following the hand), as ``arms.py``
-   carries a sleeve: cloth near a moving limb moves with it, so it is neither left behind nor pushed
-   through by it, and the collision and the springs settle the rest each step.
+   where the part is that step (its nearest vertex, looked up in grids of the parts, ``nearest.py``), so a
+   sleeve moves with its arm, the bodice stays with the torso, the armhole between them blends, and a shirt
+   a hand leaves behind stops following the hand), as ``arms.py`` carries a sleeve: cloth near a moving limb
+   moves with it, so it is neither left behind nor pushed through by it, and the collision and the springs
+   settle the rest each step.
 
 ``start`` builds the new drape on the new body (the springs packed again, its collider, no alignment); then
 ``run.settle`` steps it on as usual and ``relax`` and ``finish`` end it with the new pose's metrics.
@@ -27,13 +28,12 @@ measurements and resolution: the same mesh topology, each part's vertices in the
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
-
 from scipy.spatial.transform import Rotation
 
 from tryon.body.types import Body
 from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.finish import TryOnResult
+from tryon.sim.nearest import any_within, build_grids, nearest_distances
 from tryon.sim.run import settle
 from tryon.sim.start import start
 from tryon.sim.state import Drape
@@ -53,6 +53,14 @@ REPOSE_DEG_PER_STEP = 2.0
 REPOSE_M_PER_STEP = 0.01
 # A change smaller than this many steps' worth is not spread at all (the new body at once).
 REPOSE_MIN_CHANGE = 0.5
+# A part more than this many times farther from a garment point (distance + CARRY_SOFTEN) than the point's
+# nearest part would weigh under CARRY_SPREAD ** -CARRY_POWER of it, and could be left out of the point's weights
+# without looking its distance up (``nearest.nearest_distances``: the far parts cost most of a lookup). None is:
+# at 10 (weights under 1e-4 left out, ~2 um of a hand's 2 cm step) the weights took ~2 ms a step instead of ~4,
+# but the cloth's path through a re-pose changes with any last-bit change, and on that path the asymmetric pose
+# of tests/test_ws_live.py had a point 10.5 mm inside the torso two steps after the motion (3.6 mm before, with
+# k-d trees; 8.7 mm with every distance exact): every distance is looked up, as the trees did.
+CARRY_SPREAD = np.inf
 # m: a limb's shape differing from the old pose's by less than this everywhere is taken as rigid (its maps
 # are not built again; a quarter of the collision margin, 4 mm).
 SHAPE_TOLERANCE = 0.001
@@ -76,8 +84,9 @@ def part_motions(old: Body, new: Body) -> np.ndarray:
     if old.faces.shape != new.faces.shape or len(old.vertices) != len(new.vertices):
         raise ValueError("re-posing needs the same body in another pose (same measurements and resolution)")
     out = np.tile(np.eye(4), (len(old.parts), 1, 1))
+    vertex_part = old.vertex_part
     for k in range(len(old.parts)):
-        ids = np.unique(old.faces[old.face_part == k])
+        ids = np.flatnonzero(vertex_part == k)
         a, b = old.vertices[ids], new.vertices[ids]
         ca, cb = a.mean(axis=0), b.mean(axis=0)
         u, _, vt = np.linalg.svd((a - ca).T @ (b - cb))
@@ -98,10 +107,24 @@ class PoseTransition:
     forearm and upper arm stay joined all the way); torso and head do not move. Garment points move with
     the parts near them (``weights``)."""
 
-    def __init__(self, old: Body, new: Body, collider: BodyCollider, garment: np.ndarray | None = None):
+    def __init__(self, old: Body, new: Body, collider: BodyCollider | None = None, garment: np.ndarray | None = None):
+        """The motion from ``old`` to ``new`` (the limbs that move near the ``garment`` (k, 3) m, how many steps,
+        the limbs' change of shape): all of it known before the drape's collider is (``bind``), so a live
+        session can tell the client the new body's first frame while the drape is set up."""
         self.new, self.collider = new, collider
         back = part_motions(new, old)  # (P, 4, 4): new pose -> old pose, per part
         self.back_rot = Rotation.from_matrix(back[:, :3, :3]).as_rotvec()  # (P, 3) radians
+        # each part's turn as Rodrigues' terms: R(f) = I + sin(f angle) K + (1 - cos(f angle)) K^2, K the cross
+        # product with the unit axis (``geometry.rotation``'s terms, so the same matrices to the bit)
+        # (P,) radians, each norm on its own: np.linalg.norm(..., axis=1) rounds differently in the last bit, and
+        # the cloth's path through a re-pose is that sensitive (step counts 88 -> 92 for hands_on_hips)
+        self._angle = np.array([np.linalg.norm(r) for r in self.back_rot])
+        self._k1 = np.zeros((len(new.parts), 3, 3))
+        self._k2 = np.zeros((len(new.parts), 3, 3))
+        for k in np.flatnonzero(self._angle > 0.0):
+            a = self.back_rot[k] / np.linalg.norm(self.back_rot[k])
+            self._k1[k] = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+            self._k2[k] = self._k1[k] @ self._k1[k]
         self.chains = []  # (part, parent part | None, joint of the new body (3,))
         for side in ("l", "r"):
             for part, parent, joint in ((f"upper_arm_{side}", None, f"shoulder_{side}"),
@@ -113,6 +136,11 @@ class PoseTransition:
                     up = new.parts.index(parent) if parent is not None else None
                     self.chains.append((k, up, np.asarray(new.joints[joint], dtype=np.float64),
                                         np.asarray(old.joints[joint], dtype=np.float64)))
+        # each part's vertices in the collider's rest shape (the new body's pose), binned in grids
+        # (``nearest``): a garment point is weighed against the parts where they are now, by taking it into each
+        # part's rest frame
+        self._vertex_part = np.ascontiguousarray(new.vertex_part, dtype=np.int64)
+        self._grids = build_grids(new.vertices, self._vertex_part, len(new.parts))
         if garment is not None:
             self.chains = self._near(self.chains, garment)
         kept = [k for k, _, _, _ in self.chains]
@@ -120,7 +148,7 @@ class PoseTransition:
         shifts = [np.linalg.norm(j_old - j_new) for _, up, j_new, j_old in self.chains if up is None]
         self.reshaping = self._shape_change(old, kept)  # (n, 3) m
         self._reshape_max = float(np.linalg.norm(self.reshaping, axis=1).max(initial=0.0))
-        self._reshaped_parts = np.unique(new.vertex_part[self.reshaping.any(axis=1)])
+        self._reshaped_parts = np.unique(self._vertex_part[self.reshaping.any(axis=1)])
         biggest = max(np.degrees(angles.max(initial=0.0)) / REPOSE_DEG_PER_STEP,
                       max(shifts, default=0.0) / REPOSE_M_PER_STEP,
                       self._reshape_max / REPOSE_M_PER_STEP)
@@ -129,28 +157,21 @@ class PoseTransition:
         self._shaped = 0.0  # the fraction of the old shape the collider was last given (``apply``)
         self._moves = np.tile(np.eye(4), (len(new.parts), 1, 1))
         self._attached = False
-        # each part's vertices in the collider's rest shape (the new body's pose), in a tree: a garment point
-        # is weighed against the parts where they are now, by taking it into each part's rest frame
-        self._ids = [np.unique(new.faces[new.face_part == k]) for k in range(len(new.parts))]
-        self._trees = [cKDTree(new.vertices[ids]) for ids in self._ids]
 
     def _near(self, chains: list, garment: np.ndarray) -> list:
         """The limbs of ``chains`` that move and come within ``CARRY_REACH`` of a garment point (``garment``
         (k, 3) m) at some moment of their motion (every ``MOTION_SAMPLE_DEG`` degrees, both ends included): the
         others take the new pose at once (trousers do not wait for the arms to rise, gravity off, nor settle
-        again after it). A limb is its upper part and the part hanging from it, kept or left together."""
-        tree = cKDTree(garment)
-        verts = {k: self.new.vertices[np.unique(self.new.faces[self.new.face_part == k])] for k, _, _, _ in chains}
+        again after it). A limb is its upper part and the part hanging from it, kept or left together. The
+        garment is looked up in each part's grid (``nearest.any_within``), taken into the part's rest frame."""
+        garment = np.ascontiguousarray(garment, dtype=np.float64)
         near = set()
         self.chains = chains
         turn = np.degrees(np.linalg.norm(self.back_rot[[k for k, _, _, _ in chains]], axis=1).max(initial=0.0))
         for fraction in np.linspace(0.0, 1.0, max(2, int(np.ceil(turn / MOTION_SAMPLE_DEG)) + 1)):
             moves = self._motions(fraction)
             for k, _, _, _ in chains:
-                if k in near:
-                    continue
-                dist, _ = tree.query(verts[k] @ moves[k, :3, :3].T + moves[k, :3, 3], distance_upper_bound=CARRY_REACH)
-                if np.isfinite(dist).any():
+                if k not in near and any_within(garment, moves[k], k, *self._grids, CARRY_REACH):
                     near.add(k)
         root = {}
         for k, up, j_new, j_old in chains:
@@ -168,13 +189,25 @@ class PoseTransition:
         shape goes from the old to the new along with the motion (``apply``), so it starts where the garment
         was draped and not a hand's turn away from it. Zero where the shapes agree (within
         ``SHAPE_TOLERANCE``)."""
-        vp = self.new.vertex_part
+        vp = self._vertex_part
         back = np.linalg.inv(self._motions(1.0))[vp]  # (n, 4, 4): old pose -> new pose, per vertex's part
         change = np.einsum("nij,nj->ni", back[:, :3, :3], old.vertices) + back[:, :3, 3] - self.new.vertices
         change[~np.isin(vp, kept)] = 0.0
         if np.linalg.norm(change, axis=1).max(initial=0.0) < SHAPE_TOLERANCE:
             change[:] = 0.0
         return change
+
+    def bind(self, collider: BodyCollider) -> "PoseTransition":
+        """Move the drape's ``collider`` (its body is ``new``) from now on; this transition, for ``start``'s
+        ``motion``."""
+        self.collider = collider
+        return self
+
+    def start_motion(self) -> np.ndarray | None:
+        """(P, 4, 4) the motion of every part from the new pose at step 0 (the body still in the old pose, as
+        ``apply(0)`` leaves it), or None when there is no motion over steps (the body takes its new pose at
+        once)."""
+        return self._motions(1.0) if self.steps else None
 
     def turned_parts(self) -> list[int]:
         return [k for k, _, _, _ in self.chains]
@@ -183,7 +216,9 @@ class PoseTransition:
         """(P, 4, 4) motion of every part from the new pose with ``fraction`` of the way back left."""
         out = np.tile(np.eye(4), (len(self.new.parts), 1, 1))
         for k, up, j_new, j_old in self.chains:  # parents come before their children
-            rot = Rotation.from_rotvec(fraction * self.back_rot[k]).as_matrix()
+            angle = fraction * float(self._angle[k])
+            rot = np.eye(3) + np.sin(angle) * self._k1[k] + (1 - np.cos(angle)) * self._k2[k] if angle > 0.0 \
+                else np.eye(3)
             joint = (out[up, :3, :3] @ j_new + out[up, :3, 3]) if up is not None else j_new + fraction * (j_old - j_new)
             out[k, :3, :3] = rot
             out[k, :3, 3] = joint - rot @ j_new
@@ -198,8 +233,7 @@ class PoseTransition:
                 fraction in (0.0, 1.0) or abs(fraction - self._shaped) * self._reshape_max >= RESHAPE_STEP):
             shape = self.new.vertices + fraction * self.reshaping
             self.collider.reshape(shape if fraction > 0.0 else None, self._reshaped_parts)
-            for k in self._reshaped_parts:
-                self._trees[k] = cKDTree(shape[self._ids[k]])
+            self._grids = build_grids(shape, self._vertex_part, len(self.new.parts))
             self._shaped = fraction
         self.collider.pose_arms({k: (np.zeros(3), moves[k, :3, :3], moves[k, :3, 3]) for k in self.turned_parts()})
         self._last, self._moves = self._moves, moves
@@ -213,20 +247,22 @@ class PoseTransition:
         call after ``apply(0)``."""
         self._attached = True
 
-    def weights(self, x: np.ndarray, moves: np.ndarray) -> np.ndarray:
-        """(k, P) weights, each row summing to 1, of the body's parts on the garment points x (k, 3), the body
-        posed by ``moves`` (P, 4, 4): ``(distance to the part + CARRY_SOFTEN) ** -CARRY_POWER``, normalised
-        (distance to the part's nearest vertex, m). Taken again every step, so cloth a hand leaves behind (a
-        shirt under a hand lifted off the hip) stops following it; taken once, the shirt was dragged along
-        and came out of the next pose with a sleeve off the arm. Every step, not every few: they cost ~8 ms
-        for the T-shirt's 874 points (twice a step's work), but taken every 2 or 4 steps, or with the queries
-        bounded to 15 cm, the shirt came off an arm somewhere in 18 re-poses in a row where it did not so."""
-        w = np.empty((len(x), len(self._trees)))
-        for k, tree in enumerate(self._trees):
-            rot, shift = moves[k, :3, :3], moves[k, :3, 3]
-            dist, _ = tree.query((x - shift) @ rot)  # into the part's rest frame: R^T (x - t)
-            w[:, k] = (dist + CARRY_SOFTEN) ** -CARRY_POWER
-        return w / w.sum(axis=1, keepdims=True)
+    def weights(self, x: np.ndarray, moves: np.ndarray, moving: np.ndarray) -> np.ndarray:
+        """(k, m) weights of the ``moving`` (m,) parts on the garment points x (k, 3) m, the body posed by
+        ``moves`` (P, 4, 4): ``(distance to the part + CARRY_SOFTEN) ** -CARRY_POWER`` over the sum of every
+        part's (distance to the part's nearest vertex, m: ``nearest.nearest_distances``; see ``CARRY_SPREAD``).
+        Taken again every step, so cloth a hand leaves behind (a shirt under a hand lifted off the hip) stops
+        following it; taken once, the shirt was dragged along and came out of the next pose with a sleeve off
+        the arm. Every step, not every few: taken every 2 or 4 steps the shirt came off an arm somewhere in 18
+        re-poses in a row where it did not so. With a k-d tree per part they cost ~6-9 ms a step for the
+        T-shirt's 874 points, with the grids ~3-4 ms."""
+        dist = np.empty((len(x), len(self.new.parts)))
+        wanted = np.zeros(len(self.new.parts), dtype=np.bool_)
+        wanted[moving] = True
+        nearest_distances(np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(moves), wanted,
+                          *self._grids, CARRY_SOFTEN, CARRY_SPREAD, dist)
+        w = (dist + CARRY_SOFTEN) ** -CARRY_POWER  # 0 for the parts left out (inf)
+        return w[:, moving] / w.sum(axis=1, keepdims=True)
 
     def carry(self, x: np.ndarray, x_prev: np.ndarray) -> None:
         """Move the garment points (x and x_prev (k, 3), in place) by the parts' motions between the last two
@@ -237,19 +273,20 @@ class PoseTransition:
         moving = np.flatnonzero(np.abs(step - np.eye(4)).max(axis=(1, 2)) > 1e-12)
         if not len(moving):
             return
-        w = self.weights(x, self._last)[:, moving]  # (k, m)
+        w = self.weights(x, self._last, moving)  # (k, m)
         for p in (x, x_prev):
             moved = np.einsum("mij,kj->kmi", step[moving, :3, :3], p) + step[moving, :3, 3][None]  # (k, m, 3)
             p += np.einsum("km,kmi->ki", w, moved - p[:, None, :])
 
 
-def repose(d: Drape, body: Body) -> Drape:
+def repose(d: Drape, body: Body, transition: PoseTransition | None = None) -> Drape:
     """A drape on ``body`` (``d``'s body in a new pose) whose garment starts where ``d``'s is and is carried
-    along as the body moves from the old pose to the new over the first steps (``PoseTransition``); see the
-    module doc. ``d`` is left as it was."""
-    old = d.body
-    return start(body, d.model, d.settings, d.tuning, initial=d.state.x.copy(),
-                 motion=lambda collider: PoseTransition(old, body, collider, garment=d.state.x))
+    along as the body moves from the old pose to the new over the first steps (``transition``, made here if
+    not given: ``PoseTransition(d.body, body, garment=d.state.x)``); see the module doc. ``d`` is left as it
+    was."""
+    if transition is None:
+        transition = PoseTransition(d.body, body, garment=d.state.x)
+    return start(body, d.model, d.settings, d.tuning, initial=d.state.x.copy(), motion=transition.bind)
 
 
 def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape, TryOnResult, bool]:

@@ -169,6 +169,7 @@ async def _live_sender(ws: WebSocket, session: LiveSession) -> None:
                 now = time.monotonic()
                 data = encode_frame(session.frames_sent, step, payload, now - session.started_at)
                 await ws.send_bytes(data)
+                session.frame_sent.set()
                 last_sent = now
                 session.frames_sent += 1
                 session.bytes_sent += len(data)

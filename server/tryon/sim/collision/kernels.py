@@ -124,31 +124,43 @@ def cell_max_radius(cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell
     """Largest distance to the part axis of any vertex of each cell's faces, (C,) m, into ``out``.
 
     A point farther from the axis than its cell's radius is outside that part without casting a ray:
-    most garment points are outside, so most tests stop there.
+    most garment points are outside, so most tests stop there. Each vertex's distance is taken once per
+    part (a face is listed in ~8 cells, each vertex in ~6 faces).
     """
+    r2 = np.empty(bv.shape[0])
+    stamp = np.full(bv.shape[0], -1, dtype=np.int64)
     for k in range(cyl_shape.shape[0]):
-        _part_max_radius(k, cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell_faces, faces, bv, out)
+        _part_max_radius(k, cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell_faces, faces, bv, out, r2,
+                         stamp)
 
 
 @njit(cache=True, nogil=True)
 def part_max_radius(parts, cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell_faces, faces, bv, out):
     """``cell_max_radius`` of the cells of the parts ``parts`` (q,) int64 only (a reshaped limb); the other
     cells of ``out`` are left as they are."""
+    r2 = np.empty(bv.shape[0])
+    stamp = np.full(bv.shape[0], -1, dtype=np.int64)
     for i in range(parts.shape[0]):
         _part_max_radius(parts[i], cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell_faces, faces, bv,
-                         out)
+                         out, r2, stamp)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _part_max_radius(k, cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell_faces, faces, bv, out):
+def _part_max_radius(k, cyl_origin, cyl_axes, cyl_shape, cell_base, cell_start, cell_faces, faces, bv, out, r2,
+                     stamp):
+    """Part k's cells into ``out``; r2 (n,) holds each vertex's squared radius about part k's axis where
+    stamp (n,) is k (taken at its first use)."""
     for c in range(cell_base[k], cell_base[k] + cyl_shape[k, 0] * cyl_shape[k, 1]):
         r_max = 0.0
         for m in range(cell_start[c], cell_start[c + 1]):
             f = cell_faces[m]
             for j in range(3):
                 v = faces[f, j]
-                lx, ly, lz = _to_local(bv[v, 0], bv[v, 1], bv[v, 2], cyl_origin, cyl_axes, k)
-                r = lx * lx + ly * ly
+                if stamp[v] != k:
+                    lx, ly, lz = _to_local(bv[v, 0], bv[v, 1], bv[v, 2], cyl_origin, cyl_axes, k)
+                    r2[v] = lx * lx + ly * ly
+                    stamp[v] = k
+                r = r2[v]
                 if r > r_max:
                     r_max = r
         out[c] = math.sqrt(r_max)

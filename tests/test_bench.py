@@ -85,10 +85,12 @@ def test_sections_carry_their_figures(bench):
     assert all(p["rms_mm"] >= 0 for p in pareto["points"])
     ours = [r for r in _section(report, "peers")["data"]["cloth_on_ball"]["1024"] if r["engine"] == "ours"][0]
     assert ours["frames"] == 300 and ours["finite"]
-    # live re-posing through a real server: the T-shirt M carried to three named poses, each at rest with
-    # nothing in the body and both sleeves on the arms, a first frame before the done
+    # live re-posing through a real server: the T-shirt M carried to three named poses, then in a session of its
+    # own through two changes of 30 degrees, each at rest with nothing in the body and both sleeves on the arms,
+    # a first frame before the done
     live = _section(report, "live")["data"]["updates"]
-    assert [d["pose"] for d in live] == ["hands_on_hips", "arms_raised", "stride"]
+    assert [d["pose"] for d in live] == ["hands_on_hips", "arms_raised", "stride", "30 degrees 1", "30 degrees 2"]
+    assert [d["thirty_degrees"] for d in live] == [False] * 3 + [True] * 2
     assert all(d["rest"] and d["penetrating"] == 0 and d["on_limbs"] for d in live), live
     assert all(0 < d["first_frame_s"] < d["done_s"] for d in live), live
     scaling = _section(report, "scaling")["data"]

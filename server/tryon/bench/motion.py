@@ -11,7 +11,7 @@ done of a live pose update says: vertices more than 2 mm inside the body (target
 trouser leg round its limb (``openings_on_limbs``; ``redraped``: the carried garment had one off and was
 draped afresh in that pose).
 
-``tryon bench --only motion --sequences N`` runs each garment's first N sequences (~4 minutes each over the
+``tryon bench --only motion --sequences N`` runs each garment's first N sequences (~10 minutes each over the
 catalogue) instead of all twenty.
 
 Random poses are uniform over the real ranges (``POSE_RANGES``: every angle of each side on its own, wrists and

@@ -32,7 +32,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         f"to see what fewer cost in accuracy; 1 to {MAX_SUBSTEPS}")
     p.add_argument("--sequences", type=int, default=None, metavar="N",
                    help=f"motion section: N random pose sequences of ten poses per garment instead of all "
-                        f"{MAX_SEQUENCES} (each garment's first N; ~4 minutes per sequence); 1 to {MAX_SEQUENCES}")
+                        f"{MAX_SEQUENCES} (each garment's first N; ~10 minutes per sequence); 1 to {MAX_SEQUENCES}")
     p.set_defaults(func=run)
 
 

@@ -120,6 +120,23 @@ def test_an_arm_swung_forwards_stays_out_of_the_chest(m):
             assert arm_depth_mm(body, "l") <= 1000.0 * INSIDE_TOLERANCE, (forward, bend, body.pose)
 
 
+def test_a_forearm_swung_across_the_belly_does_not_go_through_it():
+    """The motion stress's fourth pose (seed 30: the right arm 13.6 degrees out, 15.8 forwards, turned in 72.6
+    with the elbow bent 81.1) swung the right forearm 9.3 mm through the torso, within the upper arm's
+    ARM_PRESS: no cloth can lie between the two. The forearm may press only FOREARM_PRESS, so that arm is
+    raised until it clears: no part of the body inside a part it does not join; the other arm as asked."""
+    from tryon.bench.motion import body_crossing_mm, random_pose
+
+    rng = np.random.default_rng(30)
+    pose = [random_pose(rng) for _ in range(4)][3]
+    assert pose.arm_angle_right == 13.6 and pose.elbow_bend_right == 81.1
+    body = build_body(MEDIUM, pose)
+    assert body_crossing_mm(body) == 0.0
+    assert body.pose["arm_angle_right"] > pose.arm_angle_right + 1.0
+    assert body.pose["arm_forward_right"] == pose.arm_forward_right
+    assert body.pose["elbow_bend_right"] == pose.elbow_bend_right
+
+
 # ---- API ---------------------------------------------------------------------------------------------------
 
 @pytest.fixture(scope="module")

@@ -92,10 +92,9 @@ def test_random_pose_sequences_never_blow_up_nor_hang(small_stress):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 30, not met yet: 3 of these 30 settles have a frame 12-14 mm into the "
-                                       "moving body: the T-shirt M's pose 4 (a pose whose right forearm is 9 mm "
-                                       "through the torso: cloth held in the pinch) and the trousers' hem caught "
-                                       "under a sole as the legs spread (poses 1 and 2); tryon bench --only motion")
+@pytest.mark.xfail(strict=True, reason="issue 30, not met yet: 1 of these 30 settles has a frame 13 mm into the "
+                                       "moving body: the trousers' hem caught under a sole as the legs spread "
+                                       "(pose 1); tryon bench --only motion")
 def test_random_pose_sequences_keep_the_cloth_out_of_the_body_and_on_the_limbs(small_stress):
     """No frame with cloth 10 mm inside the body, and at every settle's end nothing inside the body and every
     sleeve and leg round its limb."""

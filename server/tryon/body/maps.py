@@ -223,6 +223,33 @@ _CORNER_SIGNS = np.array(
 )
 
 
+def _boxes_and_shapes(vertices, faces, face_part, origin, axes, n_parts: int, margin: float) -> tuple:
+    """Each part's OBB and cylinder-map extent from its faces (``faces`` (f, 3) of part ``face_part`` (f,)), in
+    the part frames ``origin`` (P, 3), ``axes`` (P, 3, 3), grown by ``margin`` m: (center (P, 3), half (P, 3),
+    corners (P, 8, 3), normals (P, 6, 3) +x +y +z -x -y -z, offsets (P, 6), zrange (P, 2), shape (P, 2) int64:
+    theta and z cells). A part without faces gets an empty box (offsets -inf) and a single cell."""
+    lo, hi = _local_bounds(vertices, faces, face_part, origin, axes, n_parts)
+    empty = ~np.isfinite(lo[:, 0])
+    lo[empty] = 0.0
+    hi[empty] = 0.0
+    # OBB in the part frame, grown by the margin.
+    lo_g = lo - margin
+    hi_g = hi + margin
+    half = 0.5 * (hi_g - lo_g)
+    center = origin + np.einsum("pa,pab->pb", 0.5 * (lo_g + hi_g), axes)
+    corners = center[:, None, :] + np.einsum("ca,pa,pab->pcb", _CORNER_SIGNS, half, axes)
+    normals = np.concatenate([axes, -axes], axis=1)  # +x, +y, +z, -x, -y, -z
+    offsets = np.einsum("pjb,pb->pj", normals, center) + np.concatenate([half, half], axis=1)
+    offsets[empty] = -np.inf
+    # Cylinder maps.
+    zrange = np.stack([lo_g[:, 2], hi_g[:, 2]], axis=1)
+    zrange[empty] = (0.0, 1.0)
+    n_z = np.maximum(1, np.ceil((zrange[:, 1] - zrange[:, 0]) / CELL_HEIGHT)).astype(np.int64)
+    n_z[empty] = 1
+    shape = np.stack([np.full(n_parts, N_THETA, dtype=np.int64), n_z], axis=1)
+    return center, half, corners, normals, offsets, zrange, shape
+
+
 def build_part_maps(
     vertices: np.ndarray, faces: np.ndarray, face_part: np.ndarray, part_axes: np.ndarray, margin: float
 ) -> PartMaps:
@@ -239,27 +266,8 @@ def build_part_maps(
     margin = float(margin)
     n_parts = len(part_axes)
     origin, axes = part_frames(part_axes)
-    lo, hi = _local_bounds(vertices, faces, face_part, origin, axes, n_parts)
-    empty = ~np.isfinite(lo[:, 0])
-    lo[empty] = 0.0
-    hi[empty] = 0.0
-
-    # OBB in the part frame, grown by the margin.
-    lo_g = lo - margin
-    hi_g = hi + margin
-    half = 0.5 * (hi_g - lo_g)
-    center = origin + np.einsum("pa,pab->pb", 0.5 * (lo_g + hi_g), axes)
-    corners = center[:, None, :] + np.einsum("ca,pa,pab->pcb", _CORNER_SIGNS, half, axes)
-    normals = np.concatenate([axes, -axes], axis=1)  # +x, +y, +z, -x, -y, -z
-    offsets = np.einsum("pjb,pb->pj", normals, center) + np.concatenate([half, half], axis=1)
-    offsets[empty] = -np.inf
-
-    # Cylinder maps.
-    zrange = np.stack([lo_g[:, 2], hi_g[:, 2]], axis=1)
-    zrange[empty] = (0.0, 1.0)
-    n_z = np.maximum(1, np.ceil((zrange[:, 1] - zrange[:, 0]) / CELL_HEIGHT)).astype(np.int64)
-    n_z[empty] = 1
-    shape = np.stack([np.full(n_parts, N_THETA, dtype=np.int64), n_z], axis=1)
+    center, half, corners, normals, offsets, zrange, shape = _boxes_and_shapes(vertices, faces, face_part, origin,
+                                                                               axes, n_parts, margin)
     sizes = shape[:, 0] * shape[:, 1]
     cell_base = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
     n_cells = int(sizes.sum())
@@ -302,23 +310,8 @@ def rebuild_part_maps(maps: PartMaps, vertices: np.ndarray, faces: np.ndarray, f
     sub_faces, sub_part = faces[ids], face_part[ids]
     margin = float(maps.margin)
     origin, axes = part_frames(part_axes)
-    lo, hi = _local_bounds(vertices, sub_faces, sub_part, origin, axes, n_parts)
-    empty = ~np.isfinite(lo[:, 0])
-    lo[empty] = 0.0
-    hi[empty] = 0.0
-    lo_g = lo - margin
-    hi_g = hi + margin
-    half = 0.5 * (hi_g - lo_g)
-    center = origin + np.einsum("pa,pab->pb", 0.5 * (lo_g + hi_g), axes)
-    corners = center[:, None, :] + np.einsum("ca,pa,pab->pcb", _CORNER_SIGNS, half, axes)
-    normals = np.concatenate([axes, -axes], axis=1)
-    offsets = np.einsum("pjb,pb->pj", normals, center) + np.concatenate([half, half], axis=1)
-    offsets[empty] = -np.inf
-    zrange = np.stack([lo_g[:, 2], hi_g[:, 2]], axis=1)
-    zrange[empty] = (0.0, 1.0)
-    n_z = np.maximum(1, np.ceil((zrange[:, 1] - zrange[:, 0]) / CELL_HEIGHT)).astype(np.int64)
-    n_z[empty] = 1
-    shape = np.stack([np.full(n_parts, N_THETA, dtype=np.int64), n_z], axis=1)
+    center, half, corners, normals, offsets, zrange, shape = _boxes_and_shapes(vertices, sub_faces, sub_part, origin,
+                                                                               axes, n_parts, margin)
     keep = ~redo  # the parts as they were
     center[keep], half[keep], corners[keep] = maps.obb_center[keep], maps.obb_half[keep], maps.obb_corners[keep]
     normals[keep], offsets[keep] = maps.obb_normals[keep], maps.obb_offsets[keep]

@@ -10,6 +10,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pytest
 from websockets.sync.client import connect
 
@@ -42,6 +43,7 @@ class Settle:
     update: int
     sent_at: float
     body: dict | None = None
+    body_vertices: np.ndarray | None = None  # (n, 3) m, from the binary message after the body message
     frames: list = field(default_factory=list)  # (frame number, step, client monotonic s)
     motions: int = 0
     done: dict | None = None
@@ -50,9 +52,14 @@ class Settle:
 def read_until_done(ws, settles: dict, errors: list, update: int, timeout_s: float = 60.0) -> dict:
     """Read messages into ``settles`` (by update number) until the done of ``update``; returns it."""
     current = None
+    body_follows = False
     while True:
         m = ws.recv(timeout=timeout_s)
         now = time.monotonic()
+        if isinstance(m, bytes) and body_follows:  # the body message's vertices
+            current.body_vertices = np.frombuffer(m, dtype="<f4").reshape(-1, 3)
+            body_follows = False
+            continue
         if isinstance(m, bytes):
             frame, step, _ = struct.unpack_from("<IIf", m)
             if current is not None:
@@ -62,6 +69,7 @@ def read_until_done(ws, settles: dict, errors: list, update: int, timeout_s: flo
         if d["type"] == "body":
             current = settles[d["update"]]
             current.body = d
+            body_follows = True
         elif d["type"] == "body_pose":
             if current is not None:
                 current.motions += 1
@@ -106,7 +114,13 @@ def test_three_pose_updates_each_settle_with_nothing_inside_the_body(server):
             assert sorted(o["around"] for o in m["limb_openings"]) == ["upper_arm_l", "upper_arm_r"], pose
             expected = Pose(**(NAMED_POSES[pose] if isinstance(pose, str) else pose)).as_dict()
             assert s.body["pose"]["arm_angle_right"] >= expected["arm_angle_right"] and m["pose"] == s.body["pose"]
-            assert len(s.body["vertices"]) == len(init["body"]["vertices"]) == len(s.body["vertex_part"])
+            n = len(init["body"]["vertices"])
+            assert s.body["vertices"]["binary_bytes"] == 12 * n and s.body_vertices.shape == (n, 3)
+            assert len(s.body["vertex_part"]) == n and np.isfinite(s.body_vertices).all()
+            # the new pose's body: its feet on the floor, and raised hands above the A-pose body's head
+            assert abs(s.body_vertices[:, 1].min()) < 0.005, s.body_vertices[:, 1].min()
+            top = max(v[1] for v in init["body"]["vertices"])
+            assert (s.body_vertices[:, 1].max() > top + 0.05) == (pose == "arms_raised"), pose
             assert s.frames and s.motions > 0 and done["transition_steps"] > 0
             figures.append((s.frames[0][2] - s.sent_at, time.monotonic() - s.sent_at, done["time_to_first_frame_s"]))
         assert not errors

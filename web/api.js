@@ -83,7 +83,7 @@ const CLOSE_TRY_AGAIN_LATER = 1013;
  * handlers: onInit(init), onFrame(frameNo, step, positions Float32Array), onDone(done).
  * Resolves with the (first) done message; rejects with an ApiError. `session.cancel()` closes the socket.
  * A live request (`payload.live`) stays open after done: `session.sendPose(pose)` re-poses (a name or
- * angles), and then onBody(body message: the new body's vertices and vertex_part), onBodyPose(parts motions,
+ * angles), and then onBody(body message, its vertices a flat Float32Array, and vertex_part), onBodyPose(parts motions,
  * or null: the body in its own pose) and onFrame as it moves and settles, onPoseDone(done) at rest,
  * onLiveError(message) for a refused update, onClosed() when the connection ends.
  */
@@ -95,6 +95,7 @@ export function liveTryOn(payload, handlers) {
   let decoded = null;  // reused for every uint16 frame
   let finished = false;
   let session = null;
+  let body = null;  // a body message whose vertices (the next binary message) have not come yet
   const promise = new Promise((resolve, reject) => {
     let errorReason = null;
     ws.onopen = () => ws.send(JSON.stringify(payload));
@@ -110,7 +111,7 @@ export function liveTryOn(payload, handlers) {
           handlers.onDone?.(message);
           resolve(message);
         } else if (message.type === 'body') {
-          handlers.onBody?.(message);
+          body = message;
         } else if (message.type === 'body_pose') {
           handlers.onBodyPose?.(message.parts);
         } else if (message.type === 'error') {
@@ -120,6 +121,11 @@ export function liveTryOn(payload, handlers) {
         return;
       }
       if (!init) return;
+      if (body) {  // the body message's vertices: float32 x, y, z, no header
+        handlers.onBody?.({...body, vertices: new Float32Array(event.data)});
+        body = null;
+        return;
+      }
       const enc = init.encoding;
       const header = new DataView(event.data, 0, enc.header_bytes);
       const frameNo = header.getUint32(0, true);

@@ -317,7 +317,7 @@ async function tryOn() {
       const seconds = ((performance.now() - started) / 1000).toFixed(1);
       setProgress(maxSteps ? step / maxSteps : 0.5, `Draping… step ${step}${maxSteps ? ` of at most ${maxSteps}` : ''} · ${seconds} s`);
     },
-    onBody(message) { stage.setPosedBody(message.vertices.flat(), message.vertex_part); },
+    onBody(message) { stage.setPosedBody(message.vertices, message.vertex_part); },
     onBodyPose(parts) { stage.poseBody(parts); },
     onPoseDone(done) {
       state.poseDones++;

@@ -10,6 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 
 FRAME_HEADER = struct.Struct("<IIf")  # frame number, simulation step, seconds since the request
+# A live session's body message (a pose update's body) is followed by one binary message of the body's vertices:
+BODY_VERTEX_LAYOUT = "xyz per vertex, little-endian float32, metres, no header"
 
 # m: how far beyond the body's bounding box quantized (uint16) positions reach; a garment hanging or
 # sliding further is clamped to the box. 65,535 levels over a 1.8 m body + 2 x 0.25 m: 0.035 mm.

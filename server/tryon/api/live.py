@@ -17,7 +17,7 @@ from fastapi import HTTPException
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from tryon.api.export import json_bytes, mesh_arrays
-from tryon.api.frames import FLOAT32, FrameCodec
+from tryon.api.frames import BODY_VERTEX_LAYOUT, FLOAT32, FrameCodec
 from tryon.api.pool import CachedTryOn, RunGuard
 from tryon.api.schemas.bodies import PoseIn, to_body_params
 from tryon.api.schemas.tryon import TryOnRequest
@@ -199,11 +199,11 @@ class LiveReposing:
         session.update_first_frame_at = session.update_first_step_at = None
         body = build_body(self.measurements, pose)
         transition = PoseTransition(self.drape.body, body, garment=self.drape.state.x)
-        message = {"type": "body", "update": update, "pose": body.pose,
-                   **mesh_arrays(body.vertices, body.faces, decimals=5), "vertex_part": body.vertex_part,
-                   "transition_steps": int(transition.steps)}
-        message.pop("faces")  # the init message's body faces: the same body, another pose
-        session.post_text(json_bytes(message).decode())
+        vertices = FLOAT32.encode(body.vertices)  # binary: 12 bytes a vertex, 2.4 x less than JSON, no parse
+        message = {"type": "body", "update": update, "pose": body.pose, "vertex_part": body.vertex_part.tolist(),
+                   "transition_steps": int(transition.steps), "vertices": {"binary_bytes": len(vertices),
+                                                                          "layout": BODY_VERTEX_LAYOUT}}
+        session.post_body(json_bytes(message).decode(), vertices)
         # the motion's step 0 right away, before the drape is set up (its collider, maps, springs: ~30 ms)
         session.post_start(self.drape.state.x, transition.start_motion())
         d = repose(self.drape, body, transition)
@@ -290,7 +290,8 @@ class LiveSession:
         # the outbox (a frame replaces a frame still waiting at its end); the pose slot holds the latest update
         self.reposing: LiveReposing | None = None  # set by the first drape's worker
         self.live = False
-        self.outbox: deque = deque()  # ("text", str) | ("frame", step, payload bytes, body motion text | None)
+        # ("text", str) | ("bytes", a body message's vertices) | ("frame", step, payload, body motion text | None)
+        self.outbox: deque = deque()
         self.pending: tuple[int, Any, float] | None = None  # (update number, Pose, monotonic s received)
         self.updates = 0
         self.pose_arrived = asyncio.Event()
@@ -350,6 +351,11 @@ class LiveSession:
         """A text message for the live outbox, after everything handed over before it (any thread)."""
         self.loop.call_soon_threadsafe(self._put_text, text)
 
+    def post_body(self, text: str, vertices: bytes) -> None:
+        """A body message for the live outbox (sim thread): its JSON text, then its vertices as the binary
+        message right after it (``BODY_VERTEX_LAYOUT``), nothing between the two."""
+        self.loop.call_soon_threadsafe(self._put_body, text, vertices)
+
     def post_final(self, step: int, vertices: np.ndarray) -> None:
         """A settle's final state for the live outbox (sim thread): the body in its own pose."""
         self.loop.call_soon_threadsafe(self._put_live_frame,
@@ -367,6 +373,11 @@ class LiveSession:
 
     def _put_text(self, text: str) -> None:
         self.outbox.append(("text", text))
+        self.wake.set()
+
+    def _put_body(self, text: str, vertices: bytes) -> None:
+        self.outbox.append(("text", text))
+        self.outbox.append(("bytes", vertices))
         self.wake.set()
 
     def _put_live_frame(self, frame: tuple) -> None:

@@ -100,14 +100,19 @@ def _until_done(ws) -> tuple[float | None, float | None, dict]:
     """Read until a done; (client monotonic time of the first binary frame or None, of the first frame of a
     simulated step (step >= 1: not a re-pose's step 0, sent before its drape is set up) or None, the done)."""
     first = stepped = None
+    body_follows = False
     while True:
         m = ws.recv(timeout=TIMEOUT_S)
+        if isinstance(m, bytes) and body_follows:  # a body message's vertices, not a frame
+            body_follows = False
+            continue
         if isinstance(m, bytes):
             first = first or time.monotonic()
             if stepped is None and FRAME_HEADER.unpack_from(m)[1] >= 1:
                 stepped = time.monotonic()
             continue
         d = json.loads(m)
+        body_follows = d["type"] == "body"
         if d["type"] == "error":
             raise RuntimeError(f"live session error: {d}")
         if d["type"] == "done":

@@ -21,7 +21,8 @@ Protocol (one try-on per connection):
    garment's own metrics (its strain in ``strain``, every garment's one after the other).
 
 5. with ``"live": true`` (one garment) the connection stays open after done: ``{"type": "pose", "pose": ...}``
-   messages re-pose the body with the garment on it; each taken update gets a ``body`` message, frames
+   messages re-pose the body with the garment on it; each taken update gets a ``body`` message (its vertices
+   in the binary message right after it: float32 x, y, z, no header), frames
    (with ``body_pose`` motions while the body moves) and its own done (docs/live-tryon.md, *Live re-posing*).
 
 Any failure (not JSON, a bad field, an unknown garment, a failed simulation) is one JSON
@@ -159,6 +160,10 @@ async def _live_sender(ws: WebSocket, session: LiveSession) -> None:
                 item = session.outbox.popleft()
                 if item[0] == "text":
                     await ws.send_text(item[1])
+                    continue
+                if item[0] == "bytes":  # a body message's vertices, right after it
+                    await ws.send_bytes(item[1])
+                    session.bytes_sent += len(item[1])
                     continue
                 _, step, payload, motion = item
                 while (wait := last_sent + session.interval_s - time.monotonic()) > 0:

@@ -12,6 +12,7 @@ from tryon.sim.constraints import (
     top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, verlet_step
+from tryon.sim.full_mesh import PINCHED_LEAST_DEEP
 from tryon.bench.synthetic import body_from_parts, cloth_square
 from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.state import DrapeState
@@ -240,6 +241,30 @@ def test_a_pinched_point_is_held_only_where_it_is_not_deep():
     assert (held > 0.006).sum() > 200 and (limited > 0.006).sum() < 30
     assert np.all(limited <= held + 1e-9)
     assert np.all(deep_after(False, 0.006) <= deep_after(False, 1e9) + 1e-9)
+
+
+def test_a_point_pinched_between_two_parts_ends_between_them():
+    """The shown mesh's last collision (``full_mesh.PINCHED_LEAST_DEEP``): points in the overlap of a post and an
+    arm pressed 1.5 cm into it, pushed out of each into the other, end at the least deep of their pushes or of
+    the middles of two pushes in a row (between the two parts, as deep in each): at most 4.2 mm inside the real
+    surfaces, where the last push alone left them up to 9.8 mm inside the other part."""
+    body = body_from_parts(np.array([[[0, 0.2, 0], [0, 0.8, 0]], [[-0.15, 0.5, 0.065], [0.15, 0.5, 0.065]]], float),
+                           np.array([0.05, 0.03]))
+    collider = BodyCollider(body, 0.004)
+    parts = np.arange(2, dtype=np.int64)
+    rng = np.random.default_rng(0)
+    pts = np.column_stack([rng.uniform(-0.06, 0.06, 4000), rng.uniform(0.45, 0.55, 4000),
+                           rng.uniform(0.02, 0.06, 4000)])
+    both = (collider.depth(pts, parts[:1], offset=True) > 0) & (collider.depth(pts, parts[1:], offset=True) > 0)
+    pts = pts[both][:300]
+
+    def deepest_after(hold_depth: float) -> float:
+        x, n = pts.copy(), len(pts)
+        collider.collide(x, pts.copy(), np.ones(n), np.ones(n, dtype=np.bool_), parts, 0.0005, 0.0, 0.0,
+                         np.zeros(n, dtype=np.bool_), hold_depth=hold_depth)
+        return float(collider.depth(x, parts).max())
+
+    assert deepest_after(1e9) > 0.008 and deepest_after(PINCHED_LEAST_DEEP) < 0.005
 
 
 def test_top_down_order_is_a_stable_sort_of_the_steep_springs_by_upper_end():

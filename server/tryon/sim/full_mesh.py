@@ -28,6 +28,10 @@ DISPLAY_PASSES = 10
 # Most collision calls after the rounds (each repeats its part loop ROUNDS times): a point pushed out of one
 # part into another (crotch, armpit) is caught by the next call.
 FULL_COLLIDE_CALLS = 4
+# m, collide_points' hold_depth for those calls: 0 = a point pinched between two parts (pushed out of each into
+# the other in every round) ends where its pushes leave it least deep, between the two (a sleeve between a
+# forearm and the belly it rests on), not on one part's offset surface as deep in the other as the offset.
+PINCHED_LEAST_DEEP = 0.0
 
 
 def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollider, limits: np.ndarray,
@@ -54,7 +58,8 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
         active[:] = contact  # the last round's collision tested every point: only those it pushed can be inside
     for _ in range(FULL_COLLIDE_CALLS):
         # the later calls test only the points the last one moved (the others were outside every part)
-        if not collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact):
+        if not collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact,
+                                hold_depth=PINCHED_LEAST_DEEP):
             break
         active[:] = contact
     return full, parts

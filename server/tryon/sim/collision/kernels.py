@@ -478,7 +478,10 @@ def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, 
     rounds' pushes left it least deep, with that push's plane, instead of where the last push left it (inside
     the other part) or, if held, where it was at the start of the step when that is deeper than hold_depth in
     the offset body (a re-posed body: cloth squeezed between a forearm and the torso where they press into each
-    other was left 1-2 cm inside one of them).
+    other was left 1-2 cm inside one of them). The middle of two pushes in a row counts as a push: between two
+    parts pressed together it is as deep in each, where either push leaves it as deep in the other as the
+    overlap and the offset together (``full_mesh.PINCHED_LEAST_DEEP``: the shown mesh of a long sleeve on a
+    forearm resting on the belly ended 3.2 mm inside the torso, now 0).
     One point at a time, each writing only its own row: safe to split the loop across threads.
     """
     obb_normals, obb_offsets = surface.obb_normals, surface.obb_offsets
@@ -493,6 +496,9 @@ def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, 
     cand = np.empty((ROUNDS * parts.shape[0], 3))
     cand_n = np.empty((ROUNDS * parts.shape[0], 3))
     scratch = np.empty((4, 3))
+    mid = np.empty(3)
+    best_p = np.empty(3)
+    best_n = np.empty(3)
     moved = 0
     for i in range(x.shape[0]):
         if inv_mass[i] == 0.0 or not active[i]:
@@ -539,20 +545,28 @@ def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, 
             if not any_inside:
                 break
         if any_inside and hold_depth < 1e8 and n_cand > 0:
-            # held: only if where it was is not too deep; not held (the body moving): the least deep push
-            best, best_depth = -1, _depth_at(x_prev[i], parts, surface, scratch, tbuf, fbuf) if hold_pinched \
+            # held: only if where it was is not too deep; not held (the body moving): the least deep push, or
+            # the middle of two pushes in a row (out of one part, then out of the other: between two parts
+            # pressed together, the middle is as deep in each, half as deep as either push leaves it)
+            found, best_depth = False, _depth_at(x_prev[i], parts, surface, scratch, tbuf, fbuf) if hold_pinched \
                 else np.inf
             if best_depth > hold_depth:
-                for c in range(n_cand):
-                    depth = _depth_at(cand[c], parts, surface, scratch, tbuf, fbuf)
+                for c in range(2 * n_cand - 1):
+                    a, b = c // 2, (c + 1) // 2  # a push (a == b), or the middle of two in a row
+                    for ax in range(3):
+                        mid[ax] = 0.5 * (cand[a, ax] + cand[b, ax])
+                    depth = _depth_at(mid, parts, surface, scratch, tbuf, fbuf)
                     if depth < best_depth:
-                        best, best_depth = c, depth
-            if best >= 0:
+                        found, best_depth = True, depth
+                        for ax in range(3):
+                            best_p[ax] = mid[ax]
+                            best_n[ax] = cand_n[b, ax]
+            if found:
                 for ax in range(3):
-                    p[ax] = cand[best, ax]
+                    p[ax] = best_p[ax]
                     x_prev[i, ax] = p[ax]  # no velocity from the move
                     plane_point[i, ax] = p[ax]
-                    plane_normal[i, ax] = cand_n[best, ax]
+                    plane_normal[i, ax] = best_n[ax]
                 has_plane[i] = True
                 moved += 1
                 continue

@@ -8,7 +8,8 @@ import pytest
 import trimesh
 
 from test_body import SPREAD, part_faces, winding_number
-from tryon.body.build import ARM_PRESS, SHOULDER_REACH, build_body
+from tryon.body.build import ARM_PRESS, SHOULDER_REACH, build_body, with_hands_straight
+from tryon.body.types import PART_NAMES
 from tryon.body.params import NAMED_POSES, POSE_RANGES, POSE_SHORTHAND, Measurements, Pose, pose_from
 
 MEDIUM = Measurements(height=170, chest=96, waist=82, hips=100)  # the drape tests' medium body
@@ -199,3 +200,24 @@ def test_api_ranges_list_sides_shorthand_and_named_poses(client):
     assert list(data["named_poses"]) == list(NAMED_POSES)
     assert data["named_poses"]["hands_on_hips"]["angles"] == NAMED_POSES["hands_on_hips"]
     assert data["named_poses"]["a_pose"]["angles"] == Pose().as_dict()
+
+
+def test_the_hands_straightened_are_the_same_body_built_with_the_wrists_straight():
+    """``with_hands_straight``: the body built again with both wrists at 0 (the same measurements, arms and
+    resolution), so a drape can start with the hands inside the sleeves; a body whose hands are not turned is
+    its own. A turned hand's forearm map is made along the forearm, elbow to wrist joint, not towards the
+    fingertips (``map_axes``)."""
+    turned = build_body(MEDIUM, Pose(arm_angle=50.0, elbow_bend=30.0, wrist_bend_left=70.0), resolution=20)
+    straight = with_hands_straight(turned)
+    again = build_body(MEDIUM, Pose(arm_angle=50.0, elbow_bend=30.0), resolution=20)
+    assert turned.hands_turned and not straight.hands_turned and straight.resolution == 20
+    assert np.array_equal(straight.vertices, again.vertices) and straight.pose == again.pose
+    assert with_hands_straight(again) is again
+    k = PART_NAMES.index("forearm_l")
+    axis = turned.maps.part_axes[k]
+    wrist = turned.joints["wrist_l"]
+    along = (axis[1] - axis[0]) / np.linalg.norm(axis[1] - axis[0])
+    assert np.linalg.norm(np.cross(along, wrist - axis[0])) < 1e-9  # through the wrist joint
+    assert np.allclose(np.linalg.norm(axis[1] - axis[0]), np.linalg.norm(turned.part_axes[k, 1] - axis[0]))
+    kr = PART_NAMES.index("forearm_r")  # the right hand is not turned: its own axis
+    assert np.array_equal(turned.maps.part_axes[kr], turned.part_axes[kr])

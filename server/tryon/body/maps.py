@@ -39,7 +39,8 @@ class PartMaps:
     Cylinder map: cyl_origin (P, 3), cyl_axes (P, 3, 3) rows = local x, y, z (z along the part axis),
     cyl_zrange (P, 2), cyl_shape (P, 2) int64 (n_theta, n_z), cell_base (P,) int64; global cell id
     ``cell_base[k] + it * n_z + iz``; CSR ``cell_start (C + 1,) int64``, ``cell_faces (K,) int32``.
-    margin: metres the boxes and cells were grown by.
+    margin: metres the boxes and cells were grown by. part_axes (P, 2, 3) m: the axis segments the frames were
+    made from (a shape change of the same body builds its maps again on them).
     """
 
     obb_center: np.ndarray
@@ -56,6 +57,7 @@ class PartMaps:
     cell_start: np.ndarray
     cell_faces: np.ndarray
     margin: float
+    part_axes: np.ndarray
 
 
 def part_frames(part_axes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -290,6 +292,7 @@ def build_part_maps(
         cell_start=cell_start,
         cell_faces=cell_faces,
         margin=margin,
+        part_axes=np.asarray(part_axes, dtype=np.float64).copy(),
     )
 
 
@@ -340,4 +343,5 @@ def rebuild_part_maps(maps: PartMaps, vertices: np.ndarray, faces: np.ndarray, f
         obb_center=center, obb_axes=axes.copy(), obb_half=half, obb_corners=corners, obb_normals=normals,
         obb_offsets=offsets, cyl_origin=origin, cyl_axes=axes, cyl_zrange=zrange, cyl_shape=shape,
         cell_base=cell_base, cell_start=cell_start, cell_faces=np.concatenate(lists), margin=margin,
+        part_axes=np.asarray(part_axes, dtype=np.float64).copy(),
     )

@@ -30,6 +30,7 @@ class Body:
     the arm to clear the torso, which is raised to where the arm rests against it.
     joints: the skeleton's joints (3,) m: ``shoulder_l``, ``elbow_l``, ``wrist_l``, ``hip_l``, ``knee_l`` and
     the same ``_r`` (the wrist is the joint, where the hand turns, not the end of the hand).
+    resolution: the ``build_body`` resolution it was built at (None: not built by it, a test's or a scene's).
     """
 
     vertices: np.ndarray
@@ -46,6 +47,12 @@ class Body:
     estimated: dict = field(default_factory=dict)
     pose: dict = field(default_factory=dict)
     joints: dict = field(default_factory=dict)
+    resolution: int | None = None
+
+    @property
+    def hands_turned(self) -> bool:
+        """Whether either hand is turned at the wrist (``wrist_bend``)."""
+        return bool(self.pose.get("wrist_bend_left") or self.pose.get("wrist_bend_right"))
 
     @property
     def vertex_part(self) -> np.ndarray:

@@ -30,13 +30,18 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from tryon.body.build import with_hands_straight
 from tryon.body.types import Body
+from tryon.garment.model import GarmentModel
 from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.finish import TryOnResult
 from tryon.sim.nearest import any_within, build_grids, nearest_distances
 from tryon.sim.run import settle
 from tryon.sim.start import start
+from tryon.sim.landmarks import arm_joints
+from tryon.sim.settings import SimSettings
 from tryon.sim.state import Drape
+from tryon.sim.tuning import Tuning
 
 # Exponent of the inverse-distance weights of the parts on a garment point: 4 makes a point within a few
 # millimetres of one part and centimetres of the others follow that part almost alone (a sleeve on its arm),
@@ -78,6 +83,31 @@ CARRY_REACH = 0.05
 MOTION_SAMPLE_DEG = 3.0
 
 
+# Of the elbow-to-wrist length: a forearm's vertices nearer its elbow than this are the forearm's own, whose
+# rigid motion it makes between two poses whose hands are turned differently (the wrist's own ring turns half
+# as far as the hand). A hand turned 80-90 degrees then leaves the forearm turned under a degree (the sections'
+# spline bends a little towards the wrist; 0.4-0.9 degrees for 0.5-0.9 of the length), where the whole part's
+# fit turned it 23-25 degrees.
+FOREARM_OWN = 0.9
+
+
+def _without_a_turned_hand(old: Body, new: Body, k: int, ids: np.ndarray) -> np.ndarray:
+    """The vertices ``ids`` of part k to fit its rigid motion from ``old`` to ``new`` on: all of them, except for a
+    forearm whose hand is turned otherwise in the two poses, the forearm's own (``FOREARM_OWN``). Fitted on the
+    hand too, the forearm's motion was skewed towards the hand's turn, the turn was left to the shape change,
+    and half-way through it the forearm stood off its cylinder map's axis (cloth 2 cm outside it judged 2 cm
+    inside)."""
+    name = old.parts[k]
+    if not name.startswith("forearm_"):
+        return ids
+    side = "left" if name.endswith("_l") else "right"
+    if old.pose.get(f"wrist_bend_{side}", 0.0) == new.pose.get(f"wrist_bend_{side}", 0.0):
+        return ids
+    elbow, wrist = np.asarray(old.joints[f"elbow_{name[-1]}"]), np.asarray(old.joints[f"wrist_{name[-1]}"])
+    own = np.linalg.norm(old.vertices[ids] - elbow, axis=1) < FOREARM_OWN * np.linalg.norm(wrist - elbow)
+    return ids[own]
+
+
 def part_motions(old: Body, new: Body) -> np.ndarray:
     """(P, 4, 4) rigid motion of every part from ``old`` to ``new`` (same topology): the rotation and
     translation that best map the part's old vertices onto its new ones (Kabsch, least squares)."""
@@ -87,6 +117,7 @@ def part_motions(old: Body, new: Body) -> np.ndarray:
     vertex_part = old.vertex_part
     for k in range(len(old.parts)):
         ids = np.flatnonzero(vertex_part == k)
+        ids = _without_a_turned_hand(old, new, k, ids)
         a, b = old.vertices[ids], new.vertices[ids]
         ca, cb = a.mean(axis=0), b.mean(axis=0)
         u, _, vt = np.linalg.svd((a - ca).T @ (b - cb))
@@ -298,10 +329,45 @@ def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape,
     draped afresh keeps the re-pose's ``motion_max_penetration_mm``."""
     if result is None or result.metrics.get("openings_on_limbs") is not False or d.sized:
         return d, result, False
-    fresh = start(d.body, d.model, d.settings, d.tuning)
-    again, _ = settle(fresh, on_frame)
+    fresh, again = fresh_drape(d.body, d.model, d.settings, d.tuning, on_frame)
     if again.metrics.get("openings_on_limbs") is False:
         return d, result, False
     # the motion the client saw was the re-pose's (the fresh drape's start grows the body inside the cloth)
     again.metrics["motion_max_penetration_mm"] = result.metrics.get("motion_max_penetration_mm")
     return fresh, again, True
+
+
+def fresh_drape(body: Body, model: GarmentModel, settings: SimSettings, tuning: Tuning, on_frame=None
+                ) -> tuple[Drape, TryOnResult]:
+    """``model`` draped afresh on ``body`` (aligned, stepped to rest): (the drape, its result). A long sleeve on a
+    body whose hands are turned at the wrist (``Body.hands_turned``) is draped on the body with its hands
+    straight, then re-posed to the turned hands (``repose``: the hand's turn carries the cuff round it): draped
+    with the hands turned from the start, the hand stood out through the sleeve's side and the cuff ended
+    crumpled beside the forearm (the catalogue's long sleeves S, M, L with both wrists turned +-60 or +-85
+    degrees, in hands_on_hips or with the elbows at 90: 3 to 4 cuffs round the arms of 12, 12 of 12 so). It
+    costs a second settle (of the hand's turn), so only where a sleeve reaches past an elbow (``long_sleeves``).
+    The frames' steps run on from the first settle's; the metrics count the steps and the time of both."""
+    d = start(body, model, settings, tuning)
+    straight = with_hands_straight(body) if body.hands_turned and long_sleeves(d) else body
+    if straight is body:
+        return d, settle(d, on_frame)[0]
+    straight = start(straight, model, settings, tuning)
+    first, _ = settle(straight, on_frame)
+    steps = first.metrics["steps"]
+    d = repose(straight, body)
+    result, _ = settle(d, None if on_frame is None else lambda step, x: on_frame(steps + step, x))
+    result.metrics["steps"] += steps
+    result.metrics["sim_seconds"] += first.metrics["sim_seconds"]
+    result.metrics["wall_seconds"] += first.metrics["wall_seconds"]
+    return d, result
+
+
+def long_sleeves(d: Drape) -> bool:
+    """Whether a sleeve of ``d``'s garment (the far opening the arm plan found) lies farther from its shoulder
+    joint than the elbow is, where the drape starts (round the forearm or the hand, not the upper arm)."""
+    for side, cuff in (("l", d.plan.left_cuff), ("r", d.plan.right_cuff)):
+        if cuff is not None and f"forearm_{side}" in d.body.parts:
+            joint, elbow, _ = arm_joints(d.body, side)
+            if np.linalg.norm(d.state.x[cuff].mean(axis=0) - joint) > np.linalg.norm(elbow - joint):
+                return True
+    return False

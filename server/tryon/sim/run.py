@@ -102,6 +102,10 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     if initial is None and (categories := piece_categories(model)) is not None:
         # a file of a top and a bottom (a MakeHuman outfit): its pieces as layers, the top over the bottom
         return drape_pieces(body, model, categories, settings, on_frame, tuning)
+    if initial is None and body.hands_turned:
+        from tryon.sim.repose import fresh_drape  # repose builds on this module: imported when needed
+
+        return fresh_drape(body, model, settings, tuning, on_frame)[1]
     return settle(start(body, model, settings, tuning, initial), on_frame)[0]
 
 

@@ -101,9 +101,10 @@ class BodyCollider:
             self._rest(self.body.vertices, self.body.vertex_normals, self.body.maps)
         else:
             if changed is None:
-                maps = build_part_maps(vertices, self.faces, self.face_part, self.body.part_axes, self.body.maps.margin)
+                maps = build_part_maps(vertices, self.faces, self.face_part, self.body.maps.part_axes,
+                                       self.body.maps.margin)
             else:  # the other parts' maps are the body's as built
-                maps = rebuild_part_maps(self.body.maps, vertices, self.faces, self.face_part, self.body.part_axes,
+                maps = rebuild_part_maps(self.body.maps, vertices, self.faces, self.face_part, self.body.maps.part_axes,
                                          changed)
             self._rest(vertices, face_vertex_normals(vertices, self.faces)[1], maps, changed)
         self._pose_vertices = self.rest_vertices

@@ -267,6 +267,33 @@ def test_a_point_pinched_between_two_parts_ends_between_them():
     assert deepest_after(1e9) > 0.008 and deepest_after(PINCHED_LEAST_DEEP) < 0.005
 
 
+def test_a_pass_lengthens_a_crushed_spring_by_at_most_its_cap():
+    """A chain of structural springs crushed to 5 % of their length (cloth in the fold of a bent elbow): a pass
+    puts each back to its length at once, or with ``pack_springs``' fourth column (a re-posed drape's
+    ``tuning.unfold_per_pass``) lengthens each by at most that much; stretched springs are not capped."""
+    from tryon.sim.constraints import satisfy_springs, spring_lengths
+    from tryon.sim.tuning import TUNING
+
+    n = 6
+    x = np.column_stack([np.linspace(0.0, 0.005 * 0.05 * (n - 1), n), np.zeros(n), np.zeros(n)])
+    springs = np.column_stack([np.arange(n - 1), np.arange(1, n)])
+    rest = np.full(n - 1, 0.005)
+    ends, table = pack_springs(springs, rest, np.zeros(n - 1, dtype=np.int64), np.full(3, 0.1), np.ones(3))
+    free = x.copy()
+    satisfy_springs(free, np.ones(n), ends, table, 1)
+    assert spring_lengths(free, springs).min() > 0.5 * 0.005  # sprung open at once
+    table[:, 3] = TUNING.unfold_per_pass
+    capped = x.copy()
+    satisfy_springs(capped, np.ones(n), ends, table, 1)
+    grown = spring_lengths(capped, springs) - spring_lengths(x, springs)
+    assert 0.0 < grown.max() <= 2 * TUNING.unfold_per_pass + 1e-12  # each spring's own cap, and its neighbour's
+    long, uncapped = x * 60.0, x * 60.0  # springs 3 x their length: shortened as without a cap
+    satisfy_springs(long, np.ones(n), ends, table, 5)
+    table[:, 3] = 0.0
+    satisfy_springs(uncapped, np.ones(n), ends, table, 5)
+    assert np.array_equal(long, uncapped) and spring_lengths(long, springs).max() < 2.0 * 0.005
+
+
 def test_top_down_order_is_a_stable_sort_of_the_steep_springs_by_upper_end():
     x, springs, ends, table, on_body = _cloth()
     x[::7, 1] = x[0, 1]  # some exact height ties: they keep spring order

@@ -165,7 +165,8 @@ def cap_stretch(x, inv_mass, springs, rest, cap, max_passes):
 def pack_springs(springs: np.ndarray, rest: np.ndarray, kind: np.ndarray, limit: np.ndarray,
                  compression: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(ends (s, 2) uint32, table (s, 4) float64) for the packed kernels: table rows are (l_max m, rest m,
-    compression fraction, 0). One 32-byte row per spring instead of a kind lookup into two tables (and
+    compression fraction, most a pass lengthens a compressed spring by, m: 0 = no cap; a re-posed drape's,
+    ``tuning.unfold_per_pass``). One 32-byte row per spring instead of a kind lookup into two tables (and
     squared-length tests, so a spring within its range costs no square root): the passes run ~20 %
     faster on a draped T-shirt (``python3 -m tryon.bench.perf``)."""
     # unsigned: numba then indexes without the negative-index wrap-around (the passes ~4 % faster)
@@ -201,6 +202,9 @@ def _spring_pass(x, inv_mass, ends, table, backward, relax):
         elif d2 < l0 * l0:
             d = math.sqrt(d2)
             excess = (d - l0) * table[s, 2]
+            cap = table[s, 3]
+            if cap > 0.0 and excess < -cap:
+                excess = -cap
         else:
             continue
         wi = inv_mass[i]

@@ -53,6 +53,8 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     mass = np.ascontiguousarray(model.mass, dtype=np.float64)
     inv_mass = np.where(mass > 0, 1.0 / np.where(mass > 0, mass, 1.0), 0.0)
     ends, table = pack_springs(springs, rest, kind, limits, settings.compression_array())
+    if motion is not None:
+        table[:, 3] = tuning.unfold_per_pass
     # a bottom's waistband stretches less than its cloth (``band_limit``; its structural springs: the
     # band's hoop and height). Only the solver holds it so: the metrics judge each spring by its type's
     # limit, so a band too small for its waist shows springs over where it is stretched past the cloth's.

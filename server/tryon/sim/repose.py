@@ -344,9 +344,10 @@ def fresh_drape(body: Body, model: GarmentModel, settings: SimSettings, tuning: 
     straight, then re-posed to the turned hands (``repose``: the hand's turn carries the cuff round it): draped
     with the hands turned from the start, the hand stood out through the sleeve's side and the cuff ended
     crumpled beside the forearm (the catalogue's long sleeves S, M, L with both wrists turned +-60 or +-85
-    degrees, in hands_on_hips or with the elbows at 90: 3 to 4 cuffs round the arms of 12, 12 of 12 so). It
-    costs a second settle (of the hand's turn), so only where a sleeve reaches past an elbow (``long_sleeves``).
-    The frames' steps run on from the first settle's; the metrics count the steps and the time of both."""
+    degrees, in hands_on_hips or with the elbows at 90 and the wrists at 70: 15 cuffs of 36 round the arms; 36
+    so). It costs a second settle (of the hand's turn), so only where a sleeve reaches past an elbow
+    (``long_sleeves``). The frames' steps run on from the first settle's; the metrics count the steps and the
+    time of both, and ``motion_max_penetration_mm`` is the hand's turn's."""
     d = start(body, model, settings, tuning)
     straight = with_hands_straight(body) if body.hands_turned and long_sleeves(d) else body
     if straight is body:

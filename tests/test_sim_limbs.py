@@ -56,3 +56,31 @@ def test_ring_order_puts_a_shuffled_tilted_ring_back_in_order():
     order = shuffled[ring_order(ring[shuffled])]
     steps = np.diff(np.append(order, order[0])) % 20
     assert set(steps) in ({1}, {19})  # consecutive round the ring, one way or the other
+
+
+def test_an_armhole_the_arm_leaves_across_its_plane_is_round_the_arm():
+    """``through_root``: an armhole round a raised arm's root that lies along the arm (its plane holds the arm's
+    axis: seen along the axis a sliver beside it, so the winding test fails) is round the arm if the path from
+    the torso's axis out through the shoulder joint and along the arm pierces it; the same ring moved off the
+    shoulder, or one round the middle of the upper arm (not its root), is not taken so."""
+    from tryon.body.build import build_body
+    from tryon.body.params import Measurements, Pose
+    from tryon.sim.landmarks import part_points
+    from tryon.sim.limbs import through_root
+
+    body = build_body(Measurements(height=170, chest=96, waist=82, hips=100), Pose(arm_forward_right=89.0))
+    k = body.parts.index("upper_arm_r")
+    a, b = body.part_axes[k]
+    axis = (b - a) / np.linalg.norm(b - a)  # forwards
+    up = np.array([0.0, 1.0, 0.0]) - axis[1] * axis
+    up /= np.linalg.norm(up)
+    t0, t1 = body.part_axes[body.parts.index("torso")]
+    trunk = t0 + ((a - t0) @ (t1 - t0)) / ((t1 - t0) @ (t1 - t0)) * (t1 - t0)
+    angles = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)[:, None]
+    # a ring in the plane of the arm's axis and "up", round the shoulder between the torso's axis and the joint
+    along = a + 0.3 * (trunk - a) + 0.07 * (np.cos(angles) * axis + np.sin(angles) * up)
+    assert not around_part(along, a, b, part_points(body, k)) and through_root(along, body, k)
+    assert not through_root(along + 0.25 * up, body, k)  # above the shoulder
+    side = np.cross(axis, up)
+    across = a + 0.45 * (b - a) + 0.06 * (np.cos(angles) * side + np.sin(angles) * up)  # round the middle
+    assert around_part(across, a, b, part_points(body, k)) and not through_root(across, body, k)

@@ -35,6 +35,11 @@ MAX_RADIUS = 0.2
 ALONG = (-0.2, 1.3)
 # m: half the thickness of the slice of a limb part whose centre an opening is seen around.
 SECTION_HALF = 0.015
+# Of the upper arm's (thigh's) length from its joint: an opening whose middle lies nearer the joint than this
+# is round the limb's root (an armhole): seen along the raised arm's axis it can be a thin sliver, the arm
+# leaving it across its plane, and the winding test fails; then whether the limb passes through it decides
+# (``through_root``).
+ROOT_REACH = 0.3
 # Of the last part's length (forearm with the hand, shin with the foot): an opening not around the part,
 # beyond this and within MAX_RADIUS of the end hangs past the limb's end (a sleeve longer than the arm, its
 # cuff bunched over the fingers).
@@ -111,6 +116,39 @@ def around_part(ring: np.ndarray, a: np.ndarray, b: np.ndarray, surface: np.ndar
     return abs(float(turn.sum())) > np.pi  # the winding number rounds to +-1
 
 
+def through_root(ring: np.ndarray, body: Body, k: int) -> bool:
+    """Whether the limb whose first part is k (an upper arm or a thigh) passes through the opening ``ring`` (q,
+    3) m round its root (its middle within ``ROOT_REACH`` of the part's length from the joint): the path from the
+    torso's axis, level with the limb's joint, out to the joint and along the part's axis to its end crosses a
+    fan of triangles spanning the ring an odd number of times (the limb links the ring; a ring hanging beside
+    the limb, or slid off the shoulder, is crossed by neither segment). For an armhole seen along an arm raised
+    forwards: the sleeveless dresses' armholes lay along the arm, a sliver beside its axis in that view."""
+    a, b = body.part_axes[k]
+    length = float(np.linalg.norm(b - a))
+    if "torso" not in body.parts or length == 0.0 or len(ring) < 3:
+        return False
+    if float(np.median((ring - a) @ (b - a))) > ROOT_REACH * length * length:
+        return False
+    t0, t1 = body.part_axes[body.parts.index("torso")]
+    trunk = t0 + np.clip((a - t0) @ (t1 - t0) / ((t1 - t0) @ (t1 - t0)), 0.0, 1.0) * (t1 - t0)
+    centre = ring.mean(axis=0)
+    v1, v2 = ring - centre, np.roll(ring, -1, axis=0) - centre  # the fan's triangles (centre, r_i, r_i+1)
+    crossings = 0
+    for start, end in ((trunk, a), (a, b)):
+        d = end - start
+        h = np.cross(d, v2)
+        det = np.einsum("ij,ij->i", v1, h)
+        ok = np.abs(det) > 1e-15
+        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+        s = start - centre
+        u = inv * (h @ s)
+        q = np.cross(s, v1)
+        v = inv * (q @ d)
+        t = inv * np.einsum("ij,ij->i", v2, q)
+        crossings += int((ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t < 1)).sum())
+    return crossings % 2 == 1
+
+
 def openings_on_limbs(x: np.ndarray, body: Body, openings: list[tuple[str, str, np.ndarray]]) -> list[dict]:
     """Where each opening (``limb_openings``) ended, for the draped coarse points x (k, 3) m:
     {"opening": "left arm" ..., "around": the part of that limb it winds round (``around_part``:
@@ -126,7 +164,8 @@ def openings_on_limbs(x: np.ndarray, body: Body, openings: list[tuple[str, str, 
                 continue
             k = body.parts.index(name)
             a, b = body.part_axes[k]
-            if around_part(x[loop], a, b, part_points(body, k)):
+            if around_part(x[loop], a, b, part_points(body, k)) or (
+                    part == LIMB_PARTS[limb][0] and through_root(x[loop], body, k)):
                 around = name
                 break
             # measured on the last part (forearm with hand, shin with foot): its axis ends at the limb's end,

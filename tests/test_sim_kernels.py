@@ -212,12 +212,9 @@ def test_the_within_step_test_takes_points_with_a_plane_too_while_a_reposed_body
             assert normal[0] @ np.array([1.0, 0.0, 0.0]) > 0.9  # the post's plane, facing the point
 
 
-def test_a_pinched_point_is_held_only_where_it_is_not_deep():
-    """Points in the overlap of a post and an arm pressed 1.5 cm into its front (cloth squeezed between a forearm
-    and the torso): held where they were (a drape from scratch), most stay deeper than the reach of a step's
-    collision (6 mm in the offset body); with ``hold_depth`` (a re-posed drape) those are put where the pushes
-    left them least deep instead; points not held (the body moving) end at the least deep push, never deeper
-    than at the last one."""
+def _post_and_arm_overlap() -> tuple[BodyCollider, np.ndarray, np.ndarray]:
+    """A post and an arm pressed 1.5 cm into its front (a forearm on the torso), their collider (4 mm margin), the
+    two part ids, and 300 seeded points (300, 3) m inside both offset parts (cloth squeezed between them)."""
     body = body_from_parts(np.array([[[0, 0.2, 0], [0, 0.8, 0]], [[-0.15, 0.5, 0.065], [0.15, 0.5, 0.065]]], float),
                            np.array([0.05, 0.03]))
     collider = BodyCollider(body, 0.004)
@@ -226,7 +223,16 @@ def test_a_pinched_point_is_held_only_where_it_is_not_deep():
     pts = np.column_stack([rng.uniform(-0.06, 0.06, 4000), rng.uniform(0.45, 0.55, 4000),
                            rng.uniform(0.02, 0.06, 4000)])
     both = (collider.depth(pts, parts[:1], offset=True) > 0) & (collider.depth(pts, parts[1:], offset=True) > 0)
-    pts = pts[both][:300]
+    return collider, parts, pts[both][:300]
+
+
+def test_a_pinched_point_is_held_only_where_it_is_not_deep():
+    """Points in the overlap of a post and an arm pressed 1.5 cm into its front (cloth squeezed between a forearm
+    and the torso): held where they were (a drape from scratch), most stay deeper than the reach of a step's
+    collision (6 mm in the offset body); with ``hold_depth`` (a re-posed drape) those are put where the pushes
+    left them least deep instead; points not held (the body moving) end at the least deep push, never deeper
+    than at the last one."""
+    collider, parts, pts = _post_and_arm_overlap()
     assert len(pts) == 300
 
     def deep_after(hold: bool, hold_depth: float) -> np.ndarray:
@@ -248,15 +254,7 @@ def test_a_point_pinched_between_two_parts_ends_between_them():
     arm pressed 1.5 cm into it, pushed out of each into the other, end at the least deep of their pushes or of
     the middles of two pushes in a row (between the two parts, as deep in each): at most 4.2 mm inside the real
     surfaces, where the last push alone left them up to 9.8 mm inside the other part."""
-    body = body_from_parts(np.array([[[0, 0.2, 0], [0, 0.8, 0]], [[-0.15, 0.5, 0.065], [0.15, 0.5, 0.065]]], float),
-                           np.array([0.05, 0.03]))
-    collider = BodyCollider(body, 0.004)
-    parts = np.arange(2, dtype=np.int64)
-    rng = np.random.default_rng(0)
-    pts = np.column_stack([rng.uniform(-0.06, 0.06, 4000), rng.uniform(0.45, 0.55, 4000),
-                           rng.uniform(0.02, 0.06, 4000)])
-    both = (collider.depth(pts, parts[:1], offset=True) > 0) & (collider.depth(pts, parts[1:], offset=True) > 0)
-    pts = pts[both][:300]
+    collider, parts, pts = _post_and_arm_overlap()
 
     def deepest_after(hold_depth: float) -> float:
         x, n = pts.copy(), len(pts)

@@ -252,6 +252,13 @@ def _boxes_and_shapes(vertices, faces, face_part, origin, axes, n_parts: int, ma
     return center, half, corners, normals, offsets, zrange, shape
 
 
+def _cell_layout(shape: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Each part's cell count (P,), the global id of its first cell (P,) int64, and the cells in all, for cylinder
+    maps of ``shape`` (P, 2) (theta, z cells)."""
+    sizes = shape[:, 0] * shape[:, 1]
+    return sizes, np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64), int(sizes.sum())
+
+
 def build_part_maps(
     vertices: np.ndarray, faces: np.ndarray, face_part: np.ndarray, part_axes: np.ndarray, margin: float
 ) -> PartMaps:
@@ -270,9 +277,7 @@ def build_part_maps(
     origin, axes = part_frames(part_axes)
     center, half, corners, normals, offsets, zrange, shape = _boxes_and_shapes(vertices, faces, face_part, origin,
                                                                                axes, n_parts, margin)
-    sizes = shape[:, 0] * shape[:, 1]
-    cell_base = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-    n_cells = int(sizes.sum())
+    sizes, cell_base, n_cells = _cell_layout(shape)
     face_range = np.empty((len(faces), 4), dtype=np.int64)
     _face_cells(vertices, faces, face_part, origin, axes, zrange, shape, margin, face_range)
     cell_start, cell_faces = _fill_cells(face_part, face_range, shape, cell_base, n_cells)
@@ -319,9 +324,7 @@ def rebuild_part_maps(maps: PartMaps, vertices: np.ndarray, faces: np.ndarray, f
     center[keep], half[keep], corners[keep] = maps.obb_center[keep], maps.obb_half[keep], maps.obb_corners[keep]
     normals[keep], offsets[keep] = maps.obb_normals[keep], maps.obb_offsets[keep]
     zrange[keep], shape[keep] = maps.cyl_zrange[keep], maps.cyl_shape[keep]
-    sizes = shape[:, 0] * shape[:, 1]
-    cell_base = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-    n_cells = int(sizes.sum())
+    sizes, cell_base, n_cells = _cell_layout(shape)
     face_range = np.empty((len(ids), 4), dtype=np.int64)
     _face_cells(vertices, sub_faces, sub_part, origin, axes, zrange, shape, margin, face_range)
     sub_start, sub_faces_of = _fill_cells(sub_part, face_range, shape, cell_base, n_cells)

@@ -36,10 +36,10 @@ from tryon.garment.model import GarmentModel
 from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.finish import TryOnResult
 from tryon.sim.nearest import any_within, build_grids, nearest_distances
-from tryon.sim.run import settle
-from tryon.sim.start import start
 from tryon.sim.landmarks import arm_joints
+from tryon.sim.run import settle
 from tryon.sim.settings import SimSettings
+from tryon.sim.start import start
 from tryon.sim.state import Drape
 from tryon.sim.tuning import Tuning
 

@@ -83,7 +83,8 @@ def test_sections_carry_their_figures(bench):
     pareto = _section(report, "pareto")["data"]
     assert len(pareto["points"]) >= 2 and pareto["pick"] in pareto["points"]
     assert all(p["rms_mm"] >= 0 for p in pareto["points"])
-    ours = [r for r in _section(report, "peers")["data"]["cloth_on_ball"]["1024"] if r["engine"] == "ours"][0]
+    ball = _section(report, "peers")["data"]["cloth_on_ball"]["1024"]
+    ours = [r for r in ball if r["engine"] == "ours (1 thread)"][0]
     assert ours["frames"] == 300 and ours["finite"]
     # live re-posing through a real server: the T-shirt M carried to three named poses, then in a session of its
     # own through two changes of 30 degrees, each at rest with nothing in the body and both sleeves on the arms,
@@ -145,7 +146,7 @@ def test_a_missing_peer_is_a_note_not_a_failure(monkeypatch, tmp_path):
     assert sec.status == "ok", sec.error
     assert any("taichi skipped: taichi is not installed" in n for n in sec.notes)
     rows = sec.data["cloth_on_ball"]["1024"]
-    assert [r["engine"] for r in rows] == ["ours"]
+    assert [r["engine"] for r in rows] == ["ours (1 thread)"]  # 1,024 points: one block, one thread
     assert sec.data["headline"] == []  # no peer, no ratio
 
 

@@ -91,7 +91,7 @@ def _cloth():
 def test_contact_springs_are_those_on_the_body_stretch_only():
     x, springs, ends, table, on_body = _cloth()
     assert ends.dtype == np.uint32
-    body_ends, body_table = contact_springs(ends, table, on_body)
+    body_ends, body_table, _ = contact_springs(ends, table, on_body)
     both = on_body[springs[:, 0]] & on_body[springs[:, 1]]
     assert both.sum() > 0 and (~both).sum() > 0
     assert np.array_equal(body_ends, ends[both])
@@ -105,7 +105,7 @@ def test_sweep_springs_keep_the_top_down_order_of_those_off_the_body():
     ordered_ends, ordered_lmax = pack_sweep(ends, table, order)
     assert np.array_equal(ordered_ends, ends[order]) and np.array_equal(ordered_lmax, table[order, 0])
     hangs = np.ones(len(x), dtype=np.bool_)
-    sweep_ends, sweep_lmax = sweep_springs(ordered_ends, ordered_lmax, on_body, hangs)
+    sweep_ends, sweep_lmax, _ = sweep_springs(ordered_ends, ordered_lmax, on_body, hangs)
     off = ~(on_body[springs[order, 0]] & on_body[springs[order, 1]])
     assert np.array_equal(sweep_ends, ends[order[off]])
     assert np.array_equal(sweep_lmax, table[order[off], 0])
@@ -157,9 +157,9 @@ def test_finish_step_is_the_substeps_kernels_one_by_one():
     point[:, 1] = x[:, 1].mean()
     normal = np.tile([0.0, 1.0, 0.0], (len(x), 1))
     touching = np.flatnonzero(on_body)
-    body_ends, body_table = contact_springs(ends, table, on_body)
-    sweep_ends, sweep_lmax = sweep_springs(*pack_sweep(ends, table, top_down_order(x, springs)), on_body,
-                                           np.ones(len(x), dtype=np.bool_))
+    body_ends, body_table, _ = contact_springs(ends, table, on_body)
+    sweep_ends, sweep_lmax, _ = sweep_springs(*pack_sweep(ends, table, top_down_order(x, springs)), on_body,
+                                              np.ones(len(x), dtype=np.bool_))
     h, n_sub, floor_y = 0.02 / 8, 8, float(x[:, 1].min()) + 0.01
     # the within-step test of points that moved far: never here (reach infinite), see test_sim.py for it
     idle = BodyCollider(_post(), 0.004).movers(DrapeState.at(x.copy(), inv_mass), np.zeros(0, dtype=np.int64), 0.0005,

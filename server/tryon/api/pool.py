@@ -9,6 +9,11 @@ code 1013 "try again later"), never left hanging.
 A :class:`RunGuard` wraps a drape's ``on_frame`` callback: it returns False (stop) as soon as the client
 is gone or the simulation is past its wall-clock limit, and records which of the two stopped it.
 
+A large garment's spring passes run on two threads (``sim.blocks``, the same numbers on one or two): a
+try-on running alone gets the machine's cores, two at once one each (set when a job starts and again at
+every frame, so a running try-on gives a core back when another starts): the try-ons per minute with two
+at once stay those of two single-threaded runs.
+
 :class:`ResultCache` keeps the last ``settings.result_cache_size`` finished try-ons in memory (LRU),
 keyed by :func:`request_key` (:func:`tryon_key` for a request): the canonical JSON of garment id,
 measurements, pose and settings. Only runs that ended by themselves (rest or step limit) are kept.
@@ -31,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from tryon.api.deps import app_state
+from tryon.sim.blocks import machine_threads, use_threads
 
 # Seconds a refused client is told to wait (Retry-After): about one typical drape on this hardware.
 RETRY_AFTER_S = 5
@@ -85,6 +91,7 @@ class SimPool:
         def job() -> Any:
             with self._lock:
                 self._running += 1
+            use_threads(self.thread_share())
             try:
                 return fn(*args, **kwargs)
             finally:
@@ -111,8 +118,14 @@ class SimPool:
 
     def guard(self, cancelled: threading.Event | None = None,
               on_frame: Callable[[int, np.ndarray], Any] | None = None) -> "RunGuard":
-        """A :class:`RunGuard` with this pool's wall-clock limit."""
-        return RunGuard(self.wall_limit_s, cancelled=cancelled, on_frame=on_frame)
+        """A :class:`RunGuard` with this pool's wall-clock limit and thread share."""
+        return RunGuard(self.wall_limit_s, cancelled=cancelled, on_frame=on_frame, threads=self.thread_share)
+
+    def thread_share(self) -> int:
+        """Threads a running try-on may use now: the machine's cores shared among the running ones."""
+        with self._lock:
+            running = max(1, self._running)
+        return max(1, machine_threads() // running)
 
     # -- state ---------------------------------------------------------------------------------
     def stats(self) -> dict:
@@ -140,13 +153,16 @@ class RunGuard:
     cancelled: set by the caller (e.g. the WebSocket went away): the next call raises
         :class:`RunCancelled`, so the worker is free at once.
     on_frame: an optional inner callback ``(step, coarse (k, 3)) -> bool | None``; False also stops.
-    After the run, ``stopped_by`` is None (ran to rest or to its step limit), ``"wall_limit"``,
+    threads: an optional ``() -> int``, the threads the run may use now (``SimPool.thread_share``), set at
+    every frame. After the run, ``stopped_by`` is None (ran to rest or to its step limit), ``"wall_limit"``,
     ``"cancelled"`` or ``"callback"``.
     """
 
     def __init__(self, wall_limit_s: float, cancelled: threading.Event | None = None,
-                 on_frame: Callable[[int, np.ndarray], Any] | None = None):
+                 on_frame: Callable[[int, np.ndarray], Any] | None = None,
+                 threads: Callable[[], int] | None = None):
         self.wall_limit_s = float(wall_limit_s)
+        self.threads = threads
         self.cancelled = cancelled or threading.Event()
         self.on_frame = on_frame
         self.started: float | None = None
@@ -171,6 +187,8 @@ class RunGuard:
         if self.elapsed_s > self.wall_limit_s:
             self.stopped_by = "wall_limit"
             return False
+        if self.threads is not None:
+            use_threads(self.threads())
         if self.on_frame is not None and self.on_frame(step, coarse) is False:
             self.stopped_by = "callback"
             return False

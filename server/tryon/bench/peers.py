@@ -29,6 +29,7 @@ import numpy as np
 from tryon.bench.cloth_scene import FRAMES, SIZES, WARMUP_FRAMES
 from tryon.bench.common import Context, Section, Table, fmt
 from tryon.bench.report import plot_peers
+from tryon.sim.blocks import MIN_SPLIT_SPRINGS, machine_threads, parallel_ok, use_threads
 
 PEERS = {
     "taichi": ("taichi", "tryon.bench.peer_taichi"),
@@ -41,8 +42,14 @@ BALL_RUNS = (
     ("newton", "newton xpbd", ("xpbd",)),
     ("newton", "newton vbd", ("vbd",)),
 )
-# Our threads (numba kernels run serial): the Taichi run compared at equal threads.
-OUR_THREADS = 1
+# Our thread counts: a cloth of at least ``blocks.MIN_SPLIT_SPRINGS`` springs runs its passes and sweep on
+# two threads (``sim.blocks``: the same figures as on one); each is compared with Taichi at the same count.
+OUR_THREADS = (1, 2)
+
+
+def threads_label(engine: str, threads: int) -> str:
+    """``engine`` at a thread count, as the table names it ("ours (2 threads)")."""
+    return f"{engine} ({threads} thread{'s' if threads > 1 else ''})"
 # Wall-time budget (s) of one peer run in the full and the quick benchmark: Newton's CPU device runs
 # ~0.1-1 s per frame here, so 300 frames of its 10k cloth would take minutes; the frames it did run
 # within the budget give its median (the report says how many).
@@ -83,11 +90,19 @@ def our_substeps(n: int) -> int:
     return 1 if n <= 64 else 2 if n <= 100 else 4
 
 
-def headline_ratio(rows: list[dict]) -> dict | None:
-    """Ours vs the fastest peer with at least our stretch (ties count), and vs the fastest peer at all,
-    for one cloth size. ``ours_stable`` is False when our cloth ended non-finite or thrown up."""
-    ours = next((r for r in rows if r["engine"] == "ours" and "error" not in r), None)
-    peers = [r for r in rows if r["engine"] != "ours" and "error" not in r and r.get("finite")
+def our_thread_counts(n: int) -> tuple[int, ...]:
+    """Our thread counts on the n x n cloth: 1, and 2 where its springs split in two blocks (~6 n^2 of them:
+    the grid's structural, shear and bending springs) on a machine that can run them (``sim.blocks``)."""
+    two = 6 * n * n >= MIN_SPLIT_SPRINGS and machine_threads() >= 2 and parallel_ok()
+    return (1, 2) if two else (1,)
+
+
+def headline_ratio(rows: list[dict], threads: int = 1) -> dict | None:
+    """Ours at ``threads`` threads vs the fastest peer with at least our stretch (ties count), vs Taichi at
+    the same thread count, and vs the fastest peer at all, for one cloth size. ``ours_stable`` is False when
+    our cloth ended non-finite or thrown up."""
+    ours = next((r for r in rows if r["engine"] == threads_label("ours", threads) and "error" not in r), None)
+    peers = [r for r in rows if not r["engine"].startswith("ours") and "error" not in r and r.get("finite")
              and r.get("outcome") != "thrown up"]
     if ours is None or not peers:
         return None
@@ -95,14 +110,15 @@ def headline_ratio(rows: list[dict]) -> dict | None:
     fastest = min(peers, key=lambda r: r["frame_ms_median"])
     best = min(fair, key=lambda r: r["frame_ms_median"]) if fair else None
     out = {
-        "particles": ours["particles"], "ours_frame_ms": ours["frame_ms_median"], "ours_stretch": ours["max_stretch"],
+        "particles": ours["particles"], "threads": threads, "ours_frame_ms": ours["frame_ms_median"],
+        "ours_stretch": ours["max_stretch"],
         "ours_outcome": ours.get("outcome"), "ours_stable": ours.get("outcome") in ("on the ball", "slid off"),
         "fastest_peer": fastest["engine"], "fastest_peer_frame_ms": fastest["frame_ms_median"],
         "fastest_peer_stretch": fastest["max_stretch"],
         "speedup_vs_fastest": fastest["frame_ms_median"] / ours["frame_ms_median"],
         "peer": None, "peer_frame_ms": None, "peer_stretch": None, "speedup": None, "ratio": None,
     }
-    same = next((r for r in peers if r["engine"] == f"taichi ({OUR_THREADS} thread)"), None)
+    same = next((r for r in peers if r["engine"] == threads_label("taichi", threads)), None)
     if same is not None:
         out.update({"same_threads_peer": same["engine"], "same_threads_frame_ms": same["frame_ms_median"],
                     "same_threads_speedup": same["frame_ms_median"] / ours["frame_ms_median"],
@@ -138,9 +154,14 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
     results = {}
     for n in sizes:
         rows = []
-        ctx.log(f"[bench]   cloth on ball, {n * n} particles: ours")
-        ours = run_sphere(n, FRAMES, substeps=our_substeps(n), max_seconds=budget * 4)
-        rows.append(ours)
+        for threads in our_thread_counts(n):
+            ctx.log(f"[bench]   cloth on ball, {n * n} particles: ours, {threads} thread(s)")
+            use_threads(threads)
+            ours = run_sphere(n, FRAMES, substeps=our_substeps(n), max_seconds=budget * 4)
+            ours["engine"] = threads_label("ours", threads)
+            ours["params"]["threads"] = threads
+            rows.append(ours)
+        use_threads(machine_threads())
         for engine, label, extra in BALL_RUNS:
             if missing[engine]:
                 continue
@@ -154,7 +175,7 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
             rows.append(r)
         results[str(n * n)] = rows
     sec.data["cloth_on_ball"] = results
-    ratios = [h for h in (headline_ratio(rows) for rows in results.values()) if h]
+    ratios = [h for rows in results.values() for t in OUR_THREADS if (h := headline_ratio(rows, t))]
     sec.data["headline"] = ratios
     sec.plots.append(plot_peers(ctx.out_dir, results))
 
@@ -183,7 +204,9 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
               "with (sim/relax.py: gravity off, over-long springs only), for the peers their last frame); "
               "penetration = deepest particle inside the true ball. Taichi's example has a frictionless ball (the "
               "cloth slides off); ours uses the default SimSettings friction, Newton's examples mu = 1. Threads: "
-              "Taichi with 1 and with 2, ours and Warp's CPU kernels one. Newton runs within a wall-time budget, so "
+              "Taichi and ours with 1 and with 2 (ours: the same figures on both, only the time differs; a cloth "
+              f"under {MIN_SPLIT_SPRINGS:,} springs keeps one block and runs on one), Warp's CPU kernels one. "
+              "Newton runs within a wall-time budget, so "
               "on the larger cloths its figures cover only the frames it reached (see 'frames run')."),
     ))
     sec.headline.extend(ball_headline(h) for h in ratios)
@@ -191,14 +214,15 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
 
 def ball_headline(h: dict) -> str:
     """One cloth size's headline line from ``headline_ratio``'s figures."""
-    text = f"cloth on ball, {h['particles']} particles: ours {fmt(h['ours_frame_ms'])} ms/frame"
+    text = (f"cloth on ball, {h['particles']} particles: {threads_label('ours', h.get('threads', 1))} "
+            f"{fmt(h['ours_frame_ms'])} ms/frame")
     if not h["ours_stable"]:
         text += f" but UNSTABLE (ended {h['ours_outcome']})"
     if h["peer"]:
         text += (f"; vs the fastest peer at equal or higher stretch, {h['peer']} {fmt(h['peer_frame_ms'])} ms: "
                  f"{_speed_words(h['speedup'])} (stretch {fmt(h['ours_stretch'])} vs {fmt(h['peer_stretch'])})")
     if h.get("same_threads_peer"):
-        text += (f"; vs {h['same_threads_peer']} (our thread count) {fmt(h['same_threads_frame_ms'])} ms: "
+        text += (f"; vs {h['same_threads_peer']} {fmt(h['same_threads_frame_ms'])} ms: "
                  f"{_speed_words(h['same_threads_speedup'])}, our quality "
                  f"{'no worse' if h['same_threads_quality_ok'] else 'WORSE'}")
         if "same_threads_stretch" in h:

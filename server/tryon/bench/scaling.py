@@ -11,6 +11,7 @@ import numpy as np
 from tryon.bench.common import Context, Section, Table, fmt, median_seconds
 from tryon.bench.report import plot_xy
 from tryon.bench.scenes import default_body, main_entry, prepared
+from tryon.sim.blocks import MIN_SPLIT_SPRINGS, machine_threads, parallel_ok, use_threads
 
 GARMENT_SIZES = {False: (1_000, 3_000, 10_000, 25_000, 50_000), True: (1_000, 4_000)}
 BODY_RESOLUTIONS = {False: (10, 20, 30, 45, 60), True: (15, 30)}
@@ -60,11 +61,17 @@ def run(ctx: Context, sec: Section) -> None:
     steps = STEPS_TIMED[ctx.quick]
     body = default_body(ctx)
     garment_rows = []
+    two = machine_threads() >= 2 and parallel_ok()
     for n in GARMENT_SIZES[ctx.quick]:
         model = tube_model(n, body)
+        use_threads(1)
         ms = per_step_ms(body, model, steps, model.vertices.copy())
+        split = len(model.springs) >= MIN_SPLIT_SPRINGS and two
+        use_threads(2 if split else 1)
+        ms2 = per_step_ms(body, model, steps, model.vertices.copy()) if split else None
+        use_threads(machine_threads())
         garment_rows.append({"vertices": len(model.vertices), "springs": len(model.springs), "ms_per_step": ms,
-                             "us_per_vertex": ms * 1e3 / len(model.vertices)})
+                             "us_per_vertex": ms * 1e3 / len(model.vertices), "ms_per_step_2_threads": ms2})
     body_rows = []
     entry = main_entry()
     model, _ = prepared(ctx, entry)
@@ -78,9 +85,12 @@ def run(ctx: Context, sec: Section) -> None:
     sec.data = {"garment": garment_rows, "body": body_rows, "body_garment": entry["name"]}
     sec.tables.append(Table(
         "Time per step against garment vertices (tube around the hips, simulated at full resolution)",
-        ["vertices", "springs", "ms per step", "us per vertex"],
-        [[r["vertices"], r["springs"], fmt(r["ms_per_step"]), fmt(r["us_per_vertex"])] for r in garment_rows],
-        note=f"drape's steps, median of {steps} after {WARMUP_STEPS}; default settings; single thread.",
+        ["vertices", "springs", "ms per step", "us per vertex", "ms per step, 2 threads"],
+        [[r["vertices"], r["springs"], fmt(r["ms_per_step"]), fmt(r["us_per_vertex"]),
+          fmt(r["ms_per_step_2_threads"]) if r["ms_per_step_2_threads"] else "-"] for r in garment_rows],
+        note=(f"drape's steps, median of {steps} after {WARMUP_STEPS}; default settings; one thread, and two where "
+              f"the garment's springs split in two blocks (at least {MIN_SPLIT_SPRINGS:,}: ``sim/blocks.py``, "
+              "the same drape on both)."),
     ))
     sec.tables.append(Table(
         f"Time per step against body resolution ({entry['name']}, {len(model.coarse_index)} simulated vertices)",
@@ -94,6 +104,8 @@ def run(ctx: Context, sec: Section) -> None:
     sec.headline.append(
         f"scaling: {fmt(g[0]['ms_per_step'])} ms per step at {g[0]['vertices']} garment vertices, "
         f"{fmt(g[-1]['ms_per_step'])} ms at {g[-1]['vertices']} (time ~ vertices^{slope:.2f})"
+        + (f"; on two threads {fmt(g[-1]['ms_per_step_2_threads'])} ms at {g[-1]['vertices']}"
+           if g[-1]["ms_per_step_2_threads"] else "")
     )
     sec.plots.append(plot_xy(
         ctx.out_dir, "scaling.png",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from tryon.sim.collision.contacts import project_listed
 
@@ -235,13 +235,52 @@ def solve_constraints(x, x_prev, inv_mass, ends, table, passes, has_plane, plane
                  mu_static, mu_kinetic, push, relax)
 
 
+@njit(cache=True, nogil=True, parallel=True, fastmath=True)
+def _two_blocks(x, inv_mass, ends, table, na, nb, backward, relax):
+    """One pass over the blocks A = springs [0, na) and B = [na, na + nb) at once, one thread each
+    (``blocks.split_springs``). No races: no point is an end of springs in both blocks, so each thread
+    writes only its own block's points; the result is that of A then B on one thread."""
+    for t in prange(2):
+        if t == 0:
+            _spring_pass(x, inv_mass, ends[:na], table[:na], backward, relax)
+        else:
+            _spring_pass(x, inv_mass, ends[na:na + nb], table[na:na + nb], backward, relax)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _blocked_pass(x, inv_mass, ends, table, blocks, backward, relax):
+    """One pass over springs in block order (``blocks.split_springs``: [A | B | boundary], ``blocks`` (3,)
+    int64 = (len A, len B, two threads allowed)): A and B (on two threads if allowed), then the boundary;
+    backward, the boundary first. Blocks (0, 0, 0): one serial pass over all, as ``_spring_pass``."""
+    na = blocks[0]
+    nb = blocks[1]
+    m = na + nb
+    if m == 0:
+        _spring_pass(x, inv_mass, ends, table, backward, relax)
+        return
+    if backward:
+        _spring_pass(x, inv_mass, ends[m:], table[m:], True, relax)
+    if blocks[2]:
+        _two_blocks(x, inv_mass, ends, table, na, nb, backward, relax)
+    else:
+        _spring_pass(x, inv_mass, ends[:na], table[:na], backward, relax)
+        _spring_pass(x, inv_mass, ends[na:m], table[na:m], backward, relax)
+    if not backward:
+        _spring_pass(x, inv_mass, ends[m:], table[m:], False, relax)
+
+
+# one serial block: what ``solve_listed`` and the kernels calling it use when no blocks are given
+ONE_BLOCK = np.zeros(3, dtype=np.int64)
+
+
 @njit(cache=True, nogil=True, fastmath=True)
 def solve_listed(x, x_prev, inv_mass, ends, table, passes, listed, plane_point, plane_normal, mu_static,
-                 mu_kinetic, push, relax=1.0):
+                 mu_kinetic, push, relax=1.0, blocks=ONE_BLOCK):
     """``solve_constraints`` with the contact planes of the points ``listed`` (q,) int64 (those with a
-    plane, increasing): the same result, the projections visiting only the points in contact."""
+    plane, increasing): the same result, the projections visiting only the points in contact. ``blocks``:
+    the springs' blocks (``_blocked_pass``)."""
     for sweep in range(passes):
-        _spring_pass(x, inv_mass, ends, table, sweep % 2 == 1, relax)
+        _blocked_pass(x, inv_mass, ends, table, blocks, sweep % 2 == 1, relax)
         project_listed(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_kinetic, push)
 
 
@@ -290,18 +329,21 @@ def pack_sweep(ends, table, order):
 
 
 @njit(cache=True, nogil=True)
-def contact_springs(ends, table, on_body):
-    """(ends (b, 2) uint32, table (b, 4)) of the springs with both ends on the body (``on_body`` (k,)
-    bool), in spring order, stretch only (l0 = 0 and no compression: cloth pressed on the body must stay
-    free to buckle, and a compressed spring is not even visited for a zero correction): the contact
-    passes' springs. A kernel: the same selection by numpy fancy indexing cost ~0.3 ms per step on the
-    perf T-shirt (``python3 -m tryon.bench.perf``)."""
+def contact_springs(ends, table, on_body, blocks=ONE_BLOCK):
+    """(ends (b, 2) uint32, table (b, 4), blocks (3,) int64) of the springs with both ends on the body
+    (``on_body`` (k,) bool), in spring order, stretch only (l0 = 0 and no compression: cloth pressed on the
+    body must stay free to buckle, and a compressed spring is not even visited for a zero correction): the
+    contact passes' springs, and their blocks (``blocks``: those of ``ends``; the selection keeps the block
+    order). A kernel: the same selection by numpy fancy indexing cost ~0.3 ms per step on the perf T-shirt
+    (``python3 -m tryon.bench.perf``)."""
     n = 0
     for s in range(ends.shape[0]):
         if on_body[ends[s, 0]] and on_body[ends[s, 1]]:
             n += 1
     body_ends = np.empty((n, 2), dtype=np.uint32)
     body_table = np.zeros((n, 4))
+    body_blocks = np.zeros(3, dtype=np.int64)
+    body_blocks[2] = blocks[2]
     b = 0
     for s in range(ends.shape[0]):
         if on_body[ends[s, 0]] and on_body[ends[s, 1]]:
@@ -309,17 +351,22 @@ def contact_springs(ends, table, on_body):
             body_ends[b, 1] = ends[s, 1]
             body_table[b, 0] = table[s, 0]
             b += 1
-    return body_ends, body_table
+            if s < blocks[0]:
+                body_blocks[0] += 1
+            elif s < blocks[0] + blocks[1]:
+                body_blocks[1] += 1
+    return body_ends, body_table, body_blocks
 
 
 @njit(cache=True, nogil=True)
-def sweep_springs(sweep_ends, sweep_lmax, on_body, hangs):
+def sweep_springs(sweep_ends, sweep_lmax, on_body, hangs, blocks=ONE_BLOCK):
     """The springs of a packed sweep (``pack_sweep``) with an end off the body (``on_body`` (k,) bool) and
     in cloth that hangs from something (``hangs`` (k,) bool: ``hanging_pieces``), in the same order:
     springs with both ends on the body are the contact passes' job (the sweep would only split them by
     inverse mass: one more stretch pass over them), and a piece that touches nothing must fall (the
     sweep's lift only pulls lower ends up, so it would hold the piece in the air). Returns (ends (q, 2)
-    uint32, l_max (q,))."""
+    uint32, l_max (q,), blocks (3,) int64: those of the kept springs, ``blocks`` being the sweep's
+    (``block_order``))."""
     n = 0
     for q in range(sweep_ends.shape[0]):
         i = sweep_ends[q, 0]
@@ -327,6 +374,8 @@ def sweep_springs(sweep_ends, sweep_lmax, on_body, hangs):
             n += 1
     kept_ends = np.empty((n, 2), dtype=np.uint32)
     kept_lmax = np.empty(n)
+    kept_blocks = np.zeros(3, dtype=np.int64)
+    kept_blocks[2] = blocks[2]
     m = 0
     for q in range(sweep_ends.shape[0]):
         i = sweep_ends[q, 0]
@@ -335,7 +384,11 @@ def sweep_springs(sweep_ends, sweep_lmax, on_body, hangs):
             kept_ends[m, 1] = sweep_ends[q, 1]
             kept_lmax[m] = sweep_lmax[q]
             m += 1
-    return kept_ends, kept_lmax
+            if q < blocks[0]:
+                kept_blocks[0] += 1
+            elif q < blocks[0] + blocks[1]:
+                kept_blocks[1] += 1
+    return kept_ends, kept_lmax, kept_blocks
 
 
 @njit(cache=True, nogil=True, fastmath=True, boundscheck=False)

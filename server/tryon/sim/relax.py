@@ -65,7 +65,7 @@ def relax(d: Drape) -> Relaxation:
                          near=tu.near, planes=st.planes)
         touching = np.flatnonzero(st.has_plane)
         finish_relaxation_round(x, x_prev, inv_mass, d.h, tu.relax_drag, s.max_speed, d.n_sub, d.per_sub, d.ends,
-                                stretch_only, touching, st.plane_point, st.plane_normal, st.push, d.floor_y)
+                                stretch_only, touching, st.plane_point, st.plane_normal, st.push, d.floor_y, d.blocks)
         cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
         if rounds >= tu.min_polish_rounds:
             # judged after the final collision the result gets (between two collision tests a point may

@@ -19,6 +19,7 @@ from tryon.garment.springs import STRUCTURAL
 from tryon.sim.align import align_sized
 from tryon.sim.arm_plan import ArmPlan, plan_arms
 from tryon.sim.arms import ArmSchedule
+from tryon.sim.blocks import split_springs
 from tryon.sim.collision.collider import BodyCollider, relevant_parts
 from tryon.sim.constraints import pack_springs
 from tryon.sim.limbs import limb_openings
@@ -47,9 +48,11 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         x = np.array(initial, dtype=np.float64)
         plan = ArmPlan(0.0, 0.0)
     limits = settings.limits_array()
-    springs = np.ascontiguousarray(model.springs, dtype=np.int64)
-    rest = np.ascontiguousarray(model.rest, dtype=np.float64)
-    kind = np.ascontiguousarray(model.kind, dtype=np.int64)
+    # a large garment's springs in two blocks that share no point (its passes then run on two threads)
+    order, blocks = split_springs(model.springs, model.coarse_vertices)
+    springs = np.ascontiguousarray(model.springs[order], dtype=np.int64)
+    rest = np.ascontiguousarray(model.rest[order], dtype=np.float64)
+    kind = np.ascontiguousarray(model.kind[order], dtype=np.int64)
     mass = np.ascontiguousarray(model.mass, dtype=np.float64)
     inv_mass = np.where(mass > 0, 1.0 / np.where(mass > 0, mass, 1.0), 0.0)
     ends, table = pack_springs(springs, rest, kind, limits, settings.compression_array())
@@ -104,7 +107,7 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                       - settings.contact_offset)
     return Drape(body=body, model=model, settings=settings, tuning=tuning, collider=collider, arms=arms, plan=plan,
                  parts=parts, piece=piece, springs=springs, rest=rest, kind=kind, mass=mass, limits=limits, ends=ends,
-                 table=table, openings=openings, placed_tops=placed_tops, floor_y=floor_y, n_sub=n_sub,
+                 table=table, blocks=blocks, openings=openings, placed_tops=placed_tops, floor_y=floor_y, n_sub=n_sub,
                  per_sub=max(1, settings.passes // n_sub), h=float(settings.time_step) / n_sub,
                  grow_steps=grow_steps, startup=max(grow_steps, arms.steps), pinned_until=pinned_until,
                  saved_inv_mass=saved_inv_mass, sized=sized, state=state, started=started, moving=motion is not None)

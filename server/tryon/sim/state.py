@@ -95,14 +95,17 @@ class Drape:
     pose (``plan``); parts (q,) int64: the body parts tested. piece (k,) int64: which separate piece of the
     file each point belongs to (an outfit's garments). springs (s, 2) int64, rest (s,) m, kind (s,) int64,
     mass (k,) kg, limits (3,) strain limits by kind; ends (s, 2) uint32 and table (s, 4): the springs packed
-    for the passes (a waistband's at the band limit). openings: sleeves' and trouser legs' openings;
-    placed_tops: each piece's top at placement (how far it slid). floor_y m; n_sub substeps of h s with
-    per_sub passes each. grow_steps: steps over which the body grows (0: the garment started clear of it);
-    startup: steps before the body is complete (growth, arms turning); pinned_until, saved_inv_mass: points
-    pinned at the start while growth is off. The step's spring subsets, carried between steps: body_ends,
-    body_table (the contact passes' springs, both ends on the body), ordered_ends, ordered_lmax (every
-    spring from the top down, refreshed every ``tuning.order_refresh`` steps) and sweep_ends, sweep_lmax (the
-    hanging springs the top-down sweep visits). started: ``time.perf_counter()`` at the start.
+    for the passes (a waistband's at the band limit), the springs in block order and blocks (3,) int64 their
+    blocks (``blocks.split_springs``: a large garment's passes run on two threads). openings: sleeves' and
+    trouser legs' openings; placed_tops: each piece's top at placement (how far it slid). floor_y m; n_sub
+    substeps of h s with per_sub passes each. grow_steps: steps over which the body grows (0: the garment
+    started clear of it); startup: steps before the body is complete (growth, arms turning); pinned_until,
+    saved_inv_mass: points pinned at the start while growth is off. The step's spring subsets, carried between
+    steps: body_ends, body_table (the contact passes' springs, both ends on the body), ordered_ends,
+    ordered_lmax (every spring from the top down, refreshed every ``tuning.order_refresh`` steps) and
+    sweep_ends, sweep_lmax (the hanging springs the top-down sweep visits), each with its blocks (body_blocks,
+    ordered_blocks, sweep_blocks).
+    started: ``time.perf_counter()`` at the start.
     moving: a re-posed drape (``start``'s ``motion``: the body moves from another pose while the garment steps
     on); for these ``run.settle`` measures after every step how deep the garment's coarse points are inside
     the body as it is at that step, and ``motion_depth`` (m) keeps the deepest (``motion_max_penetration_mm``).
@@ -124,6 +127,7 @@ class Drape:
     limits: np.ndarray
     ends: np.ndarray
     table: np.ndarray
+    blocks: np.ndarray
     openings: list
     placed_tops: np.ndarray
     floor_y: float
@@ -138,10 +142,13 @@ class Drape:
     state: DrapeState
     body_ends: np.ndarray = field(default_factory=lambda: np.empty((0, 2), dtype=np.uint32))
     body_table: np.ndarray = field(default_factory=lambda: np.empty((0, 4)))
+    body_blocks: np.ndarray = field(default_factory=lambda: np.zeros(3, dtype=np.int64))
     ordered_ends: np.ndarray = field(default_factory=lambda: np.empty((0, 2), dtype=np.uint32))
     ordered_lmax: np.ndarray = field(default_factory=lambda: np.empty(0))
+    ordered_blocks: np.ndarray = field(default_factory=lambda: np.zeros(3, dtype=np.int64))
     sweep_ends: np.ndarray = field(default_factory=lambda: np.empty((0, 2), dtype=np.uint32))
     sweep_lmax: np.ndarray = field(default_factory=lambda: np.empty(0))
+    sweep_blocks: np.ndarray = field(default_factory=lambda: np.zeros(3, dtype=np.int64))
     started: float = 0.0
     moving: bool = False
     motion_depth: float = 0.0

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from tryon.sim.blocks import block_order
 from tryon.sim.collision.contacts import flipped, points_to_test, reuse_planes, take_stricter_planes
 from tryon.sim.constraints import (
     cap_stretch, contact_springs, pack_sweep, solve_listed, sweep_springs, top_down_order,
@@ -74,17 +75,19 @@ def step(d: Drape) -> bool:
     w_eff = np.where(st.has_plane, step_mass * tu.contact_weight, step_mass)
     contact_passes = tu.contact_passes if not changing else 0
     if contact_passes:
-        d.body_ends, d.body_table = contact_springs(d.ends, d.table, st.has_plane)
+        d.body_ends, d.body_table, d.body_blocks = contact_springs(d.ends, d.table, st.has_plane, d.blocks)
     solve_listed(x, x_prev, w_eff, d.ends, d.table, d.per_sub, touching, st.plane_point, st.plane_normal, 0.0, 0.0,
-                 st.push)
+                 st.push, 1.0, d.blocks)
     if contact_passes:
         solve_listed(x, x_prev, w_eff, d.body_ends, d.body_table, contact_passes, touching, st.plane_point,
-                     st.plane_normal, 0.0, 0.0, st.push)
+                     st.plane_normal, 0.0, 0.0, st.push, 1.0, d.body_blocks)
     if n % tu.order_refresh == 1:
-        d.ordered_ends, d.ordered_lmax = pack_sweep(d.ends, d.table, top_down_order(x, d.springs))
+        order, d.ordered_blocks = block_order(top_down_order(x, d.springs), d.blocks)
+        d.ordered_ends, d.ordered_lmax = pack_sweep(d.ends, d.table, order)
     if not changing:
-        d.sweep_ends, d.sweep_lmax = sweep_springs(d.ordered_ends, d.ordered_lmax, st.has_plane,
-                                                   hanging_pieces(d.piece, st.has_plane | (inv_mass == 0.0)))
+        hangs = hanging_pieces(d.piece, st.has_plane | (inv_mass == 0.0))
+        d.sweep_ends, d.sweep_lmax, d.sweep_blocks = sweep_springs(d.ordered_ends, d.ordered_lmax, st.has_plane,
+                                                                   hangs, d.ordered_blocks)
     # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its upward bias would
     # make a tight garment climb off the body
     finish_step(x, x_prev, step_mass, w_eff, d.h, gravity, s.air_drag, s.max_speed, d.n_sub, d.per_sub, d.ends,
@@ -92,7 +95,8 @@ def step(d: Drape) -> bool:
                 st.has_plane, st.push, mu_s, mu_k, not changing, tu.sweep_every_substep, d.sweep_ends, d.sweep_lmax,
                 d.floor_y, d.collider.movers(st, d.parts, s.contact_offset, tu.near, s.collision_margin + tu.frame_depth,
                                              hold_pinched=not changing, retest_planes=d.moving,
-                                             hold_depth=hold_depth))
+                                             hold_depth=hold_depth), d.blocks, d.body_blocks,
+                d.sweep_blocks)
     # guard: collision wins over the springs within the step, so a garment far too small for its body (a
     # size S shirt on the largest body) would be stretched without bound; past ``tear_guard`` x its natural
     # length a spring wins instead (the point may stay inside the body: the metrics report it). Never active

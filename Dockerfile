@@ -8,7 +8,7 @@ ENV PYTHONDONTWRITEBYTECODE=1 \
     NUMBA_CACHE_DIR=/app/.numba-cache
 
 RUN apt-get update \
- && apt-get install -y --no-install-recommends nodejs npm curl \
+ && apt-get install -y --no-install-recommends nodejs npm curl libgomp1 \
  && rm -rf /var/lib/apt/lists/*
 
 RUN useradd --create-home --uid 10001 tryon

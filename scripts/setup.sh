@@ -31,6 +31,16 @@ if ! stamp_ok web/node_modules/.setup-stamp "$key"; then
   echo "$key" > web/node_modules/.setup-stamp
 fi
 
+# OpenMP: a large garment's passes run on two threads, launched from the service's worker threads at once,
+# which needs a thread-safe numba threading layer (sim/blocks.py; without it they run on one)
+if command -v apt-get >/dev/null && ! ldconfig -p 2>/dev/null | grep -q libgomp.so.1; then
+  echo "setup: installing Debian's libgomp1 (OpenMP) for the two-thread passes"
+  SUDO=""
+  [ "$(id -u)" = 0 ] || SUDO="sudo"
+  { $SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libgomp1 >/dev/null; } \
+    || echo "setup: libgomp1 not installed: large garments run on one thread"
+fi
+
 if [ $want_test = 1 ] && [ ! -x /usr/bin/chromium ]; then
   echo "setup: installing Debian's chromium for the browser tests"
   SUDO=""

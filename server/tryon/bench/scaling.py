@@ -53,6 +53,52 @@ def per_step_ms(body, model, steps: int, x0=None) -> float:
     return float(np.median(times[WARMUP_STEPS:])) * 1e3
 
 
+# the pool's throughput on a large garment: vertices of the tube, simulated steps of each try-on
+POOL_TUBE = {False: (10_000, 60), True: (4_000, 20)}
+
+
+def pool_throughput(body, model, steps: int) -> dict:
+    """Try-ons per minute of two drapes of ``model`` (``steps`` steps each) through the service's pool
+    (``api.pool.SimPool``, two workers): one after the other (each alone: every core) and both at once
+    (one core each), and both at once with every try-on held to one thread from the start."""
+    import time
+    from dataclasses import replace
+
+    from tryon.api.pool import SimPool
+    from tryon.sim.run import drape
+    from tryon.sim.settings import SimSettings
+
+    settings = replace(SimSettings(), max_steps=steps, min_steps=steps + 1)
+
+    pool = SimPool(workers=2, queue=2, wall_limit_s=600.0)
+
+    def one(threads=None):
+        # as the service runs a try-on: the pool's guard as the frame callback (it sets the thread share)
+        guard = pool.guard() if threads is None else None
+        if threads is not None:
+            use_threads(threads)
+        drape(body, model, settings, on_frame=guard, initial=model.vertices.copy())
+
+    try:
+        pool.submit(one).result()  # warm
+        out = {}
+        for name, at_once, threads in (("one after the other", False, None), ("two at once", True, None),
+                                       ("two at once, one thread each", True, 1)):
+            t = time.perf_counter()
+            if at_once:
+                jobs = [pool.submit(one, threads) for _ in range(2)]
+                for j in jobs:
+                    j.result()
+            else:
+                for _ in range(2):
+                    pool.submit(one, threads).result()
+            out[name] = 2 * 60.0 / (time.perf_counter() - t)
+    finally:
+        pool.shutdown()
+        use_threads(machine_threads())
+    return out
+
+
 def run(ctx: Context, sec: Section) -> None:
     from tryon.body.build import build_body
     from tryon.body.params import Measurements, Pose
@@ -82,7 +128,12 @@ def run(ctx: Context, sec: Section) -> None:
         ms = per_step_ms(b, model, steps)
         body_rows.append({"resolution": res, "body_vertices": len(b.vertices), "body_faces": len(b.faces),
                           "build_ms": build_ms, "ms_per_step": ms})
-    sec.data = {"garment": garment_rows, "body": body_rows, "body_garment": entry["name"]}
+    n_pool, pool_steps = POOL_TUBE[ctx.quick]
+    pool_model = tube_model(n_pool, body)
+    pool = pool_throughput(body, pool_model, pool_steps)
+    sec.data = {"garment": garment_rows, "body": body_rows, "body_garment": entry["name"],
+                "pool": {"vertices": len(pool_model.vertices), "springs": len(pool_model.springs),
+                         "steps": pool_steps, "tryons_per_minute": pool}}
     sec.tables.append(Table(
         "Time per step against garment vertices (tube around the hips, simulated at full resolution)",
         ["vertices", "springs", "ms per step", "us per vertex", "ms per step, 2 threads"],
@@ -97,6 +148,14 @@ def run(ctx: Context, sec: Section) -> None:
         ["resolution", "body vertices", "body faces", "body build ms", "ms per step"],
         [[r["resolution"], r["body_vertices"], r["body_faces"], fmt(r["build_ms"]), fmt(r["ms_per_step"])]
          for r in body_rows],
+    ))
+    sec.tables.append(Table(
+        f"Two try-ons through the pool ({len(pool_model.vertices)}-vertex tube, {pool_steps} steps each, "
+        "2 workers)",
+        ["how", "try-ons per minute"], [[k, fmt(v)] for k, v in pool.items()],
+        note=("one after the other: each runs alone and gets every core (its passes on two threads); two at "
+              "once: the pool gives each one core (api/pool.py); the last row holds both to one thread from "
+              "the start, the throughput two at once must not fall below."),
     ))
     g = garment_rows
     slope = np.polyfit(np.log([r["vertices"] for r in g]), np.log([r["ms_per_step"] for r in g]), 1)[0]

@@ -246,3 +246,39 @@ def test_a_tshirt_under_a_long_sleeve_comes_to_rest(catalogue_ids, body):
     assert all(r.metrics["penetrating_vertices"] == 0 for r in out.results)
     assert all(r.metrics["openings_on_limbs"] is not False for r in out.results)
     assert m["max_layer_penetration_mm"] < 30.0
+
+
+def test_an_outfit_is_the_same_whether_its_garments_step_at_once_or_in_turn(catalogue_ids, body):
+    """Where the caller may use two threads the garments step (and relax, and build their shown meshes) at once,
+    one thread each (``outfit.each_garment``); one thread steps them in turn. Each touches only its own drape,
+    so the outfits are the same to the bit."""
+    import threading
+
+    from tryon.sim import outfit
+    from tryon.sim.blocks import machine_threads, use_threads
+
+    _, catalogue, ids = catalogue_ids
+    models = [catalogue.model(ids["tshirt"]), catalogue.model(ids["skirt"])]
+    seen = set()
+    each = outfit.each_garment
+
+    def spy(fn, drapes):  # notes which threads ran the garments' work
+        def noted(d):
+            seen.add(threading.current_thread().name)
+            return fn(d)
+        return each(noted, drapes)
+
+    runs = []
+    try:
+        outfit.each_garment = spy
+        for threads in (1, machine_threads()):
+            use_threads(threads)
+            runs.append(drape_outfit(body, models, tuck="out"))
+    finally:
+        outfit.each_garment = each
+        use_threads(machine_threads())
+    for a, b in zip(runs[0].results, runs[1].results):
+        assert np.array_equal(a.vertices, b.vertices)
+    assert runs[0].metrics["steps"] == runs[1].metrics["steps"]
+    if machine_threads() > 1:
+        assert any(name.startswith("tryon-garment") for name in seen)  # the two-thread run did step at once

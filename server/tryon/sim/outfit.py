@@ -19,6 +19,11 @@ that started crossed (an outer garment aligned partly inside the inner one ends 
 test would lock in. The layers collide only once every garment's start-up is over (each drape grows the body and
 turns the arms on its own schedule), on the body all garments share.
 
+Both cores: the garments' steps (and their relaxations and shown meshes) touch only their own drape, and the
+kernels release the GIL, so where the calling thread may use two threads (``numba.get_num_threads``: the
+service's pool gives a try-on running alone both cores) they run at once, one garment a thread (each on one
+thread of its own), the same numbers as one after the other.
+
 Skip what the scene does not need: only the outer points inside an inner garment's box (plus ``LAYER_REACH``)
 are tested, through a grid of the inner triangles within reach of their box; a garment at rest that no layer pushed is not stepped
 (it sleeps until a push moves it by more than ``tuning.rest_move``).
@@ -37,15 +42,18 @@ band holds that top's hem inside; a second top stays over both).
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Callable
 
+import numba
 import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.garment.split import split_pieces
 from tryon.geometry import stack_meshes
+from tryon.sim.blocks import use_threads
 from tryon.sim.collision.cloth import (
     build_tri_grid, face_sides, outward_from_axes, overlap, push_layer, signed_face_normals,
 )
@@ -219,6 +227,26 @@ def collide_layers(points: list[np.ndarray], prev: list[np.ndarray], inv_mass: l
     return pushed
 
 
+_GARMENT_THREADS: ThreadPoolExecutor | None = None
+
+
+def each_garment(fn: Callable, drapes: list[Drape]) -> list:
+    """``[fn(d) for d in drapes]``, the garments at once (one thread each, each held to one numba thread) when
+    there are several and the calling thread may use two threads or more, else one after the other. ``fn`` must
+    touch only its own drape (a step, a relaxation, a shown mesh): then the results are the same either way."""
+    global _GARMENT_THREADS
+    if len(drapes) < 2 or numba.get_num_threads() < 2:
+        return [fn(d) for d in drapes]
+    if _GARMENT_THREADS is None:
+        _GARMENT_THREADS = ThreadPoolExecutor(max_workers=MAX_GARMENTS, thread_name_prefix="tryon-garment")
+
+    def alone(d: Drape):
+        use_threads(1)
+        return fn(d)
+
+    return list(_GARMENT_THREADS.map(alone, drapes))
+
+
 def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings = SimSettings(),
                  tuck: str = "out", tuning: Tuning = TUNING,
                  on_frame: OutfitFrameCallback | None = None) -> OutfitResult:
@@ -242,9 +270,7 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
     compression = [d.table[:, 2].copy() for d in drapes]  # each spring's compression fraction, as packed
     stopped, n = False, 0
     for n in range(1, settings.max_steps + 1):
-        for d, sleeping in zip(drapes, asleep):
-            if not sleeping:
-                step(d)
+        each_garment(step, [d for d, sleeping in zip(drapes, asleep) if not sleeping])
         if n > layered_from and len(drapes) > 1:
             before = [d.state.x.copy() for d in drapes]
             pressed = [np.zeros(len(d.state.x), dtype=np.bool_) for d in drapes]
@@ -267,14 +293,14 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
             break
         if asleep.all():
             break
-    relaxations = [relax(d) for d in drapes]
+    relaxations = each_garment(relax, drapes)
     if len(drapes) > 1:
         for _ in range(FINAL_LAYER_ROUNDS):
             collide_layers([d.state.x for d in drapes], [d.state.x_prev for d in drapes],
                            [d.state.inv_mass for d in drapes], faces, sides(), LAYER_GAP, both_ways=True)
             for d in drapes:
                 collide_all(d)
-    shown = [full_mesh(d) for d in drapes]
+    shown = each_garment(full_mesh, drapes)
     full = [s[0] for s in shown]
     full_faces = [np.ascontiguousarray(d.model.faces, dtype=np.int64) for d in drapes]
     full_sides = [face_sides(v, f, outward_from_body(v, body)) for v, f in zip(full, full_faces)]

@@ -37,6 +37,7 @@ def run(args: argparse.Namespace) -> int:
     from tryon.body.params import Measurements, Pose, check_measurements
     from tryon.fit.advice import Drape, advise_style
     from tryon.garment.catalogue import Catalogue
+    from tryon.sim.blocks import machine_threads, use_threads
     from tryon.sim.run import drape
     from tryon.sim.settings import SimSettings
 
@@ -58,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
     sim = SimSettings()
 
     def drape_one(i: int) -> Drape:
+        use_threads(machine_threads() // settings.sim_workers)  # the cores shared among the workers
         result = drape(body, catalogue.model(entries[i].id, sim.simplification), sim)
         return Drape(result.vertices, result.faces, result.metrics)
 

@@ -33,10 +33,12 @@ def connect(address: str | None, num_cpus: int | None = None) -> bool:
     if ray.is_initialized():
         return False
     env = {k: os.environ[k] for k in ("NUMBA_CACHE_DIR",) if k in os.environ}
+    # a task holds one CPU: a large garment's two-thread passes (sim/blocks.py) would oversubscribe the node
+    env["NUMBA_NUM_THREADS"] = "1"
     try:
         ray.init(address=address, num_cpus=None if address else (num_cpus or os.cpu_count()),
                  include_dashboard=False, log_to_driver=False, logging_level="ERROR",
-                 runtime_env={"env_vars": env} if env else None)
+                 runtime_env={"env_vars": env})
     except (ConnectionError, ValueError, RuntimeError) as exc:
         where = address or "a local Ray"
         raise RayUnavailable(f"cannot start or reach {where}: {str(exc).splitlines()[0]}") from None

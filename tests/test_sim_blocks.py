@@ -169,3 +169,27 @@ def test_two_pool_threads_launch_parallel_passes_at_once():
         t.join()
     assert numba.threading_layer() in ("omp", "tbb")
     assert np.array_equal(out[0], out[1])
+
+
+def test_the_collision_on_two_threads_equals_one_call_over_all_points():
+    """``collide_halves``: half the points a thread, each writing only its own rows: the same pushes, planes and
+    held flags as one ``collide_points`` call."""
+    from tryon.bench.ours_cloth import sphere_body
+    from tryon.sim.collision.collider import BodyCollider
+
+    collider = BodyCollider(sphere_body(0.3), 0.004)
+    rng = np.random.default_rng(11)
+    d = rng.normal(size=(2001, 3))
+    x0 = d / np.linalg.norm(d, axis=1)[:, None] * rng.uniform(0.27, 0.33, (2001, 1))  # inside and outside
+    outs = []
+    for two in (False, True):
+        x, xp = x0.copy(), x0 * 0.99
+        planes = (np.zeros(len(x), dtype=np.bool_), np.zeros((len(x), 3)), np.zeros((len(x), 3)))
+        contact, held = np.zeros(len(x), dtype=np.bool_), np.zeros(len(x), dtype=np.bool_)
+        moved = collider.collide(x, xp, np.ones(len(x)), np.ones(len(x), dtype=np.bool_), np.zeros(1, np.int64),
+                                 0.0005, 0.6, 0.4, contact, near=0.005, planes=planes, hold_pinched=True, held=held,
+                                 hold_depth=0.006, two=two)
+        outs.append((moved, x, xp, contact, held, *planes))
+    assert outs[0][0] > 500  # about half the points started inside
+    for a, b in zip(outs[0], outs[1]):
+        assert np.array_equal(a, b)

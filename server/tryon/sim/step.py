@@ -60,7 +60,7 @@ def step(d: Drape) -> bool:
         st.active |= st.held
     st.collided = collider.collide(x, x_prev, inv_mass, st.active, d.parts, s.contact_offset, mu_s, mu_k,
                                    st.contact, near=tu.near, planes=st.planes, hold_pinched=not changing,
-                                   held=st.held, hold_depth=hold_depth)
+                                   held=st.held, hold_depth=hold_depth, two=bool(d.blocks[2]))
     st.x_checked[st.active] = x[st.active]
     if st.layer_has.any():
         take_stricter_planes(x, *st.planes, *st.layer_planes)
@@ -95,7 +95,7 @@ def step(d: Drape) -> bool:
                 st.has_plane, st.push, mu_s, mu_k, not changing, tu.sweep_every_substep, d.sweep_ends, d.sweep_lmax,
                 d.floor_y, d.collider.movers(st, d.parts, s.contact_offset, tu.near, s.collision_margin + tu.frame_depth,
                                              hold_pinched=not changing, retest_planes=d.moving,
-                                             hold_depth=hold_depth), d.blocks, d.body_blocks,
+                                             hold_depth=hold_depth, two=bool(d.blocks[2])), d.blocks, d.body_blocks,
                 d.sweep_blocks)
     # guard: collision wins over the springs within the step, so a garment far too small for its body (a
     # size S shirt on the largest body) would be stretched without bound; past ``tear_guard`` x its natural

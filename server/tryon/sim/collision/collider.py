@@ -16,6 +16,7 @@ from tryon.sim.collision.kernels import (
     BodySurface, cell_max_radius, collide_points, face_boxes, grow_vertices, offset_body, part_max_radius,
     penetration_depth, vertex_parts,
 )
+from tryon.sim.blocks import collide_halves
 from tryon.sim.collision.movers import Movers
 from tryon.body.maps import build_part_maps, rebuild_part_maps
 from tryon.geometry import face_normals, face_vertex_normals
@@ -174,21 +175,26 @@ class BodyCollider:
     # ------------------------------------------------------------------ queries
 
     def collide(self, x, x_prev, inv_mass, active, parts, lam, mu_static, mu_kinetic, contact,
-                near=0.0, planes=None, hold_pinched=False, held=None, hold_depth=1e9) -> int:
+                near=0.0, planes=None, hold_pinched=False, held=None, hold_depth=1e9, two=False) -> int:
         """Push points ``x`` out of the offset body in place; returns how many moved (see collide_points).
         planes: optional (has_plane (k,), plane_point (k, 3), plane_normal (k, 3)) filled with contact planes;
-        hold_pinched, held, hold_depth: see collide_points (only for a body that does not move)."""
+        hold_pinched, held, hold_depth: see collide_points (only for a body that does not move); two: half the
+        points on each of two threads (``blocks.collide_halves``, needs ``held``; the same result)."""
         if planes is None:
             planes = (np.zeros(len(x), dtype=np.bool_), np.empty((len(x), 3)), np.empty((len(x), 3)))
         surface = self._surface(self.offset, self.offset_normals, self.cell_rmax, self.offset_boxes)
+        if two and held is not None:
+            return collide_halves(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, mu_kinetic, contact,
+                                  near, planes[0], planes[1], planes[2], hold_pinched, held, float(hold_depth))
         return collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, mu_kinetic, contact, near,
                               planes[0], planes[1], planes[2], hold_pinched, held, float(hold_depth))
 
-    def movers(self, state, parts, lam, near, reach, hold_pinched, retest_planes=False, hold_depth=1e9) -> Movers:
+    def movers(self, state, parts, lam, near, reach, hold_pinched, retest_planes=False, hold_depth=1e9,
+               two=False) -> Movers:
         """The within-step test's argument (``collision.movers``) for a drape's ``state`` (a ``DrapeState``)."""
         surface = self._surface(self.offset, self.offset_normals, self.cell_rmax, self.offset_boxes)
         return Movers(surface, parts, state.x_checked, state.contact, state.held, state.movers, float(reach),
-                      float(lam), float(near), bool(hold_pinched), bool(retest_planes), float(hold_depth))
+                      float(lam), float(near), bool(hold_pinched), bool(retest_planes), float(hold_depth), bool(two))
 
     def depth(self, points: np.ndarray, parts: np.ndarray, offset: bool = False) -> np.ndarray:
         """Depth (m) of each point (n, 3) inside the body (``offset=False``: the real, un-offset surface of

@@ -26,6 +26,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from tryon.sim.blocks import collide_halves
 from tryon.sim.collision.kernels import BodySurface, collide_points
 
 
@@ -38,7 +39,7 @@ class Movers(NamedTuple):
     than this since its test is tested again; lam m: eq. 4's lambda; near m: planes for points this close;
     hold_pinched: hold points pinched between two parts (only while the body does not move); retest_planes:
     points with a plane are tested again too (a re-posed drape, see the module doc); hold_depth m: see
-    ``collide_points``."""
+    ``collide_points``; two: half the points on each of two threads (``blocks.collide_halves``)."""
 
     surface: BodySurface
     parts: np.ndarray
@@ -52,6 +53,7 @@ class Movers(NamedTuple):
     hold_pinched: bool
     retest_planes: bool = False
     hold_depth: float = 1e9
+    two: bool = False
 
 
 @njit(cache=True, nogil=True)
@@ -75,9 +77,14 @@ def collide_movers(x, x_prev, inv_mass, movers, mu_static, mu_kinetic, has_plane
             n += 1
     if n == 0:
         return 0
-    collide_points(x, x_prev, inv_mass, active, movers.parts, movers.surface, movers.lam, mu_static, mu_kinetic,
-                   movers.contact, movers.near, has_plane, plane_point, plane_normal, movers.hold_pinched,
-                   movers.held, movers.hold_depth)
+    if movers.two:
+        collide_halves(x, x_prev, inv_mass, active, movers.parts, movers.surface, movers.lam, mu_static, mu_kinetic,
+                       movers.contact, movers.near, has_plane, plane_point, plane_normal, movers.hold_pinched,
+                       movers.held, movers.hold_depth)
+    else:
+        collide_points(x, x_prev, inv_mass, active, movers.parts, movers.surface, movers.lam, mu_static,
+                       mu_kinetic, movers.contact, movers.near, has_plane, plane_point, plane_normal,
+                       movers.hold_pinched, movers.held, movers.hold_depth)
     planes = 0
     for i in range(x.shape[0]):
         if active[i]:

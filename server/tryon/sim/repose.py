@@ -30,7 +30,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from tryon.body.build import with_hands_straight
+from tryon.body.build import build_body, with_hands_straight
+from tryon.body.params import Measurements, Pose
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.sim.collision.collider import BodyCollider
@@ -143,6 +144,8 @@ class PoseTransition:
         the limbs' change of shape): all of it known before the drape's collider is (``bind``), so a live
         session can tell the client the new body's first frame while the drape is set up."""
         self.new, self.collider = new, collider
+        # where the motion starts: the old body and the garment on it (``through_midway`` carries it again)
+        self.old, self.garment = old, None if garment is None else np.array(garment, dtype=np.float64)
         back = part_motions(new, old)  # (P, 4, 4): new pose -> old pose, per part
         self.back_rot = Rotation.from_matrix(back[:, :3, :3]).as_rotvec()  # (P, 3) radians
         # each part's turn as Rodrigues' terms: R(f) = I + sin(f angle) K + (1 - cos(f angle)) K^2, K the cross
@@ -322,19 +325,53 @@ def repose(d: Drape, body: Body, transition: PoseTransition | None = None) -> Dr
 
 def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape, TryOnResult, bool]:
     """A re-posed drape that came to rest with a sleeve or a trouser leg off its limb (``openings_on_limbs``
-    False) draped afresh in the same pose (aligned, as a new try-on) when that puts them on: (the drape, its
-    result, whether it was draped afresh). Carried through many poses in a row the cloth can end caught on
-    the way (the T-shirt M, six poses three times over: a sleeve came off at the tenth and stayed off), and a
-    later pose would start from there. A garment sized to the body (guessed units) is left as it is. The result
-    draped afresh keeps the re-pose's ``motion_max_penetration_mm``."""
+    False) draped afresh in the same pose (aligned, as a new try-on) when that puts them on, else carried again
+    from where the re-pose started through the midway pose (``through_midway``) when that does: (the drape, its
+    result, whether it was draped again). Carried through many poses in a row the cloth can end caught on the
+    way (the T-shirt M, six poses three times over: a sleeve came off at the tenth and stayed off), and a later
+    pose would start from there. A garment sized to the body (guessed units) is left as it is. The result draped
+    again keeps the re-pose's ``motion_max_penetration_mm`` (or the deeper of the carries')."""
     if result is None or result.metrics.get("openings_on_limbs") is not False or d.sized:
         return d, result, False
     fresh, again = fresh_drape(d.body, d.model, d.settings, d.tuning, on_frame)
-    if again.metrics.get("openings_on_limbs") is False:
+    if again.metrics.get("openings_on_limbs") is not False:
+        # the motion the client saw was the re-pose's (the fresh drape's start grows the body inside the cloth)
+        again.metrics["motion_max_penetration_mm"] = result.metrics.get("motion_max_penetration_mm")
+        return fresh, again, True
+    carried = through_midway(d, on_frame)
+    if carried is None or carried[1].metrics.get("openings_on_limbs") is False:
         return d, result, False
-    # the motion the client saw was the re-pose's (the fresh drape's start grows the body inside the cloth)
-    again.metrics["motion_max_penetration_mm"] = result.metrics.get("motion_max_penetration_mm")
-    return fresh, again, True
+    deeper = max(result.metrics.get("motion_max_penetration_mm") or 0.0,
+                 carried[1].metrics.get("motion_max_penetration_mm") or 0.0)
+    carried[1].metrics["motion_max_penetration_mm"] = deeper
+    return carried[0], carried[1], True
+
+
+def through_midway(d: Drape, on_frame=None) -> tuple[Drape, TryOnResult] | None:
+    """The re-pose ``d`` done again in two halves: from where it started (its transition's old body and the
+    garment on it) to the midway pose (every angle halfway; not streamed), then on to ``d``'s pose (streamed to
+    ``on_frame``): (the drape, its result, counting both halves' steps and time), or None when ``d`` is not a
+    re-pose of a body ``build_body`` made. A big move in one go (an arm swung 80 degrees forward while its elbow
+    bends 110) can leave a sleeve caught beside the arm where a fresh drape in that pose leaves it off too: the
+    three such settles of the motion stress's twenty sequences (the long-sleeves M and XXL) end on the arms so."""
+    t = d.arms
+    if not isinstance(t, PoseTransition) or t.garment is None or t.old.resolution is None or not t.old.pose:
+        return None
+    old, new = t.old.pose, d.body.pose
+    mid = {k: 0.5 * (old[k] + v) if isinstance(v, float) and isinstance(old.get(k), float) else v
+           for k, v in new.items()}
+    start_drape = start(t.old, d.model, d.settings, d.tuning, initial=t.garment)
+    half = repose(start_drape, build_body(Measurements(**d.body.requested), Pose(**mid), d.body.resolution))
+    first, _ = settle(half)
+    steps = first.metrics["steps"]
+    again = repose(half, d.body)
+    result, _ = settle(again, None if on_frame is None else lambda step, x: on_frame(steps + step, x))
+    result.metrics["steps"] += steps
+    result.metrics["sim_seconds"] += first.metrics["sim_seconds"]
+    result.metrics["wall_seconds"] += first.metrics["wall_seconds"]
+    result.metrics["motion_max_penetration_mm"] = max(first.metrics.get("motion_max_penetration_mm") or 0.0,
+                                                      result.metrics.get("motion_max_penetration_mm") or 0.0)
+    return again, result
 
 
 def fresh_drape(body: Body, model: GarmentModel, settings: SimSettings, tuning: Tuning, on_frame=None

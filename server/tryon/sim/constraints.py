@@ -273,6 +273,17 @@ def _blocked_pass(x, inv_mass, ends, table, blocks, backward, relax):
 ONE_BLOCK = np.zeros(3, dtype=np.int64)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def tally_block(counts, index, blocks):
+    """Count spring ``index`` (into springs in block order, ``blocks`` (3,): A = [0, blocks[0]), B = the next
+    blocks[1], then the boundary) into the entry of ``counts`` (3,) int64 for its block, A or B (the boundary
+    is what is left)."""
+    if index < blocks[0]:
+        counts[0] += 1
+    elif index < blocks[0] + blocks[1]:
+        counts[1] += 1
+
+
 @njit(cache=True, nogil=True, fastmath=True)
 def solve_listed(x, x_prev, inv_mass, ends, table, passes, listed, plane_point, plane_normal, mu_static,
                  mu_kinetic, push, relax=1.0, blocks=ONE_BLOCK):
@@ -351,10 +362,7 @@ def contact_springs(ends, table, on_body, blocks=ONE_BLOCK):
             body_ends[b, 1] = ends[s, 1]
             body_table[b, 0] = table[s, 0]
             b += 1
-            if s < blocks[0]:
-                body_blocks[0] += 1
-            elif s < blocks[0] + blocks[1]:
-                body_blocks[1] += 1
+            tally_block(body_blocks, s, blocks)
     return body_ends, body_table, body_blocks
 
 
@@ -384,10 +392,7 @@ def sweep_springs(sweep_ends, sweep_lmax, on_body, hangs, blocks=ONE_BLOCK):
             kept_ends[m, 1] = sweep_ends[q, 1]
             kept_lmax[m] = sweep_lmax[q]
             m += 1
-            if q < blocks[0]:
-                kept_blocks[0] += 1
-            elif q < blocks[0] + blocks[1]:
-                kept_blocks[1] += 1
+            tally_block(kept_blocks, q, blocks)
     return kept_ends, kept_lmax, kept_blocks
 
 

@@ -318,9 +318,16 @@ def repose(d: Drape, body: Body, transition: PoseTransition | None = None) -> Dr
     along as the body moves from the old pose to the new over the first steps (``transition``, made here if
     not given: ``PoseTransition(d.body, body, garment=d.state.x)``); see the module doc. ``d`` is left as it
     was."""
+    return carry(d.body, d.state.x, d.model, d.settings, d.tuning, body, transition)
+
+
+def carry(old: Body, garment: np.ndarray, model: GarmentModel, settings: SimSettings, tuning: Tuning, body: Body,
+          transition: PoseTransition | None = None) -> Drape:
+    """``repose`` from the ``garment`` (k, 3) m of ``model`` as it lies on ``old`` (no drape needed: a re-pose
+    done again from where it started, ``through_midway``)."""
     if transition is None:
-        transition = PoseTransition(d.body, body, garment=d.state.x)
-    return start(body, d.model, d.settings, d.tuning, initial=d.state.x.copy(), motion=transition.bind)
+        transition = PoseTransition(old, body, garment=garment)
+    return start(body, model, settings, tuning, initial=garment.copy(), motion=transition.bind)
 
 
 def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape, TryOnResult, bool]:
@@ -360,18 +367,24 @@ def through_midway(d: Drape, on_frame=None) -> tuple[Drape, TryOnResult] | None:
     old, new = t.old.pose, d.body.pose
     mid = {k: 0.5 * (old[k] + v) if isinstance(v, float) and isinstance(old.get(k), float) else v
            for k, v in new.items()}
-    start_drape = start(t.old, d.model, d.settings, d.tuning, initial=t.garment)
-    half = repose(start_drape, build_body(Measurements(**d.body.requested), Pose(**mid), d.body.resolution))
+    half = carry(t.old, t.garment, d.model, d.settings, d.tuning,
+                 build_body(Measurements(**d.body.requested), Pose(**mid), d.body.resolution))
     first, _ = settle(half)
-    steps = first.metrics["steps"]
-    again = repose(half, d.body)
-    result, _ = settle(again, None if on_frame is None else lambda step, x: on_frame(steps + step, x))
-    result.metrics["steps"] += steps
-    result.metrics["sim_seconds"] += first.metrics["sim_seconds"]
-    result.metrics["wall_seconds"] += first.metrics["wall_seconds"]
+    again, result = settle_after(half, first, d.body, on_frame)
     result.metrics["motion_max_penetration_mm"] = max(first.metrics.get("motion_max_penetration_mm") or 0.0,
                                                       result.metrics.get("motion_max_penetration_mm") or 0.0)
     return again, result
+
+
+def settle_after(first_drape: Drape, first: TryOnResult, body: Body, on_frame=None) -> tuple[Drape, TryOnResult]:
+    """``first_drape``, settled (its result ``first``), re-posed to ``body`` and settled: (the drape, its result).
+    The frames' steps run on from the first settle's; the metrics count the steps and the time of both."""
+    steps = first.metrics["steps"]
+    d = repose(first_drape, body)
+    result, _ = settle(d, None if on_frame is None else lambda step, x: on_frame(steps + step, x))
+    for key in ("steps", "sim_seconds", "wall_seconds"):
+        result.metrics[key] += first.metrics[key]
+    return d, result
 
 
 def fresh_drape(body: Body, model: GarmentModel, settings: SimSettings, tuning: Tuning, on_frame=None
@@ -391,13 +404,7 @@ def fresh_drape(body: Body, model: GarmentModel, settings: SimSettings, tuning: 
         return d, settle(d, on_frame)[0]
     straight = start(straight, model, settings, tuning)
     first, _ = settle(straight, on_frame)
-    steps = first.metrics["steps"]
-    d = repose(straight, body)
-    result, _ = settle(d, None if on_frame is None else lambda step, x: on_frame(steps + step, x))
-    result.metrics["steps"] += steps
-    result.metrics["sim_seconds"] += first.metrics["sim_seconds"]
-    result.metrics["wall_seconds"] += first.metrics["wall_seconds"]
-    return d, result
+    return settle_after(straight, first, body, on_frame)
 
 
 def long_sleeves(d: Drape) -> bool:

@@ -139,3 +139,29 @@ def test_self_intersections_count_the_crossing_edges_of_two_sheets_and_none_of_o
     assert self_intersections(a, fa) == 0
     tube_v, tube_f = tube(0.15)
     assert self_intersections(tube_v, tube_f) == 0
+
+
+def test_an_outer_shown_mesh_is_kept_off_the_fixed_ones_under_it_both_ways():
+    """``OverFixed``: an outer tube 12 mm inside a fixed inner one comes out over its rounds (6 mm a round),
+    and an inner point standing out through the outer tube pushes the outer triangle over it out; the inner
+    mesh never moves."""
+    from tryon.sim.collision.over_fixed import OverFixed
+
+    inner, faces, _ = inner_surface(0.15)
+    bump = inner.copy()
+    k = 10 * 40 + 7  # a point halfway up, standing 2 cm out of its tube
+    bump[k, [0, 2]] *= 0.17 / 0.15
+    outer, outer_faces = tube(0.138)  # 12 mm inside the inner tube's corners
+    x, x_prev = outer.copy(), outer.copy()
+    fixed = OverFixed([(bump, faces, face_sides(bump, faces, radial(bump)))], outer_faces, 0.0015, 0.006, 5, 0.03,
+                      0.03)
+    held = bump.copy()
+    pushes = fixed.push(x, x_prev, face_sides(x, outer_faces, radial(x)))
+    assert pushes > len(x)  # more than one round
+    assert np.array_equal(bump, held)
+    inner_normals = signed_face_normals(bump, faces, face_sides(bump, faces, radial(bump)))
+    assert layer_depths(x, bump, faces, inner_normals, 0.03).max() <= 1e-9  # every outer point outside
+    outer_normals = signed_face_normals(x, outer_faces, -face_sides(x, outer_faces, radial(x)))
+    assert layer_depths(bump, x, outer_faces, outer_normals, 0.03).max() <= 1e-9  # every inner point under
+    assert np.allclose(x - x_prev, 0.0)
+

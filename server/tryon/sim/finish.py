@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -35,10 +36,13 @@ def finish(d: Drape, relaxation: Relaxation, stopped: bool = False) -> TryOnResu
     return result(d, relaxation, full, full_parts, stopped)
 
 
-def full_mesh(d: Drape) -> tuple[np.ndarray, np.ndarray]:
+def full_mesh(d: Drape, also_collide: Callable[[np.ndarray, np.ndarray], int] | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
     """The shown mesh (n, 3) m of ``d``'s garment: it follows the coarse one, its stretch held to the limits,
-    pushed out of the offset body; and the body parts (q,) int64 it can touch."""
-    return follow_coarse(d.model, d.state.x, d.collider, d.limits, d.settings.contact_offset, d.floor_y)
+    pushed out of the offset body (and out of whatever ``also_collide`` keeps it from, ``follow_coarse``);
+    and the body parts (q,) int64 it can touch."""
+    return follow_coarse(d.model, d.state.x, d.collider, d.limits, d.settings.contact_offset, d.floor_y,
+                         also_collide)
 
 
 def result(d: Drape, relaxation: Relaxation, full: np.ndarray, full_parts: np.ndarray,

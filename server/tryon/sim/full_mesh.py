@@ -15,6 +15,8 @@ thin part (a hand, a foot), the full mesh pushed out round it still stretches th
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from tryon.garment.model import GarmentModel
@@ -35,11 +37,14 @@ PINCHED_LEAST_DEEP = 0.0
 
 
 def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollider, limits: np.ndarray,
-                  contact_offset: float, floor_y: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                  contact_offset: float, floor_y: float = 0.0,
+                  also_collide: Callable[[np.ndarray, np.ndarray], int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The full mesh (n, 3) m on the draped coarse positions ``coarse`` (k, 3), see the module doc, and the
     body parts (int64 indices) it was collided with. ``limits`` (3,): strain limits by spring kind (the
     full mesh's springs are structural and shear); ``contact_offset`` m: lambda of eq. 4; nothing goes
-    below ``floor_y`` m."""
+    below ``floor_y`` m. ``also_collide(full, full_prev)``: another collider (an outfit's shown garments under
+    this one), called after the body collision of every round and once more at the end, so that the stretch
+    passes spread its pushes to the neighbours as they spread the body's."""
     full = np.ascontiguousarray(model.expand(coarse))
     np.maximum(full[:, 1], floor_y, out=full[:, 1])
     full_prev = full.copy()
@@ -54,6 +59,8 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
         satisfy_springs(full, ones, ends, table, DISPLAY_PASSES)
         active[:] = True
         collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact)
+        if also_collide is not None:
+            also_collide(full, full_prev)
     if DISPLAY_ROUNDS:
         active[:] = contact  # the last round's collision tested every point: only those it pushed can be inside
     for _ in range(FULL_COLLIDE_CALLS):
@@ -62,6 +69,8 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
                                 hold_depth=PINCHED_LEAST_DEEP):
             break
         active[:] = contact
+    if also_collide is not None:
+        also_collide(full, full_prev)
     return full, parts
 
 

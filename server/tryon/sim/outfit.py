@@ -19,7 +19,7 @@ that started crossed (an outer garment aligned partly inside the inner one ends 
 test would lock in. The layers collide only once every garment's start-up is over (each drape grows the body and
 turns the arms on its own schedule), on the body all garments share.
 
-Both cores: the garments' steps (and their relaxations and shown meshes) touch only their own drape, and the
+Both cores: the garments' steps (and their relaxations) touch only their own drape, and the
 kernels release the GIL, so where the calling thread may use two threads (``numba.get_num_threads``: the
 service's pool gives a try-on running alone both cores) they run at once, one garment a thread (each on one
 thread of its own), the same numbers as one after the other.
@@ -29,10 +29,17 @@ are tested, through a grid of the inner triangles within reach of their box; a g
 (it sleeps until a push moves it by more than ``tuning.rest_move``).
 
 The end: each garment relaxes on its own, the layers collide ``FINAL_LAYER_ROUNDS`` more times with the body
-collision after each (nothing through the body either), then each garment's shown mesh is built and the outer
-shown meshes are pushed ``SHOWN_LAYER_GAP`` outside the inner shown meshes (the inner ones fixed, at most
-``SHOWN_MAX_PUSH`` a round), as the body collision does for one garment's shown mesh. ``layer_penetrating_vertices`` counts what is still more
-than ``LAYER_TOLERANCE`` on the body's side of a garment under it.
+collision after each (nothing through the body either), then the shown meshes are built innermost first, each
+outer one kept ``SHOWN_LAYER_GAP`` off the finished shown meshes under it inside its own building
+(``full_mesh.follow_coarse``'s ``also_collide``, ``collision.over_fixed``): after the body collision of each of its
+rounds, so that the next round's stretch passes carry a push to the pushed point's neighbours as they carry the
+body's. The coarse layers ``LAYER_GAP`` apart are not enough for the shown ones: a shown mesh bulges out of its
+coarse triangles' chords (it is pushed out of the body between the coarse points), the one under it as much as
+the one over it. Pushed once at the end instead, with no stretch passes after the pushes, the hems of the outer
+garments over a flared skirt crumpled into spikes, and more stayed through (the 36 top-over-bottom outfits of
+``tryon bench --only outfits``: 371 layer-penetrating vertices that way, 130 this way).
+``layer_penetrating_vertices`` counts what is still more than ``LAYER_TOLERANCE`` on the body's side of a
+garment under it, each triangle's outward side taken on the shown meshes as they end.
 
 Tuck: a top and a bottom in one outfit are layered by ``tuck``: ``out`` (the default) puts the bottom under
 every top (the top's hem falls over the waistband), ``in`` puts the bottom right over the innermost top (its
@@ -58,6 +65,7 @@ from tryon.sim.collision.cloth import (
     build_tri_grid, face_sides, outward_from_axes, overlap, push_layer, signed_face_normals,
 )
 from tryon.sim.collision.crossings import layer_depths, signed_distances
+from tryon.sim.collision.over_fixed import OverFixed
 from tryon.sim.finish import TryOnResult, full_mesh, result
 from tryon.sim.pieces import bottom_mask, piece_labels, waistband_mask
 from tryon.sim.relax import collide_all, relax
@@ -73,7 +81,7 @@ MAX_GARMENTS = 3
 # m: how far outside an inner garment's coarse surface an outer garment's coarse points are kept: about two
 # cloth thicknesses. Not more: a waistband over a tucked-in shirt grows by 2 pi x this (1.6 cm on an 82 cm
 # waist at 2.5 mm, 2 % of it: the band's own stretch limit). Where the coarse triangles sag between their
-# points, the shown meshes are pushed apart at the end (``SHOWN_LAYER_GAP``).
+# points, the shown meshes are kept apart as they are built (``SHOWN_LAYER_GAP``).
 LAYER_GAP = 0.0025
 # m: the most a layer collision moves a point in one step: garments aligned each on its own may start
 # centimetres into each other (a trouser waistband inside a loose shirt's hem); they come apart over a few
@@ -93,13 +101,13 @@ FINAL_LAYER_ROUNDS = 4
 SHOWN_LAYER_GAP = 0.0015
 # m: the most one push of the shown meshes moves a vertex in a round (``SHOWN_LAYER_ROUNDS``). Unbounded, they
 # ran away where an outer hem meets a flared inner garment: the hem's triangles pushed out along their tilted
-# normals lay over more of the inner cloth each round, and the long-sleeve's hem over the A-line skirt on the
-# medium body grew spikes 30 cm down (170 layer-penetrating vertices, and 14 garment vertices pushed into the
-# body over the 36 outfits of ``tryon bench --only outfits``; 3 mm: 0 in the body, 346 instead of 604
-# layer-penetrating).
-SHOWN_MAX_PUSH = 0.003
-# Pushes of the outer shown meshes off the inner ones (each moves only the points still too close).
-SHOWN_LAYER_ROUNDS = 10
+# normals lay over more of the inner cloth each round, and grew spikes. 6 mm x 5 rounds reach as deep as the
+# layers' reach (30 mm) in half the rounds of 3 mm x 10, as well (the 39 outfits of ``tryon bench --only
+# outfits``: 130 + 51 layer-penetrating vertices, against 136 + 50) and with hems as smooth.
+SHOWN_MAX_PUSH = 0.006
+# Pushes of the outer shown meshes off the inner ones in one ``also_collide`` call (each round moves only the
+# points still too close).
+SHOWN_LAYER_ROUNDS = 5
 # m: a shown vertex of an outer garment more than this on the body's side of a garment under it is a layer
 # penetration (issue 29's tolerance, as for the body).
 LAYER_TOLERANCE = 0.002
@@ -227,6 +235,18 @@ def collide_layers(points: list[np.ndarray], prev: list[np.ndarray], inv_mass: l
     return pushed
 
 
+def off_shown(under: list[np.ndarray], faces: list[np.ndarray], body: Body) -> Callable[[np.ndarray, np.ndarray], int]:
+    """``follow_coarse``'s ``also_collide`` for an outer garment's shown mesh: kept ``SHOWN_LAYER_GAP`` off the
+    shown meshes ``under`` it (each (n_i, 3) m, held still; triangles ``faces``, the outer garment's last), both
+    ways, at most ``SHOWN_MAX_PUSH`` a round, up to ``SHOWN_LAYER_ROUNDS`` rounds (``collision.over_fixed``)."""
+    fixed = OverFixed([(v, f, face_sides(v, f, outward_from_body(v, body))) for v, f in zip(under, faces)],
+                      faces[-1], SHOWN_LAYER_GAP, SHOWN_MAX_PUSH, SHOWN_LAYER_ROUNDS, LAYER_REACH, LAYER_CELL)
+
+    def collide(x: np.ndarray, x_prev: np.ndarray) -> int:
+        return fixed.push(x, x_prev, face_sides(x, faces[-1], outward_from_body(x, body)))
+    return collide
+
+
 _GARMENT_THREADS: ThreadPoolExecutor | None = None
 
 
@@ -300,19 +320,13 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
                            [d.state.inv_mass for d in drapes], faces, sides(), LAYER_GAP, both_ways=True)
             for d in drapes:
                 collide_all(d)
-    shown = each_garment(full_mesh, drapes)
-    full = [s[0] for s in shown]
     full_faces = [np.ascontiguousarray(d.model.faces, dtype=np.int64) for d in drapes]
-    full_sides = [face_sides(v, f, outward_from_body(v, body)) for v, f in zip(full, full_faces)]
-    fixed = [np.zeros(len(f)) for f in full]
+    shown = [full_mesh(drapes[0])]
     for j in range(1, len(drapes)):
-        # each outer shown mesh off every shown mesh under it, those held still
-        for _ in range(SHOWN_LAYER_ROUNDS):
-            moved = collide_layers(full[: j + 1], [f.copy() for f in full[: j + 1]],
-                                   fixed[:j] + [np.ones(len(full[j]))], full_faces[: j + 1], full_sides[: j + 1],
-                                   SHOWN_LAYER_GAP, max_push=SHOWN_MAX_PUSH, both_ways=True)
-            if not moved:
-                break
+        # each outer shown mesh built off the shown meshes under it, those held still
+        shown.append(full_mesh(drapes[j], off_shown([s[0] for s in shown], full_faces[: j + 1], body)))
+    full = [s[0] for s in shown]
+    full_sides = [face_sides(v, f, outward_from_body(v, body)) for v, f in zip(full, full_faces)]
     results = [result(d, r, f, s[1], stopped) for d, r, f, s in zip(drapes, relaxations, full, shown)]
     count, deepest = layer_metrics(full, full_faces, full_sides)
     tops = [k for k, d in enumerate(drapes) if d.model.meta.category != "bottom"]

@@ -68,3 +68,27 @@ def test_skin_the_garment_does_not_cover_is_not_counted(collider):
     assert through["body_through_vertices"] > 0
     assert (collider.vertices[depth > 0][:, 2] > 0.04).all()  # only front skin, where the cloth is
     assert through["max_body_through_mm"] == pytest.approx(10.0, abs=1.0)
+
+
+def test_lift_over_skin_mends_faces_cutting_under_the_skin_and_leaves_deeper_ones(collider):
+    """A 12-sided prism whose corners are 3 mm out and whose faces' middles are 2.2 mm under the skin: the lift
+    puts every covered body vertex under the cloth again (the faces bow out over
+    their middles). Cloth 1.5 cm under the skin everywhere is deeper than ``deepest`` (1 cm) and is left as it is:
+that is a body part through the garment, not a chord across a curve."""
+    from tryon.sim.show_through import lift_over_skin
+
+    parts = np.arange(len(collider.body.parts))
+    vertices, faces = prism(12, TORSO_RADIUS + 0.003, rows=12)  # middles 1000 * (0.15 - cos(15 deg) 0.153) = 2.2 mm under
+    before = show_through_depth(collider, parts, vertices, faces)
+    assert (before > 0.002).sum() > 20
+    lifted = vertices.copy()
+    for _ in range(3):
+        lift_over_skin(collider, parts, lifted, faces, 0.001, 0.01)
+    after = show_through_depth(collider, parts, lifted, faces)
+    assert after.max() == 0.0
+    assert np.abs(lifted - vertices).max() < 0.01  # a few mm, not a jump
+    sunk, sunk_faces = prism(96, TORSO_RADIUS - 0.015, rows=12)
+    assert show_through_depth(collider, parts, sunk, sunk_faces).max() > 0.014
+    moved = sunk.copy()
+    assert lift_over_skin(collider, parts, moved, sunk_faces, 0.001, 0.01) == 0
+    assert np.array_equal(moved, sunk)

@@ -43,7 +43,8 @@ def run(ctx: Context, sec: Section) -> None:
             kinds = m["strain_by_kind"].values()
             d = {"body": body_name, "garment": entry["name"], "steps": m["steps"], "rest": m["rest_reached"],
                  "wall_s": m["wall_seconds"], "penetrating": m["penetrating_vertices"],
-                 "max_penetration_mm": m["max_penetration_mm"], "over": sum(k["over"] for k in kinds),
+                 "max_penetration_mm": m["max_penetration_mm"], "body_through": m["body_through_vertices"],
+                 "max_body_through_mm": m["max_body_through_mm"], "over": sum(k["over"] for k in kinds),
                  "over_on_body": sum(k.get("over_on_body", 0) for k in kinds), "max_strain": m["max_strain"],
                  "display_max_strain": m["display_max_strain"], "springs": len(model.springs),
                  "on_limbs": m["openings_on_limbs"],
@@ -52,17 +53,19 @@ def run(ctx: Context, sec: Section) -> None:
                  "self_intersections": self_intersections(result.vertices, result.faces)}
             data.append(d)
             rows.append([body_name, entry["name"], d["steps"], fmt(d["rest"]), fmt(d["wall_s"]), d["penetrating"],
-                         fmt(d["max_penetration_mm"]), d["over"], d["over_on_body"], fmt(d["max_strain"]),
+                         fmt(d["max_penetration_mm"]), d["body_through"], fmt(d["max_body_through_mm"]), d["over"], d["over_on_body"], fmt(d["max_strain"]),
                          fmt(d["display_max_strain"]), _limbs(d), _stays_up(d), d["self_intersections"]])
             ctx.log(f"  fit {body_name} {entry['name']}: over {d['over']}, penetrating {d['penetrating']}")
     sec.data = {"bodies": BODIES, "substeps": settings.substeps, "passes": settings.passes, "drapes": data}
     sec.tables.append(Table(
         "Every garment on three bodies (" + ("default settings" if ctx.substeps is None else
                                              f"{settings.substeps} substeps of one pass a step") + ")",
-        ["body", "garment", "steps", "at rest", "wall s", "penetrating", "deepest mm", "springs over",
+        ["body", "garment", "steps", "at rest", "wall s", "penetrating", "deepest mm", "body through",
+         "body through mm", "springs over",
          "over on body", "max strain", "shown mesh max strain", "sleeves / legs", "stays up", "self-crossings"],
         rows,
-        note="springs over: beyond their type's limit by more than 1 % (0.2 mm for springs under 2 cm); "
+        note="body through: body vertices showing more than 2 mm through the shown mesh where it covers them "
+             "(``sim/show_through.py``), and the deepest; springs over: beyond their type's limit by more than 1 % (0.2 mm for springs under 2 cm); "
              "over on body: of those, both ends touching the body (the garment is too small there); shown "
              "mesh: the full mesh's edges and quad diagonals (where a coarse triangle cuts across a thin "
              "part, a hand or a foot, the full mesh pushed out around it stretches); sleeves / legs: whether every "
@@ -80,7 +83,8 @@ def run(ctx: Context, sec: Section) -> None:
         per_body.append(f"{body_name} {met}/{len(ds)} (over {sum(d['over'] for d in ds)})")
     label = "fit" if ctx.substeps is None else f"fit, {settings.substeps} substeps"
     sec.headline.append(
-        f"{label}: {len(data)} drapes, penetrating vertices {sum(d['penetrating'] for d in data)}, at rest "
+        f"{label}: {len(data)} drapes, penetrating vertices {sum(d['penetrating'] for d in data)}, body through "
+        f"{sum(d['body_through'] for d in data)}, at rest "
         f"{sum(d['rest'] for d in data)}/{len(data)}, sleeves and legs around their limbs "
         f"{sum(d['on_limbs'] is not False for d in data)}/{len(data)}, staying up {sum(d['stays_up'] for d in data)}/"
         f"{len(data)}; meeting every target: " + ", ".join(per_body)

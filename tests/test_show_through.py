@@ -78,7 +78,8 @@ that is a body part through the garment, not a chord across a curve."""
     from tryon.sim.show_through import lift_over_skin
 
     parts = np.arange(len(collider.body.parts))
-    vertices, faces = prism(12, TORSO_RADIUS + 0.003, rows=12)  # middles 1000 * (0.15 - cos(15 deg) 0.153) = 2.2 mm under
+    # the faces' middles 1000 * (0.15 - cos(15 deg) 0.153) = 2.2 mm under the skin
+    vertices, faces = prism(12, TORSO_RADIUS + 0.003, rows=12)
     before = show_through_depth(collider, parts, vertices, faces)
     assert (before > 0.002).sum() > 20
     lifted = vertices.copy()

@@ -53,7 +53,8 @@ def run(ctx: Context, sec: Section) -> None:
                  "self_intersections": self_intersections(result.vertices, result.faces)}
             data.append(d)
             rows.append([body_name, entry["name"], d["steps"], fmt(d["rest"]), fmt(d["wall_s"]), d["penetrating"],
-                         fmt(d["max_penetration_mm"]), d["body_through"], fmt(d["max_body_through_mm"]), d["over"], d["over_on_body"], fmt(d["max_strain"]),
+                         fmt(d["max_penetration_mm"]), d["body_through"], fmt(d["max_body_through_mm"]), d["over"],
+                         d["over_on_body"], fmt(d["max_strain"]),
                          fmt(d["display_max_strain"]), _limbs(d), _stays_up(d), d["self_intersections"]])
             ctx.log(f"  fit {body_name} {entry['name']}: over {d['over']}, penetrating {d['penetrating']}")
     sec.data = {"bodies": BODIES, "substeps": settings.substeps, "passes": settings.passes, "drapes": data}
@@ -65,7 +66,8 @@ def run(ctx: Context, sec: Section) -> None:
          "over on body", "max strain", "shown mesh max strain", "sleeves / legs", "stays up", "self-crossings"],
         rows,
         note="body through: body vertices showing more than 2 mm through the shown mesh where it covers them "
-             "(``sim/show_through.py``), and the deepest; springs over: beyond their type's limit by more than 1 % (0.2 mm for springs under 2 cm); "
+             "(``sim/show_through.py``), and the deepest; springs over: beyond their type's limit by more than 1 % "
+             "(0.2 mm for springs under 2 cm); "
              "over on body: of those, both ends touching the body (the garment is too small there); shown "
              "mesh: the full mesh's edges and quad diagonals (where a coarse triangle cuts across a thin "
              "part, a hand or a foot, the full mesh pushed out around it stretches); sleeves / legs: whether every "

@@ -106,13 +106,10 @@ def _line_hit(px, py, pz, dx, dy, dz, vertices, a0, a1, a2):
 def outermost_crossing(points, normals, t_in, t_out, vertices, faces, lo, cell, shape, cell_start, cell_tris):
     """For each point p (m, 3) m with unit normal n (m, 3): the largest t in [-t_in, t_out] m where the line
     p + t n crosses a triangle of the mesh (``vertices`` (n, 3) m, ``faces`` (f, 3)) listed in the grid
-    (``triangle_grid``). Returns t (m,) float64, NaN where it crosses none; the triangle crossed there (m,)
-    int64, -1 for none; and the crossing's barycentric weights u, v (m,) of the triangle's second and third
-    corners."""
+    (``triangle_grid``). Returns t (m,) float64, NaN where it crosses none, and the triangle crossed there
+    (m,) int64, -1 for none."""
     out = np.full(points.shape[0], np.nan)
     tri = np.full(points.shape[0], -1, dtype=np.int64)
-    out_u = np.zeros(points.shape[0])
-    out_v = np.zeros(points.shape[0])
     for i in range(points.shape[0]):
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
         dx, dy, dz = normals[i, 0], normals[i, 1], normals[i, 2]
@@ -130,15 +127,13 @@ def outermost_crossing(points, normals, t_in, t_out, vertices, faces, lo, cell, 
                     c = (ix * shape[1] + iy) * shape[2] + iz
                     for j in range(cell_start[c], cell_start[c + 1]):
                         f = cell_tris[j]
-                        t, u, v = _line_hit(px, py, pz, dx, dy, dz, vertices, faces[f, 0], faces[f, 1], faces[f, 2])
+                        t = _line_hit(px, py, pz, dx, dy, dz, vertices, faces[f, 0], faces[f, 1], faces[f, 2])[0]
                         if -t_in <= t <= t_out and t > best:  # NaN (a miss) compares False
                             best = t
                             tri[i] = f
-                            out_u[i] = u
-                            out_v[i] = v
         if best > -np.inf:
             out[i] = best
-    return out, tri, out_u, out_v
+    return out, tri
 
 
 @njit(cache=True, nogil=True)
@@ -192,7 +187,7 @@ def _probe(collider: BodyCollider, parts: np.ndarray, garment: np.ndarray, faces
     cell_start, cell_tris = triangle_grid(garment, faces, lo, GRID_CELL, shape)
     points = np.ascontiguousarray(body[near])
     normals = np.ascontiguousarray(collider.vertex_normals[near])
-    t, tri, _, _ = outermost_crossing(points, normals, t_in, PROBE_OUT, garment, faces, lo, GRID_CELL, shape,
+    t, tri = outermost_crossing(points, normals, t_in, PROBE_OUT, garment, faces, lo, GRID_CELL, shape,
                                       cell_start, cell_tris)
     return near, points, normals, t, tri
 

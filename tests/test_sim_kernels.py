@@ -5,10 +5,11 @@ of what it does, or against the kernels it stands for called one by one."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from tryon.sim.collision.contacts import apply_friction, points_to_test, project_listed, project_planes
 from tryon.sim.constraints import (
-    STEEP, contact_springs, pack_springs, pack_sweep, solve_constraints, solve_listed, sweep_downward, sweep_springs,
+    STEEP, cap_stretch, contact_springs, pack_springs, pack_sweep, solve_constraints, solve_listed, sweep_downward, sweep_springs,
     top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, verlet_step
@@ -323,3 +324,20 @@ def test_spring_visits_count_the_passes_and_sweeps_of_a_step():
     assert perf.spring_visits([args[n] for n in names], passed=1)["total"] == 140 + 28 + 48
     args["sweep_every_substep"] = False
     assert perf.spring_visits([args[n] for n in names])["per_step"]["sweep_springs"] == 6
+
+
+def test_the_tear_guard_stops_once_every_spring_is_back_at_its_cap():
+    # 50 separate springs of 1-3 cm pulled out to 2.6-4 x: the first sweep puts each back at 2.5 x, the second
+    # finds none over and ends it (before the guard's slack, a spring put back at its cap was found over it
+    # again by rounding, and the guard ran all its sweeps on every step where one had reached it)
+    rng = np.random.default_rng(3)
+    n = 50
+    start = rng.normal(size=(n, 3))
+    way = rng.normal(size=(n, 3))
+    way /= np.linalg.norm(way, axis=1)[:, None]
+    rest = rng.uniform(0.01, 0.03, n)
+    x = np.vstack([start, start + way * (rest * rng.uniform(2.6, 4.0, n))[:, None]])
+    springs = np.stack([np.arange(n), np.arange(n) + n], axis=1).astype(np.int64)
+    sweeps = cap_stretch(x, np.ones(2 * n), springs, rest, 2.5, 100)
+    assert sweeps == 2
+    assert np.linalg.norm(x[:n] - x[n:], axis=1) / rest == pytest.approx(np.full(n, 2.5), rel=1e-9)

@@ -41,39 +41,42 @@ class TriGrid(NamedTuple):
 
 
 @njit(cache=True, nogil=True)
-def _cell_range(lo, cell, shape, vertices, tri, pad):
-    """The cell index ranges (ix0, ix1, iy0, iy1, iz0, iz1), inclusive, of one triangle's box grown by pad."""
-    out = np.empty(6, dtype=np.int64)
-    for a in range(3):
-        t0 = vertices[tri[0], a]
-        t1 = vertices[tri[1], a]
-        t2 = vertices[tri[2], a]
-        mn = min(t0, min(t1, t2)) - pad
-        mx = max(t0, max(t1, t2)) + pad
-        out[2 * a] = max(0, min(shape[a] - 1, int((mn - lo[a]) / cell)))
-        out[2 * a + 1] = max(0, min(shape[a] - 1, int((mx - lo[a]) / cell)))
+def _cell_ranges(lo, cell, shape, vertices, faces, pad):
+    """(f, 6) int64: each triangle's cell index ranges (ix0, ix1, iy0, iy1, iz0, iz1), inclusive, of its box grown
+    by pad."""
+    out = np.empty((faces.shape[0], 6), dtype=np.int64)
+    for f in range(faces.shape[0]):
+        for a in range(3):
+            t0 = vertices[faces[f, 0], a]
+            t1 = vertices[faces[f, 1], a]
+            t2 = vertices[faces[f, 2], a]
+            mn = min(t0, min(t1, t2)) - pad
+            mx = max(t0, max(t1, t2)) + pad
+            out[f, 2 * a] = max(0, min(shape[a] - 1, int((mn - lo[a]) / cell)))
+            out[f, 2 * a + 1] = max(0, min(shape[a] - 1, int((mx - lo[a]) / cell)))
     return out
 
 
 @njit(cache=True, nogil=True)
 def _fill_grid(vertices, faces, lo, cell, shape, pad):
-    """CSR (cell_start, cell_tris) of the triangles over the cells their padded boxes overlap. Serial."""
+    """CSR (cell_start, cell_tris) of the triangles over the cells their padded boxes overlap. Serial. Each
+    triangle's cells are found once for both passes (the count and the fill): twice, each with a small array
+    of its own, they were half of an outfit step's grid building."""
     n_cells = shape[0] * shape[1] * shape[2]
+    r = _cell_ranges(lo, cell, shape, vertices, faces, pad)
     count = np.zeros(n_cells + 1, dtype=np.int64)
     for f in range(faces.shape[0]):
-        r = _cell_range(lo, cell, shape, vertices, faces[f], pad)
-        for ix in range(r[0], r[1] + 1):
-            for iy in range(r[2], r[3] + 1):
-                for iz in range(r[4], r[5] + 1):
+        for ix in range(r[f, 0], r[f, 1] + 1):
+            for iy in range(r[f, 2], r[f, 3] + 1):
+                for iz in range(r[f, 4], r[f, 5] + 1):
                     count[(ix * shape[1] + iy) * shape[2] + iz + 1] += 1
     start = np.cumsum(count)
     fill = start[:-1].copy()
     tris = np.empty(start[-1], dtype=np.int64)
     for f in range(faces.shape[0]):
-        r = _cell_range(lo, cell, shape, vertices, faces[f], pad)
-        for ix in range(r[0], r[1] + 1):
-            for iy in range(r[2], r[3] + 1):
-                for iz in range(r[4], r[5] + 1):
+        for ix in range(r[f, 0], r[f, 1] + 1):
+            for iy in range(r[f, 2], r[f, 3] + 1):
+                for iz in range(r[f, 4], r[f, 5] + 1):
                     c = (ix * shape[1] + iy) * shape[2] + iz
                     tris[fill[c]] = f
                     fill[c] += 1

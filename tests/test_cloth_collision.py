@@ -4,8 +4,12 @@ crossing vertices, self-intersections counted on sheets that do and do not cross
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from tryon.sim.collision.cloth import build_tri_grid, face_sides, push_layer, signed_face_normals
+from tryon.geometry import closest_uv_on_triangle
+from tryon.sim.collision.cloth import (
+    PAST_EDGE, build_tri_grid, face_sides, nearest_over, push_layer, signed_face_normals,
+)
 from tryon.sim.collision.crossings import layer_depths, self_intersections
 
 
@@ -165,3 +169,34 @@ def test_an_outer_shown_mesh_is_kept_off_the_fixed_ones_under_it_both_ways():
     assert layer_depths(bump, x, outer_faces, outer_normals, 0.03).max() <= 1e-9  # every inner point under
     assert np.allclose(x - x_prev, 0.0)
 
+
+
+def test_the_triangle_a_point_lies_over_is_the_nearest_of_all_not_past_their_edge():
+    # the grid search (its box test passing over far triangles) against every triangle, one by one
+    import trimesh
+
+    rng = np.random.default_rng(5)
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.2)
+    x = sphere.vertices * (1.0 + rng.uniform(-0.03, 0.03, (len(sphere.vertices), 1)))
+    faces = np.ascontiguousarray(sphere.faces, dtype=np.int64)
+    normals = signed_face_normals(x, faces, np.ones(len(faces)))
+    reach = 0.03
+    grid = build_tri_grid(x, faces, 0.03, reach)
+    points = rng.normal(size=(60, 3))
+    points *= (0.2 + rng.uniform(-0.03, 0.03, (60, 1))) / np.linalg.norm(points, axis=1)[:, None]
+    found = 0
+    for p in points:
+        f, s, _, _ = nearest_over(*p, x, faces, normals, grid.lo, grid.cell, grid.shape, grid.cell_start,
+                                  grid.cell_tris, reach)
+        best, best_dd, best_s = -1, reach * reach, 0.0
+        for k, (a, b, c) in enumerate(faces):
+            u, v = closest_uv_on_triangle(*p, *x[a], *x[b], *x[c])
+            d = p - (x[a] + u * (x[b] - x[a]) + v * (x[c] - x[a]))
+            dd = float(d @ d)
+            along = float(d @ normals[k])
+            if dd < best_dd and dd - along * along <= PAST_EDGE ** 2:
+                best, best_dd, best_s = k, dd, along
+        assert f == best
+        assert s == pytest.approx(best_s, abs=1e-12)
+        found += f >= 0
+    assert found > 50

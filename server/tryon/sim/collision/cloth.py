@@ -26,6 +26,9 @@ MAX_CELLS_PER_AXIS = 128
 # (along the surface, not across it) is past the inner garment's edge (below its hem, beyond a cuff) and is
 # not pushed: it is not over that garment at all.
 PAST_EDGE = 0.002
+# ``nearest_over`` passes over a triangle whose box lies further than this x the squared distance of the nearest
+# found so far: the box is never further than the triangle, and the factor keeps rounding from dropping a tie.
+BOX_SLACK = 1.0 + 1e-9
 
 
 class TriGrid(NamedTuple):
@@ -224,6 +227,13 @@ def nearest_over(px, py, pz, inner_x, inner_faces, normals, grid_lo, grid_cell, 
         ax, ay, az = inner_x[a, 0], inner_x[a, 1], inner_x[a, 2]
         bx, by, bz = inner_x[b, 0], inner_x[b, 1], inner_x[b, 2]
         cx, cy, cz = inner_x[cc, 0], inner_x[cc, 1], inner_x[cc, 2]
+        # no nearer than its box: a triangle whose box is further than the best so far is passed over without the
+        # closest point (the slack keeps a tie the exact test would take)
+        gx = max(0.0, min(ax, min(bx, cx)) - px, px - max(ax, max(bx, cx)))
+        gy = max(0.0, min(ay, min(by, cy)) - py, py - max(ay, max(by, cy)))
+        gz = max(0.0, min(az, min(bz, cz)) - pz, pz - max(az, max(bz, cz)))
+        if gx * gx + gy * gy + gz * gz > best_dd * BOX_SLACK:
+            continue
         u, v = closest_uv_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz)
         dx = px - (ax + u * (bx - ax) + v * (cx - ax))
         dy = py - (ay + u * (by - ay) + v * (cy - ay))

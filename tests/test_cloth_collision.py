@@ -170,7 +170,6 @@ def test_an_outer_shown_mesh_is_kept_off_the_fixed_ones_under_it_both_ways():
     assert np.allclose(x - x_prev, 0.0)
 
 
-
 def test_the_triangle_a_point_lies_over_is_the_nearest_of_all_not_past_their_edge():
     # the grid search (its box test passing over far triangles) against every triangle, one by one
     import trimesh

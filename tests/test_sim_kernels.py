@@ -9,8 +9,8 @@ import pytest
 
 from tryon.sim.collision.contacts import apply_friction, points_to_test, project_listed, project_planes
 from tryon.sim.constraints import (
-    STEEP, cap_stretch, contact_springs, pack_springs, pack_sweep, solve_constraints, solve_listed, sweep_downward, sweep_springs,
-    top_down_order,
+    STEEP, cap_stretch, contact_springs, pack_springs, pack_sweep, solve_constraints, solve_listed, sweep_downward,
+    sweep_springs, top_down_order,
 )
 from tryon.sim.integrate import keep_above_floor, verlet_step
 from tryon.sim.full_mesh import PINCHED_LEAST_DEEP

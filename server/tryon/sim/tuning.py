@@ -64,8 +64,9 @@ class Tuning:
         drapes need 17-23 % more steps).
     tear_guard, tear_passes: the largest spring length / natural length the step's last sweeps allow
         (issue 5: never beyond 3x), and at most how many such sweeps (they stop as soon as one finds nothing
-        to do). Never active in a normal drape; it keeps a garment far too small for its body from being
-        stretched without bound.
+        to do). Rarely active in a normal drape (a few short springs for a few steps: a cuff round a hand, a
+        trouser hem caught under a sole); it keeps a garment far too small for its body from being stretched
+        without bound.
     frame_depth: m, how deep a point may get into the body within a step: a point without a contact plane
         that moved more than the collision margin plus this since its collision test is tested again after
         the next substep's prediction (``collision.movers``). Issue 26's bound for any streamed frame: 2 mm.

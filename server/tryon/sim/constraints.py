@@ -345,8 +345,8 @@ def pack_sweep(ends, table, order):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _block_counts(blocks, kept_before_a, kept_before_b, kept, n):
-    """(3,) int64: the blocks of a selection in block order (``blocks`` (3,) of the n springs it was taken from:
+def _block_counts(blocks, kept_before_a, kept_before_b, kept):
+    """(3,) int64: the blocks of a selection in block order (``blocks`` (3,) of the springs it was taken from:
     A = [0, blocks[0]), B = the next blocks[1], then the boundary), from how many were kept before A's end and
     before B's end (-1: the loop never reached it, so all ``kept``)."""
     out = np.zeros(3, dtype=np.int64)
@@ -387,7 +387,7 @@ def contact_springs(ends, table, on_body, blocks=ONE_BLOCK):
         b += np.int64(on_body[i]) & np.int64(on_body[j])
     body_table = np.zeros((b, 4))
     body_table[:, 0] = all_lmax[:b]
-    return all_ends[:b].copy(), body_table, _block_counts(blocks, before_a, before_b, b, n)
+    return all_ends[:b].copy(), body_table, _block_counts(blocks, before_a, before_b, b)
 
 
 @njit(cache=True, nogil=True)
@@ -416,7 +416,7 @@ def sweep_springs(sweep_ends, sweep_lmax, on_body, hangs, blocks=ONE_BLOCK):
         kept_ends[m, 1] = j
         kept_lmax[m] = sweep_lmax[q]
         m += np.int64(hangs[i]) & (1 - (np.int64(on_body[i]) & np.int64(on_body[j])))
-    return kept_ends[:m].copy(), kept_lmax[:m].copy(), _block_counts(blocks, before_a, before_b, m, n)
+    return kept_ends[:m].copy(), kept_lmax[:m].copy(), _block_counts(blocks, before_a, before_b, m)
 
 
 @njit(cache=True, nogil=True, fastmath=True, boundscheck=False)

@@ -344,18 +344,33 @@ def pack_sweep(ends, table, order):
     return sweep_ends, sweep_lmax
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _block_counts(blocks, kept_before_a, kept_before_b, kept):
-    """(3,) int64: the blocks of a selection in block order (``blocks`` (3,) of the springs it was taken from:
-    A = [0, blocks[0]), B = the next blocks[1], then the boundary), from how many were kept before A's end and
-    before B's end (-1: the loop never reached it, so all ``kept``)."""
-    out = np.zeros(3, dtype=np.int64)
-    out[2] = blocks[2]
-    a = kept_before_a if kept_before_a >= 0 else kept
-    b = kept_before_b if kept_before_b >= 0 else kept
-    out[0] = a
-    out[1] = b - a
-    return out
+@njit(cache=True, nogil=True)
+def _kept(ends, lmax, keep, blocks):
+    """(ends (q, 2) uint32, l_max (q,), blocks (3,) int64) of the springs ``ends`` (s, 2) / ``lmax`` (s,) m with
+    ``keep`` (s,) int64 1, in order, and their blocks (``blocks`` (3,): those of ``ends``, A = [0, blocks[0]),
+    B = the next blocks[1], then the boundary). One pass that writes every spring and keeps it by counting it:
+    no branch on which are kept, a pattern of contacts the processor cannot guess (a counting pass and a filling
+    pass, each branching on it, took 128 instead of 15 us to pick a T-shirt M's sweep springs)."""
+    n = ends.shape[0]
+    out_ends = np.empty((n, 2), dtype=np.uint32)
+    out_lmax = np.empty(n)
+    a_end, b_end = blocks[0], blocks[0] + blocks[1]
+    before_a, before_b = -1, -1
+    m = 0
+    for s in range(n):
+        if s == a_end:
+            before_a = m
+        if s == b_end:
+            before_b = m
+        out_ends[m, 0] = ends[s, 0]
+        out_ends[m, 1] = ends[s, 1]
+        out_lmax[m] = lmax[s]
+        m += keep[s]
+    counts = np.zeros(3, dtype=np.int64)
+    counts[0] = before_a if before_a >= 0 else m
+    counts[1] = (before_b if before_b >= 0 else m) - counts[0]
+    counts[2] = blocks[2]
+    return out_ends[:m].copy(), out_lmax[:m].copy(), counts
 
 
 @njit(cache=True, nogil=True)
@@ -364,30 +379,15 @@ def contact_springs(ends, table, on_body, blocks=ONE_BLOCK):
     (``on_body`` (k,) bool), in spring order, stretch only (l0 = 0 and no compression: cloth pressed on the
     body must stay free to buckle, and a compressed spring is not even visited for a zero correction): the
     contact passes' springs, and their blocks (``blocks``: those of ``ends``; the selection keeps the block
-    order). A kernel: the same selection by numpy fancy indexing cost ~0.3 ms per step on the perf T-shirt
-    (``python3 -m tryon.bench.perf``). One pass that writes every spring and keeps it by counting it (no
-    branch on the contacts, whose pattern the processor cannot guess): 70 -> 15 us on a T-shirt's 6,353
-    springs."""
-    n = ends.shape[0]
-    all_ends = np.empty((n, 2), dtype=np.uint32)
-    all_lmax = np.empty(n)
-    a_end, b_end = blocks[0], blocks[0] + blocks[1]
-    before_a, before_b = -1, -1
-    b = 0
-    for s in range(n):
-        if s == a_end:
-            before_a = b
-        if s == b_end:
-            before_b = b
-        i = ends[s, 0]
-        j = ends[s, 1]
-        all_ends[b, 0] = i
-        all_ends[b, 1] = j
-        all_lmax[b] = table[s, 0]
-        b += np.int64(on_body[i]) & np.int64(on_body[j])
-    body_table = np.zeros((b, 4))
-    body_table[:, 0] = all_lmax[:b]
-    return all_ends[:b].copy(), body_table, _block_counts(blocks, before_a, before_b, b)
+    order). A kernel (``_kept``): the same selection by numpy fancy indexing cost ~0.3 ms per step on the perf
+    T-shirt (``python3 -m tryon.bench.perf``)."""
+    keep = np.empty(ends.shape[0], dtype=np.int64)
+    for s in range(ends.shape[0]):
+        keep[s] = np.int64(on_body[ends[s, 0]]) & np.int64(on_body[ends[s, 1]])
+    body_ends, lmax, body_blocks = _kept(ends, table[:, 0], keep, blocks)
+    body_table = np.zeros((len(lmax), 4))
+    body_table[:, 0] = lmax
+    return body_ends, body_table, body_blocks
 
 
 @njit(cache=True, nogil=True)
@@ -398,25 +398,12 @@ def sweep_springs(sweep_ends, sweep_lmax, on_body, hangs, blocks=ONE_BLOCK):
     inverse mass: one more stretch pass over them), and a piece that touches nothing must fall (the
     sweep's lift only pulls lower ends up, so it would hold the piece in the air). Returns (ends (q, 2)
     uint32, l_max (q,), blocks (3,) int64: those of the kept springs, ``blocks`` being the sweep's
-    (``block_order``)). One pass without a branch on the contacts, as ``contact_springs``."""
-    n = sweep_ends.shape[0]
-    kept_ends = np.empty((n, 2), dtype=np.uint32)
-    kept_lmax = np.empty(n)
-    a_end, b_end = blocks[0], blocks[0] + blocks[1]
-    before_a, before_b = -1, -1
-    m = 0
-    for q in range(n):
-        if q == a_end:
-            before_a = m
-        if q == b_end:
-            before_b = m
+    (``block_order``); ``_kept``)."""
+    keep = np.empty(sweep_ends.shape[0], dtype=np.int64)
+    for q in range(sweep_ends.shape[0]):
         i = sweep_ends[q, 0]
-        j = sweep_ends[q, 1]
-        kept_ends[m, 0] = i
-        kept_ends[m, 1] = j
-        kept_lmax[m] = sweep_lmax[q]
-        m += np.int64(hangs[i]) & (1 - (np.int64(on_body[i]) & np.int64(on_body[j])))
-    return kept_ends[:m].copy(), kept_lmax[:m].copy(), _block_counts(blocks, before_a, before_b, m)
+        keep[q] = np.int64(hangs[i]) & (1 - (np.int64(on_body[i]) & np.int64(on_body[sweep_ends[q, 1]])))
+    return _kept(sweep_ends, sweep_lmax, keep, blocks)
 
 
 @njit(cache=True, nogil=True, fastmath=True, boundscheck=False)

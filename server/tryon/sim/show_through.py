@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from tryon.sim.collision.cloth import fill_grid
 from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.metrics import PENETRATION_TOLERANCE
 
@@ -36,38 +37,6 @@ PROBE_IN = 0.02
 PROBE_OUT = 0.02
 # m: the grid's cell: about twice the shown meshes' edges (1-2 cm), so a triangle touches few cells.
 GRID_CELL = 0.02
-
-
-@njit(cache=True, nogil=True)
-def triangle_grid(vertices, faces, lo, cell, shape):
-    """CSR lists of the triangles (f, 3) int over ``vertices`` (n, 3) m touching each cell of a grid with
-    corner ``lo`` (3,) m, cell size ``cell`` m and ``shape`` (3,) int64 cells: (cell_start (C+1,) int64,
-    cell_tris (K,) int64), cell id ``(ix * shape[1] + iy) * shape[2] + iz``; a triangle is listed in every
-    cell its bounding box touches."""
-    n_cells = shape[0] * shape[1] * shape[2]
-    count = np.zeros(n_cells + 1, dtype=np.int64)
-    ranges = np.empty((faces.shape[0], 6), dtype=np.int64)
-    for f in range(faces.shape[0]):
-        for a in range(3):
-            x0 = min(vertices[faces[f, 0], a], vertices[faces[f, 1], a], vertices[faces[f, 2], a])
-            x1 = max(vertices[faces[f, 0], a], vertices[faces[f, 1], a], vertices[faces[f, 2], a])
-            ranges[f, a] = min(max(int((x0 - lo[a]) / cell), 0), shape[a] - 1)
-            ranges[f, 3 + a] = min(max(int((x1 - lo[a]) / cell), 0), shape[a] - 1)
-        for ix in range(ranges[f, 0], ranges[f, 3] + 1):
-            for iy in range(ranges[f, 1], ranges[f, 4] + 1):
-                for iz in range(ranges[f, 2], ranges[f, 5] + 1):
-                    count[(ix * shape[1] + iy) * shape[2] + iz + 1] += 1
-    cell_start = np.cumsum(count)
-    fill = cell_start[:-1].copy()
-    cell_tris = np.empty(cell_start[-1], dtype=np.int64)
-    for f in range(faces.shape[0]):
-        for ix in range(ranges[f, 0], ranges[f, 3] + 1):
-            for iy in range(ranges[f, 1], ranges[f, 4] + 1):
-                for iz in range(ranges[f, 2], ranges[f, 5] + 1):
-                    c = (ix * shape[1] + iy) * shape[2] + iz
-                    cell_tris[fill[c]] = f
-                    fill[c] += 1
-    return cell_start, cell_tris
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -106,7 +75,7 @@ def _line_hit(px, py, pz, dx, dy, dz, vertices, a0, a1, a2):
 def outermost_crossing(points, normals, t_in, t_out, vertices, faces, lo, cell, shape, cell_start, cell_tris):
     """For each point p (m, 3) m with unit normal n (m, 3): the largest t in [-t_in, t_out] m where the line
     p + t n crosses a triangle of the mesh (``vertices`` (n, 3) m, ``faces`` (f, 3)) listed in the grid
-    (``triangle_grid``). Returns t (m,) float64, NaN where it crosses none, and the triangle crossed there
+    (``collision.cloth.fill_grid``). Returns t (m,) float64, NaN where it crosses none, and the triangle crossed there
     (m,) int64, -1 for none."""
     out = np.full(points.shape[0], np.nan)
     tri = np.full(points.shape[0], -1, dtype=np.int64)
@@ -184,11 +153,11 @@ def _probe(collider: BodyCollider, parts: np.ndarray, garment: np.ndarray, faces
     shape = np.maximum(np.ceil((hi - lo) / GRID_CELL).astype(np.int64), 1)
     faces = np.ascontiguousarray(faces, dtype=np.int64)
     garment = np.ascontiguousarray(garment, dtype=np.float64)
-    cell_start, cell_tris = triangle_grid(garment, faces, lo, GRID_CELL, shape)
+    cell_start, cell_tris = fill_grid(garment, faces, lo, GRID_CELL, shape, 0.0)
     points = np.ascontiguousarray(body[near])
     normals = np.ascontiguousarray(collider.vertex_normals[near])
-    t, tri = outermost_crossing(points, normals, t_in, PROBE_OUT, garment, faces, lo, GRID_CELL, shape,
-                                      cell_start, cell_tris)
+    t, tri = outermost_crossing(points, normals, t_in, PROBE_OUT, garment, faces, lo, GRID_CELL, shape, cell_start,
+                                cell_tris)
     return near, points, normals, t, tri
 
 

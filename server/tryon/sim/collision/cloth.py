@@ -61,8 +61,10 @@ def _cell_ranges(lo, cell, shape, vertices, faces, pad):
 
 
 @njit(cache=True, nogil=True)
-def _fill_grid(vertices, faces, lo, cell, shape, pad):
-    """CSR (cell_start, cell_tris) of the triangles over the cells their padded boxes overlap. Serial. Each
+def fill_grid(vertices, faces, lo, cell, shape, pad):
+    """CSR (cell_start (C + 1,) int64, cell_tris (K,) int64) of the triangles ``faces`` (f, 3) int64 over
+    ``vertices`` (n, 3) m in the cells of a grid (corner ``lo`` (3,) m, cells ``cell`` m, ``shape`` (3,) int64; cell
+    id ``(ix * shape[1] + iy) * shape[2] + iz``) that their boxes grown by ``pad`` m overlap. Serial. Each
     triangle's cells are found once for both passes (the count and the fill): twice, each with a small array
     of its own, they were half of an outfit step's grid building."""
     n_cells = shape[0] * shape[1] * shape[2]
@@ -94,7 +96,7 @@ def build_tri_grid(vertices: np.ndarray, faces: np.ndarray, cell: float, pad: fl
     extent = vertices.max(axis=0) + pad - lo
     size = max(float(cell), float(extent.max()) / MAX_CELLS_PER_AXIS)
     shape = np.maximum(1, np.ceil(extent / size)).astype(np.int64)
-    start, tris = _fill_grid(vertices, faces, lo, size, shape, float(pad))
+    start, tris = fill_grid(vertices, faces, lo, size, shape, float(pad))
     return TriGrid(lo, size, shape, start, tris)
 
 

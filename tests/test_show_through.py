@@ -72,9 +72,9 @@ def test_skin_the_garment_does_not_cover_is_not_counted(collider):
 
 def test_lift_over_skin_mends_faces_cutting_under_the_skin_and_leaves_deeper_ones(collider):
     """A 12-sided prism whose corners are 3 mm out and whose faces' middles are 2.2 mm under the skin: the lift
-    puts every covered body vertex under the cloth again (the faces bow out over
-    their middles). Cloth 1.5 cm under the skin everywhere is deeper than ``deepest`` (1 cm) and is left as it is:
-that is a body part through the garment, not a chord across a curve."""
+    puts every covered body vertex under the cloth again (the faces bow out over their middles). Cloth 1.5 cm
+    under the skin everywhere is deeper than ``deepest`` (1 cm) and is left as it is: that is a body part through
+    the garment, not a chord across a curve."""
     from tryon.sim.show_through import lift_over_skin
 
     parts = np.arange(len(collider.body.parts))

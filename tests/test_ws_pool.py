@@ -19,7 +19,7 @@ from tryon.api.pool import (
     busy_response_headers,
     request_key,
 )
-from tryon.api.frames import FRAME_HEADER, FrameCodec, encode_frame, encoding
+from tryon.api.frames import FRAME_HEADER, FrameCodec, encode_frame, encoding, frame_due
 from tryon.api.routes.ws import MAX_CLOSE_REASON_BYTES, close_reason
 
 
@@ -127,6 +127,26 @@ def test_frame_encoding_roundtrip():
     assert FRAME_HEADER.unpack_from(data) == (7, 42, 1.25)
     back = np.frombuffer(data, dtype="<f4", offset=FRAME_HEADER.size).reshape(-1, 3)
     np.testing.assert_allclose(back, v, rtol=1e-6, atol=1e-7)
+
+
+def test_frames_keep_their_cadence_when_each_goes_a_little_late():
+    """A sender that may send only once a frame is due, every frame 0-8 ms late (a step ending after its slot),
+    at 30 fps: 300 frames take 10 s as asked (spaced an interval after each one sent they took 10.7 s, 28
+    frames a second), and none follows another by less than half an interval; after a pause the cadence
+    starts again from there."""
+    interval = 1.0 / 30
+    late = np.random.default_rng(0).uniform(0.0, 0.008, 300)
+    due, sent, old_due, old_sent = 0.0, [], 0.0, []
+    for delay in late:
+        sent.append(due + delay)
+        due = frame_due(due, sent[-1], interval)
+        old_sent.append(old_due + delay)
+        old_due = old_sent[-1] + interval  # the rule before: an interval after the frame went
+    assert abs((sent[-1] - sent[0]) / 299 - interval) < 1e-4
+    assert (old_sent[-1] - old_sent[0]) / 299 > interval + 0.003
+    assert np.diff(sent).min() >= 0.5 * interval
+    # a 0.3 s pause: the next frame goes when it is ready, the one after no sooner than half an interval later
+    assert frame_due(due, due + 0.3, interval) == due + 0.3 + 0.5 * interval
 
 
 def test_tryon_key_fills_defaults_and_ignores_fps():

@@ -93,3 +93,13 @@ def encode_frame(frame: int, step: int, vertices: np.ndarray | bytes, time_s: fl
     """One binary frame: header (frame number, step, seconds since the request) + positions."""
     payload = vertices if isinstance(vertices, bytes) else codec.encode(vertices)
     return FRAME_HEADER.pack(frame, max(int(step), 0), time_s) + payload
+
+
+def frame_due(due: float, now: float, interval: float) -> float:
+    """When the next frame may go (monotonic s), on a cadence of ``interval`` s: one interval after the last
+    frame's slot ``due``, not after the moment it went (``now``), so a frame a few milliseconds late (a step
+    that ended after its slot, a busy event loop) does not push every later frame back (spaced an interval
+    after the last one sent, a live session dragging a slider got 28.9 frames a second at 30 fps); but never
+    sooner than half an interval after ``now``: after a pause (a re-pose's set-up) the cadence starts again
+    instead of sending two frames at once."""
+    return max(due + interval, now + 0.5 * interval)

@@ -17,7 +17,7 @@ from fastapi import HTTPException
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from tryon.api.export import json_bytes, mesh_arrays
-from tryon.api.frames import BODY_VERTEX_LAYOUT, FLOAT32, FrameCodec
+from tryon.api.frames import BODY_VERTEX_LAYOUT, FLOAT32, FrameCodec, frame_due
 from tryon.api.pool import CachedTryOn, RunGuard
 from tryon.api.schemas.bodies import PoseIn, to_body_params
 from tryon.api.schemas.tryon import TryOnRequest
@@ -315,8 +315,8 @@ class LiveSession:
         if now < self._next_offer_at or self._model is None:
             return True
         # a fixed cadence (not "now + interval"): steps rarely land on the deadline, and waiting a full
-        # interval from a late step would deliver well under fps; the sender still spaces frames 1/fps apart
-        self._next_offer_at = max(self._next_offer_at + self.interval_s, now - self.interval_s)
+        # interval from a late step would deliver well under fps; the sender keeps the same cadence
+        self._next_offer_at = frame_due(self._next_offer_at, now, self.interval_s)
         payload = self.codec.encode(self._model.expand(coarse))
         if self.live:
             if self.update_first_frame_at is None:

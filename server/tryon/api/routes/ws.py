@@ -55,7 +55,7 @@ from pydantic import ValidationError
 from starlette.websockets import WebSocketState
 
 from tryon.api.deps import get_catalogue
-from tryon.api.frames import FrameCodec, encode_frame
+from tryon.api.frames import FrameCodec, encode_frame, frame_due
 from tryon.api.live import LiveSession, LiveTryOnRequest, PoseUpdate, done_message, failure_reason, replay_parts, \
     resume_live, run_live, shown_model, with_encoding
 from tryon.body.params import Pose
@@ -84,10 +84,10 @@ def validation_reason(error: ValidationError) -> str:
     return "invalid request: " + "; ".join(parts)
 
 async def _sender(ws: WebSocket, session: LiveSession) -> None:
-    """Send init, then the latest frame whenever one is due (1 / fps after the last one) and the socket
-    is free, until finished."""
+    """Send init, then the latest frame whenever one is due (on a 1 / fps cadence, ``frame_due``) and the
+    socket is free, until finished."""
     init_sent = False
-    last_sent = -1e9
+    due = -1e9  # the earliest the next frame may go (``frame_due``)
     try:
         while True:
             await session.wake.wait()
@@ -98,7 +98,6 @@ async def _sender(ws: WebSocket, session: LiveSession) -> None:
                 await ws.send_text(session.init)
                 init_sent = True
             if init_sent and session.latest is not None:
-                due = last_sent + session.interval_s
                 # a loop, not one sleep: uvloop's timers count from the loop's cached time, which may be a
                 # millisecond or more behind the clock under load, so a sleep can end that much early
                 while (wait := due - time.monotonic()) > 0:
@@ -109,7 +108,7 @@ async def _sender(ws: WebSocket, session: LiveSession) -> None:
                 now = time.monotonic()
                 data = encode_frame(session.frames_sent, step, payload, now - session.started_at)
                 await ws.send_bytes(data)
-                last_sent = now
+                due = frame_due(due, now, session.interval_s)
                 if session.first_frame_at is None:
                     session.first_frame_at = now
                 session.frames_sent += 1
@@ -148,9 +147,9 @@ def _pose_update(session: LiveSession, text: str) -> None:
 
 
 async def _live_sender(ws: WebSocket, session: LiveSession) -> None:
-    """A live session's sender after the first done: the outbox in order, each frame no sooner than 1 / fps
-    after the one before, a frame's body motion (``body_pose``) right before it when it changed."""
-    last_sent = -1e9
+    """A live session's sender after the first done: the outbox in order, the frames on a 1 / fps cadence
+    (``frame_due``), a frame's body motion (``body_pose``) right before it when it changed."""
+    due = -1e9  # the earliest a frame may go: a fixed cadence of 1 / fps (``frame_due``)
     last_motion = None
     try:
         while not session.cancelled.is_set():
@@ -166,7 +165,7 @@ async def _live_sender(ws: WebSocket, session: LiveSession) -> None:
                     session.bytes_sent += len(item[1])
                     continue
                 _, step, payload, motion = item
-                while (wait := last_sent + session.interval_s - time.monotonic()) > 0:
+                while (wait := due - time.monotonic()) > 0:
                     await asyncio.sleep(wait)
                 if motion is not None and motion != last_motion:
                     await ws.send_text(motion)
@@ -175,7 +174,7 @@ async def _live_sender(ws: WebSocket, session: LiveSession) -> None:
                 data = encode_frame(session.frames_sent, step, payload, now - session.started_at)
                 await ws.send_bytes(data)
                 session.frame_sent.set()
-                last_sent = now
+                due = frame_due(due, now, session.interval_s)
                 session.frames_sent += 1
                 session.bytes_sent += len(data)
     except (WebSocketDisconnect, RuntimeError, OSError):

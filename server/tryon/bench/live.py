@@ -4,8 +4,9 @@ sent after the last one's done. Per update, on the client's clock: the time to i
 (the garment at rest in the new pose), and what the done says (penetrating vertices, sleeves and legs round
 their limbs, whether the carried drape lost a sleeve and was draped afresh, the deepest the cloth went inside
 the body on the way: ``motion_max_penetration_mm``). Then the T-shirt M in a session of its own through changes
-of 30 degrees (``THIRTY_DEGREES``), the issue's settle target. Quick mode: the T-shirt, three named poses, two
-changes of 30 degrees."""
+of 30 degrees (``THIRTY_DEGREES``), the issue's settle target, and in one more a slider dragged (``drag``: updates
+sent at a browser's input rate, not waiting for any done): the frames that come while it moves. Quick mode: the
+T-shirt, three named poses, two changes of 30 degrees, one drag."""
 
 from __future__ import annotations
 
@@ -38,6 +39,12 @@ THIRTY_DEGREES = ({"arm_angle": 60}, {"arm_angle": 30}, {"arm_angle": 60}, {"arm
                   {"arm_angle": 30, "elbow_bend": 30}, {"arm_angle": 30}, {"arm_angle": 30, "arm_forward": 30},
                   {"arm_angle": 30})
 THIRTY_GARMENT = "tshirt-m.obj"
+# A slider dragged: the T-shirt M in a session of its own, both arms from 30 to 60 degrees and back, each drag
+# DRAG_UPDATES updates of one degree sent DRAG_RATE a second (a browser's input events, not waiting for any
+# done), at the page's frame rate (``web/app.js``: 30 fps). Issue 30: frames at 30 a second while a slider moves.
+DRAG_UPDATES = 30
+DRAG_RATE = 30.0
+DRAG_FPS = 30
 # s: the issue's targets (medians of the client's clock): an update's first frame, a 30 degree change at rest.
 FIRST_FRAME_TARGET = 0.05
 SETTLE_TARGET = 0.5
@@ -119,6 +126,55 @@ def _until_done(ws) -> tuple[float | None, float | None, dict]:
             return first, stepped, d
 
 
+def drag(ws, start: float, end: float, last_update: int) -> dict:
+    """Drag the arms' slider from ``start`` to ``end`` degrees over a live session ``ws`` (its first done already
+    read): ``DRAG_UPDATES`` updates ``DRAG_RATE`` a second from a thread, frames read meanwhile, until the done of
+    the last (the session's update ``last_update``: the server numbers them from 1). The frames that came while the slider moved (client clock): how many a second, the median and 95th
+    percentile gap between two; the re-poses the server started (its body messages), the dones, the time from
+    the last update to its done and that done's checks."""
+    import threading
+
+    frames, bodies, dones, sent = [], 0, [], []
+
+    def send():
+        t0 = time.monotonic()
+        for k in range(1, DRAG_UPDATES + 1):
+            time.sleep(max(0.0, t0 + (k - 1) / DRAG_RATE - time.monotonic()))
+            ws.send(json.dumps({"type": "pose", "pose": {"arm_angle": start + (end - start) * k / DRAG_UPDATES}}))
+        sent.append(time.monotonic())
+
+    t0 = time.monotonic()
+    sender = threading.Thread(target=send)
+    sender.start()
+    body_follows = False
+    while True:
+        m = ws.recv(timeout=TIMEOUT_S)
+        now = time.monotonic()
+        if isinstance(m, bytes):
+            if not body_follows:
+                frames.append(now)
+            body_follows = False
+            continue
+        d = json.loads(m)
+        if d["type"] == "error":
+            raise RuntimeError(f"live session error: {d}")
+        body_follows = d["type"] == "body"
+        bodies += body_follows
+        if d["type"] == "done":
+            dones.append(d)
+            if d["update"] == last_update:
+                break
+    sender.join()
+    moving = [t for t in frames if t <= sent[0]]
+    gaps = np.diff([t0] + moving)
+    m = dones[-1]["metrics"]
+    return {"from": start, "to": end, "updates": DRAG_UPDATES, "drag_s": sent[0] - t0, "frames": len(moving),
+            "frames_per_s": len(moving) / (sent[0] - t0), "gap_median_s": float(np.median(gaps)),
+            "gap_p95_s": float(np.percentile(gaps, 95)), "reposes": bodies, "dones": len(dones),
+            "done_after_s": now - sent[0], "penetrating": m.get("penetrating_vertices"),
+            "on_limbs": m.get("openings_on_limbs"), "motion_mm": m.get("motion_max_penetration_mm")}
+
+
 def run(ctx: Context, sec: Section) -> None:
     from websockets.sync.client import connect
 
@@ -174,7 +230,17 @@ def run(ctx: Context, sec: Section) -> None:
                         ctx.log(f"  live {d['garment']} {d['pose']}: first frame {fmt(d['first_frame_s'])} s, "
                                 f"first step {fmt(d['first_step_s'])} s, "
                                 f"done {fmt(d['done_s'])} s, penetrating {d['penetrating']}")
-    sec.data = {"body": BODIES["medium"], "updates": data}
+            drags = []
+            with connect(url, max_size=None, open_timeout=30) as ws:
+                ws.send(json.dumps({"garment_id": ids[THIRTY_GARMENT], "measurements": BODIES["medium"], "live": True,
+                                    "encoding": "uint16", "fps": DRAG_FPS, "pose": {"arm_angle": 30}}))
+                _until_done(ws)
+                for k, (a, b) in enumerate(((30.0, 60.0), (60.0, 30.0))[:1 if ctx.quick else 2]):
+                    drags.append(drag(ws, a, b, (k + 1) * DRAG_UPDATES))
+                    g = drags[-1]
+                    ctx.log(f"  live drag {a:g} -> {b:g}: {fmt(g['frames_per_s'])} frames/s, gap median "
+                            f"{fmt(g['gap_median_s'])} s, p95 {fmt(g['gap_p95_s'])}, {g['reposes']} re-poses")
+    sec.data = {"body": BODIES["medium"], "updates": data, "drags": drags}
     sec.tables.append(Table(
         "Pose updates over a live WebSocket (medium body, each update sent after the last one's done)",
         ["garment", "pose", "first frame (s)", "first step (s)", "at rest (s)", "steps", "at rest", "penetrating",
@@ -189,6 +255,19 @@ def run(ctx: Context, sec: Section) -> None:
               f"each side's arm out 0-90, forwards 0-60, elbow 0-120, leg 0-20 degrees (seed {SEED}); '30 "
               "degrees': a session of its own, each update 30 degrees from the one before (both arms out 30 <-> 60, "
               "elbows 0 <-> 30, forwards 0 <-> 30), the issue's settle target.")))
+    sec.tables.append(Table(
+        f"Dragging a slider (T-shirt M, both arms, {DRAG_UPDATES} updates of one degree, {DRAG_RATE:g} a second, "
+        f"at {DRAG_FPS} fps)",
+        ["arms (degrees)", "drag (s)", "frames while moving", "frames / s", "gap median (s)", "gap p95 (s)",
+         "re-poses started", "dones", "done after the last update (s)", "penetrating", "sleeves / legs",
+         "motion penetration (mm)"],
+        [[f"{g['from']:g} -> {g['to']:g}", fmt(g["drag_s"]), g["frames"], fmt(g["frames_per_s"]),
+          fmt(g["gap_median_s"]), fmt(g["gap_p95_s"]), g["reposes"], g["dones"], fmt(g["done_after_s"]),
+          g["penetrating"], fmt(g["on_limbs"]), fmt(g["motion_mm"])] for g in drags],
+        note=("client clock; 'frames while moving': the frames that came between the first update and the last "
+              "(a body message's vertices not counted), the gaps between them from the first update; re-poses "
+              "started: the server's body messages (updates arriving while a re-pose moves the body wait, and "
+              "the latest wins); a done only for the last update (those given way to get none).")))
     first = [d["first_frame_s"] for d in data if d["first_frame_s"] is not None]
     stepped = [d["first_step_s"] for d in data if d["first_step_s"] is not None]
     settle = [d["done_s"] for d in data]
@@ -204,4 +283,7 @@ def run(ctx: Context, sec: Section) -> None:
         f"T-shirt M at rest median {fmt(np.median(thirty))} s (p95 {fmt(np.percentile(thirty, 95))}, target "
         f"{SETTLE_TARGET}); nothing in the body and every sleeve and leg round its limb in {ok}/{len(data)}, draped afresh "
         f"{sum(d['redraped'] for d in data)}; deepest in the body on the way {fmt(max(motion, default=None))} mm "
-        f"(median {fmt(float(np.median(motion)) if motion else None)})")
+        f"(median {fmt(float(np.median(motion)) if motion else None)}); dragging a slider at {DRAG_FPS} fps: "
+        f"{', '.join(fmt(g['frames_per_s']) for g in drags)} frames/s (gap p95 "
+        f"{', '.join(fmt(g['gap_p95_s']) for g in drags)} s), {sum(g['dones'] for g in drags)} dones for "
+        f"{len(drags) * DRAG_UPDATES} updates")

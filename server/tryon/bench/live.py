@@ -16,6 +16,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import urllib.request
 from contextlib import contextmanager
@@ -129,11 +130,10 @@ def _until_done(ws) -> tuple[float | None, float | None, dict]:
 def drag(ws, start: float, end: float, last_update: int) -> dict:
     """Drag the arms' slider from ``start`` to ``end`` degrees over a live session ``ws`` (its first done already
     read): ``DRAG_UPDATES`` updates ``DRAG_RATE`` a second from a thread, frames read meanwhile, until the done of
-    the last (the session's update ``last_update``: the server numbers them from 1). The frames that came while the slider moved (client clock): how many a second, the median and 95th
-    percentile gap between two; the re-poses the server started (its body messages), the dones, the time from
-    the last update to its done and that done's checks."""
-    import threading
-
+    the last (the session's update ``last_update``: the server numbers them from 1). The frames that came while
+    the slider moved (client clock): how many a second, the median and 95th percentile gap between two; the
+    re-poses the server started (its body messages), the dones, the time from the last update to its done and
+    that done's checks."""
     frames, bodies, dones, sent = [], 0, [], []
 
     def send():

@@ -221,3 +221,27 @@ def test_the_hands_straightened_are_the_same_body_built_with_the_wrists_straight
     assert np.allclose(np.linalg.norm(axis[1] - axis[0]), np.linalg.norm(turned.part_axes[k, 1] - axis[0]))
     kr = PART_NAMES.index("forearm_r")  # the right hand is not turned: its own axis
     assert np.array_equal(turned.maps.part_axes[kr], turned.part_axes[kr])
+
+
+def test_bodies_of_the_same_measurements_share_the_torso_hulls_and_are_the_same_bodies(monkeypatch):
+    """A re-pose builds the same person in another pose: the torso's section hulls (the arm-press test's, the
+    torso and its copy grown for the hands) are made once and kept, and a body built with them is the one
+    built with hulls made afresh, to the bit."""
+    import tryon.body.build as build
+    import tryon.body.sections as sections
+
+    m = MEDIUM
+    sections._kept.clear()
+    first = build_body(m, pose_from("hands_on_hips"))
+    kept = list(sections._kept.values())
+    assert len(kept) == 2  # the torso and the grown torso
+    again = build_body(m, Pose(arm_angle=0))
+    assert list(sections._kept.values()) == kept  # no new hulls: the same torso
+    assert sum(len(h.hulls) for h in kept) > 0
+    # another person's torso gets hulls of its own
+    build_body(Measurements(height=160.0, chest=88.0, waist=70.0, hips=94.0), Pose(arm_angle=0))
+    assert len(sections._kept) == 4
+    monkeypatch.setattr(build, "section_hulls", lambda v, e, s: sections.SectionHulls(v, e, s))
+    for pose, body in ((pose_from("hands_on_hips"), first), (Pose(arm_angle=0), again)):
+        fresh = build_body(m, pose)
+        assert np.array_equal(fresh.vertices, body.vertices) and fresh.pose == body.pose

@@ -20,7 +20,7 @@ from functools import lru_cache
 import numpy as np
 
 from tryon.body import nurbs
-from tryon.body.sections import SectionHulls
+from tryon.body.sections import SectionHulls, section_hulls
 from tryon.geometry import face_vertex_normals
 from tryon.body.maps import build_part_maps
 from tryon.body.measure import horizontal_breadth, horizontal_girth, hull_perimeter, mesh_edges, section_girth
@@ -262,9 +262,9 @@ def build_body(m: Measurements, pose: Pose = Pose(), resolution: int = DEFAULT_R
     torso_vertices, torso_edges = shape_points["torso", "left"], g.part_edges[PART_NAMES.index("torso")]
     start, stop = g.part_faces[PART_NAMES.index("torso")]
     torso_faces = g.faces[start:stop] - g.part_vertices[PART_NAMES.index("torso")][0]
-    torso = SectionHulls(torso_vertices, torso_edges, SECTION_STEP)
-    grown = SectionHulls(torso_vertices + HAND_GAP * face_vertex_normals(torso_vertices, torso_faces)[1], torso_edges,
-                         SECTION_STEP)
+    torso = section_hulls(torso_vertices, torso_edges, SECTION_STEP)
+    grown = section_hulls(torso_vertices + HAND_GAP * face_vertex_normals(torso_vertices, torso_faces)[1], torso_edges,
+                          SECTION_STEP)
     chest_y = layouts["left"].landmarks["levels"]["chest"]
 
     def pressing(side: str) -> bool:

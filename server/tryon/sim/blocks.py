@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit, prange
 
 from tryon.sim.collision.kernels import collide_points
-from tryon.sim.constraints import sweep_downward, tally_block
+from tryon.sim.constraints import sweep_downward
 
 # springs: a garment with fewer keeps one block (the perf T-shirt has 16,938, the catalogue at most 12,480)
 MIN_SPLIT_SPRINGS = 15_000
@@ -101,7 +101,10 @@ def block_order(order, blocks):
     sizes = np.zeros(3, dtype=np.int64)
     sizes[2] = blocks[2]
     for q in range(order.shape[0]):
-        tally_block(sizes, order[q], blocks)
+        if order[q] < na:
+            sizes[0] += 1
+        elif order[q] < m:
+            sizes[1] += 1
     a, b, c = 0, sizes[0], sizes[0] + sizes[1]
     for q in range(order.shape[0]):
         s = order[q]

@@ -278,17 +278,6 @@ def _blocked_pass(x, inv_mass, ends, table, blocks, backward, relax):
 ONE_BLOCK = np.zeros(3, dtype=np.int64)
 
 
-@njit(cache=True, nogil=True, inline="always")
-def tally_block(counts, index, blocks):
-    """Count spring ``index`` (into springs in block order, ``blocks`` (3,): A = [0, blocks[0]), B = the next
-    blocks[1], then the boundary) into the entry of ``counts`` (3,) int64 for its block, A or B (the boundary
-    is what is left)."""
-    if index < blocks[0]:
-        counts[0] += 1
-    elif index < blocks[0] + blocks[1]:
-        counts[1] += 1
-
-
 @njit(cache=True, nogil=True, fastmath=True)
 def solve_listed(x, x_prev, inv_mass, ends, table, passes, listed, plane_point, plane_normal, mu_static,
                  mu_kinetic, push, relax=1.0, blocks=ONE_BLOCK):

@@ -71,6 +71,11 @@ def test_same_upload_twice_is_the_same_entry(client, skirt_obj):
     assert first.status_code == 201 and second.status_code == 200
     assert first.json()["id"] == second.json()["id"]
     assert len(client.get("/api/garments").json()["garments"]) == 1
+    # the same bytes named as another format are refused as that format would be, not taken as the entry
+    as_glb = upload(client, skirt_obj, filename="skirt.glb")
+    assert as_glb.status_code == 422 and as_glb.json()["detail"].startswith("file: skirt.glb is not a readable GLB"), \
+        as_glb.text
+    assert len(client.get("/api/garments").json()["garments"]) == 1
 
 
 def test_simplify_parameter(client, skirt_obj):

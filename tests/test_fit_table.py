@@ -114,4 +114,7 @@ def test_input_errors_are_said_in_words(tmp_path, data_dir, bodies, capsys):
     assert main(["fit-table", "tshirt", "--bodies", str(tmp_path / "none.csv"), "--out", out, "--data-dir",
                  str(data_dir)]) == 2
     assert "cannot read" in capsys.readouterr().err
+    nowhere = str(tmp_path / "no-such-dir" / "t.csv")
+    assert main(["fit-table", "tshirt", "--bodies", str(bodies), "--out", nowhere, "--data-dir", str(data_dir)]) == 2
+    assert f"cannot write {nowhere}: there is no directory {tmp_path / 'no-such-dir'}" in capsys.readouterr().err
     assert not Path(out).exists()

@@ -284,6 +284,58 @@ def test_api_random_bytes_are_a_422_in_our_words(client, catalogued, ext):
     assert client.get("/api/garments").json() == catalogued
 
 
+def _stl(mesh) -> bytes:
+    import trimesh  # noqa: F401 (the export below)
+
+    return mesh.export(file_type="stl")
+
+
+def _unwearable_meshes():
+    import trimesh
+
+    triangle = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+    return [
+        ("a 1 m box", _stl(trimesh.creation.box()), "box-shirt.stl", "12 triangles, too few to drape as cloth"),
+        ("one triangle", triangle, "tiny-shirt.obj", "1 triangle, too few to drape as cloth"),
+        ("a closed ball", _stl(trimesh.creation.icosphere(subdivisions=2, radius=0.3)), "ball-shirt.stl",
+         "closed surface"),
+    ]
+
+
+@pytest.mark.parametrize("units", ["m", "auto"])
+def test_api_unwearable_meshes_are_422s_and_the_service_lives_on(client, catalogued, units):
+    # a box uploaded as a shirt used to crash the process (its simplification kept no triangle)
+    for label, data, name, words in _unwearable_meshes():
+        r = upload(client, data, filename=name, category="top", units=units)
+        assert r.status_code == 422, (label, r.text)
+        detail = r.json()["detail"]
+        assert words in detail, (label, detail)
+        assert_our_words(detail)
+    assert client.get("/api/health").status_code in (200, 503)
+    assert client.get("/api/garments").json() == catalogued
+
+
+def test_declared_units_must_give_a_wearable_size():
+    tube = TUBE.encode()  # 0.3 m across, 0.5 m tall in metres
+    assert load_garment(tube, "tube.obj", "m").units == "m"
+    with pytest.raises(GarmentError, match=r"read as mm, the garment would be 0.5 mm tall and 0.3 mm wide: no "
+                                           r"garment a person wears is that small; check the units"):
+        load_garment(tube, "tube.obj", "mm")
+    with pytest.raises(GarmentError, match="that small"):
+        load_garment(tube, "tube.obj", "in")  # 1.27 cm tall: small too
+    big = "\n".join(" ".join(["v"] + [f"{20 * float(c):g}" for c in line.split()[1:]]) if line.startswith("v ") else line
+                    for line in TUBE.splitlines())
+    with pytest.raises(GarmentError, match=r"10 m tall and 6 m wide: no garment a person wears is that large"):
+        load_garment(big.encode(), "tube.obj", "m")
+
+
+def test_cli_refuses_a_box_with_a_message(tmp_path, capsys):
+    box = tmp_path / "box-shirt.stl"
+    box.write_bytes(_unwearable_meshes()[0][1])
+    assert main(["ingest", str(box), "--units", "m", "--data-dir", str(tmp_path / "data")]) == 1
+    assert "too few to drape as cloth" in capsys.readouterr().out
+
+
 def test_api_category_defaults_to_auto_and_is_guessed_from_the_file_name(client):
     r = upload(client, TUBE.encode(), filename="tube-skirt.obj")  # no category field
     assert r.status_code == 201 and r.json()["category"] == "bottom", r.text

@@ -54,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"cannot read {args.bodies}: {exc.strerror}") from None
     except (ValueError, UnicodeDecodeError) as exc:
         raise CliError(f"{args.bodies} is not a bodies CSV: {exc}") from None
+    if not args.out.resolve().parent.is_dir():
+        raise CliError(f"cannot write {args.out}: there is no directory {args.out.resolve().parent}")
     try:
         skip = done_pairs(args.out)
     except (OSError, KeyError, UnicodeDecodeError):
@@ -80,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
                 print(f"[{written + failed}/{todo}] {rate:.2f} advice/s", file=sys.stderr, flush=True)
     except RayUnavailable as exc:
         raise CliError(str(exc), code=1) from None
+    except OSError as exc:
+        raise CliError(f"cannot write {args.out}: {exc.strerror or exc}", code=1) from None
     print(f"\n{written} rows written to {args.out} in {time.perf_counter() - started:.1f} s"
           + (f"; {failed} failed (run again to retry them)" if failed else ""), file=sys.stderr)
     return 1 if failed else 0

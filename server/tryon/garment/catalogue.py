@@ -33,7 +33,7 @@ from collections import OrderedDict
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
-from tryon.garment.ingest import GarmentError, file_extension, load_garment
+from tryon.garment.ingest import GarmentError, check_readable, file_extension, load_garment
 from tryon.garment.model import GarmentMeta, GarmentModel
 from tryon.garment.prepare import DEFAULT_DENSITY, DEFAULT_SIMPLIFICATION, prepare
 from tryon.garment.sizes import check_labels, size_order
@@ -325,6 +325,7 @@ class Catalogue:
                           density=float(density), sha256=sha, ext=ext, style=style, chart=chart, data=data)
         existing = self.get(gid)
         if existing is not None:
+            check_readable(data, filename)  # the same bytes under another name must still be what it says
             if style is not None and (existing.style, existing.size, existing.chart) != (style, size, chart):
                 self._check_size_free(style, size, gid)
                 with self._connect() as db:

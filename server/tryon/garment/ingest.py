@@ -35,8 +35,10 @@ AUTO_PREFERENCE = ("m", "cm", "mm", "dm", "in")
 # (it goes around an adult's hips or chest); at most 2.2 m wide (sleeves of a T-pose top).
 WEARABLE_HEIGHT_M = (0.2, 1.6)
 WEARABLE_WIDTH_M = (0.28, 2.2)
-# Declared units that make the garment shorter than 5 cm or taller than 5 m are surely wrong.
-SANE_SIZE_M = (0.05, 5.0)
+# Declared units are trusted within wider bounds than the guess's (a child's garment, a long train, a
+# panel lying flat), but units that make the garment's largest extent under 15 cm (6 cm: a T-shirt in cm
+# declared as mm) or over 3 m make it no garment a person wears: they are wrong.
+DECLARED_SIZE_M = (0.15, 3.0)
 
 FORMATS = ("obj", "glb", "gltf", "ply", "stl", "off")
 REFUSED_FORMATS = {
@@ -65,6 +67,9 @@ FLAT_PANEL_RATIO = 0.01
 # tab, line feed, carriage return, form feed, and the DOS end-of-file mark) is binary data: random bytes
 # have 11%, a text file none or a stray one.
 MAX_CONTROL_BYTE_FRACTION = 0.001
+# Fewer triangles than this cannot drape as cloth (a box has 12; the smallest real garment we have seen,
+# the MakeHuman outfits' pieces, about 2,000): the simulation needs a surface that can fold.
+MIN_FACES = 24
 
 
 class GarmentError(ValueError):
@@ -128,6 +133,7 @@ def load_garment(data: bytes, filename: str, units: str = "auto", max_faces: int
     vertices, faces = _clean(vertices, faces, notes)
     _refuse_sewing_pattern(vertices, faces, stitches)
     vertices, faces = _largest_components(vertices, faces, notes)
+    _refuse_unwearable(faces)
     vertices = _orient_y_up(vertices, faces, notes)
     vertices, units, guessed = _to_metres(vertices, units, notes)
     return CleanMesh(vertices=vertices, faces=faces, units=units, units_guessed=guessed, notes=notes)
@@ -143,6 +149,12 @@ def _unreadable(filename: str, ext: str, reason: str) -> GarmentError:
 
 def _format_name(ext: str) -> str:
     return "glTF" if ext == "gltf" else ext.upper()
+
+
+def check_readable(data: bytes, filename: str) -> None:
+    """GarmentError if ``data`` is visibly not the format its ``filename`` says (``_readable``'s checks, no
+    parsing): what a re-upload of a file already in the catalogue is checked for under its new name."""
+    _readable(data, file_extension(filename), filename)
 
 
 def _readable(data: bytes, ext: str, filename: str) -> bytes:
@@ -503,6 +515,20 @@ def _count_lines(data: bytes, keyword: bytes) -> int:
     return data.count(b"\n" + keyword + b" ") + int(data.startswith(keyword + b" "))
 
 
+def _refuse_unwearable(faces: np.ndarray) -> None:
+    """Refuse a mesh that cannot be put on and draped: too few triangles to fold (``MIN_FACES``), or a closed
+    surface (no open edge at all: a solid box, a ball, a body scan), which has no opening for the head,
+    arms, waist or legs."""
+    if len(faces) < MIN_FACES:
+        raise GarmentError(f"the mesh has {len(faces)} triangle{'s' if len(faces) != 1 else ''}, too few to drape as "
+                           f"cloth (at least {MIN_FACES}): upload the garment's full mesh")
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    _, uses = np.unique(edges, axis=0, return_counts=True)
+    if not (uses == 1).any():
+        raise GarmentError("the mesh is a closed surface (no open edge anywhere): a garment has openings for the "
+                           "body (neck, arms, waist, legs); a solid object or a body scan cannot be worn")
+
+
 def _refuse_sewing_pattern(vertices: np.ndarray, faces: np.ndarray, stitches: int = 0) -> None:
     """Refuse a file of flat, unsewn pattern panels: it is not a garment that can be worn yet. ``stitches``:
     the file's non-standard ``stitch`` lines (Codim-IPC's sewing instructions), named in the refusal: the
@@ -593,6 +619,13 @@ def _largest_opening_normal(vertices: np.ndarray, faces: np.ndarray) -> np.ndarr
     return vt[2]
 
 
+def _length(metres: float) -> str:
+    """A length for a message: in m from 1 m, cm from 1 cm, else mm."""
+    if metres >= 1.0:
+        return f"{metres:.3g} m"
+    return f"{metres * 100:.3g} cm" if metres >= 0.01 else f"{metres * 1000:.3g} mm"
+
+
 def _to_metres(vertices: np.ndarray, units: str, notes: list[str]) -> tuple[np.ndarray, str, bool]:
     """Scale to metres by declared units, or guess them (``auto``) from the garment's size."""
     ext = np.ptp(vertices, axis=0)
@@ -600,9 +633,11 @@ def _to_metres(vertices: np.ndarray, units: str, notes: list[str]) -> tuple[np.n
     if units != "auto":
         scale = UNIT_SCALE[units]
         size = max(ext) * scale
-        if not SANE_SIZE_M[0] <= size <= SANE_SIZE_M[1]:
+        if not DECLARED_SIZE_M[0] <= size <= DECLARED_SIZE_M[1]:
             raise GarmentError(
-                f"read as {units}, the garment would be {size:.3g} m across: check the units (or use auto)"
+                f"read as {units}, the garment would be {_length(height * scale)} tall and {_length(width * scale)} "
+                f"wide: no garment a person wears is {'that small' if size < DECLARED_SIZE_M[0] else 'that large'}; "
+                "check the units (or use auto)"
             )
         return vertices * scale, units, False
     if max(ext) <= 0:

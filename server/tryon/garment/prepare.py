@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tryon.garment.ingest import CleanMesh
+from tryon.garment.ingest import CleanMesh, GarmentError
 from tryon.garment.model import GarmentMeta, GarmentModel
 from tryon.garment.simplify import attach, collapse_with_parents
 from tryon.garment.springs import SPRING_KINDS, spring_model
@@ -39,6 +39,8 @@ def prepare(mesh: CleanMesh, *, id: str, name: str, category: str, size: str | N
     kg/m^2 times the full mesh's area), re-attach the full mesh."""
     v, f = mesh.vertices, mesh.faces
     kept, coarse_faces, root = collapse_with_parents(f, len(v), simplification, v)
+    if len(coarse_faces) == 0:
+        raise GarmentError(f"simplified to B = {simplification:g}, the mesh keeps no triangle: ask for a larger B")
     coarse_v = v[kept]
     springs, rest, kind = spring_model(coarse_v, coarse_faces)
     mass = lumped_masses(coarse_v, coarse_faces, density * triangle_areas(v, f).sum())

@@ -51,6 +51,9 @@ MIN_QUALITY_FALLBACK = 0.12
 # Neighbourhood scratch size (faces around the three vertices of a collapse); a collapse touching more
 # is skipped (never happens on garment meshes, whose vertex valence is < 20).
 SCRATCH_FACES = 4096
+# A piece keeps at least this many vertices whatever B asks: a closed piece (which no opening guards)
+# would otherwise collapse to a point and leave no face to simulate.
+MIN_PIECE_VERTICES = 8
 
 
 def collapse_faces(faces: np.ndarray, n_vertices: int, B: float, vertices: np.ndarray | None = None
@@ -71,7 +74,7 @@ def collapse_with_parents(faces: np.ndarray, n_vertices: int, B: float, vertices
     vf_start, vf_list = _vertex_faces(faces, n_vertices)
     fixed, bnext, bprev, loop_id, loop_count, loop_min = _boundary(faces, n_vertices, B, guard)
     piece, piece_kept = _pieces(faces, n_vertices)
-    piece_target = np.floor(B * piece_kept).astype(np.int64)
+    piece_target = np.maximum(np.floor(B * piece_kept), np.minimum(piece_kept, MIN_PIECE_VERTICES)).astype(np.int64)
     vnorm = vertex_normals(pos, faces) if guard else pos
     fv, alive, parent = _collapse_kernel(
         faces, n_vertices, piece, piece_kept, piece_target, pos, vnorm, guard, vf_start, vf_list, fixed,

@@ -10,9 +10,10 @@ A :class:`RunGuard` wraps a drape's ``on_frame`` callback: it returns False (sto
 is gone or the simulation is past its wall-clock limit, and records which of the two stopped it.
 
 A large garment's spring passes run on two threads (``sim.blocks``, the same numbers on one or two): a
-try-on running alone gets the machine's cores, two at once one each (set when a job starts and again at
+try-on running alone may use the machine's cores, two at once one each (set when a job starts and again at
 every frame, so a running try-on gives a core back when another starts): the try-ons per minute with two
-at once stay those of two single-threaded runs.
+at once stay those of two single-threaded runs. A try-on allowed two threads uses one while another
+program keeps a core busy (``threads.ThreadChoice``): two threads are then slower than one.
 
 :class:`ResultCache` keeps the last ``settings.result_cache_size`` finished try-ons in memory (LRU),
 keyed by :func:`request_key` (:func:`tryon_key` for a request): the canonical JSON of garment id,
@@ -36,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from tryon.api.deps import app_state
+from tryon.api.threads import ThreadChoice
 from tryon.sim.blocks import machine_threads, use_threads
 
 # Seconds a refused client is told to wait (Retry-After): about one typical drape on this hardware.
@@ -153,8 +155,9 @@ class RunGuard:
     cancelled: set by the caller (e.g. the WebSocket went away): the next call raises
         :class:`RunCancelled`, so the worker is free at once.
     on_frame: an optional inner callback ``(step, coarse (k, 3)) -> bool | None``; False also stops.
-    threads: an optional ``() -> int``, the threads the run may use now (``SimPool.thread_share``), set at
-    every frame. After the run, ``stopped_by`` is None (ran to rest or to its step limit), ``"wall_limit"``,
+    threads: an optional ``() -> int``, the threads the run may use now (``SimPool.thread_share``); at every
+    frame the run uses that many, or one while other programs keep a core busy (``ThreadChoice``).
+    After the run, ``stopped_by`` is None (ran to rest or to its step limit), ``"wall_limit"``,
     ``"cancelled"`` or ``"callback"``.
     """
 
@@ -168,6 +171,7 @@ class RunGuard:
         self.started: float | None = None
         self.stopped_by: str | None = None
         self.frames = 0
+        self.choice = ThreadChoice()
 
     def start(self) -> "RunGuard":
         if self.started is None:
@@ -188,7 +192,7 @@ class RunGuard:
             self.stopped_by = "wall_limit"
             return False
         if self.threads is not None:
-            use_threads(self.threads())
+            use_threads(self.choice.threads(self.threads()))
         if self.on_frame is not None and self.on_frame(step, coarse) is False:
             self.stopped_by = "callback"
             return False

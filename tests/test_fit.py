@@ -206,6 +206,69 @@ def test_ingest_command_takes_style_and_chart(tmp_path, files, capsys):
 # --- ease on a known garment ------------------------------------------------------------------------------
 
 
+def test_a_band_too_small_that_slid_down_is_tight_not_falling_off():
+    from tryon.fit.verdict import judge
+
+    small = {"stays_up": False, "slid_cm": 15.2, "too_tight": {"torso waist": 40, "thigh_l": 12}}
+    verdict, reason = judge("bottom", small, {"waist": None, "hips": None})
+    assert verdict == "tight"
+    assert reason == ("too tight at the waist and the left thigh: the cloth is stretched past its limit there (and it "
+                      "slid 15 cm down from where it was put on)")
+    large = {"stays_up": False, "slid_cm": 25.0, "too_tight": {}}
+    assert judge("bottom", large, {"waist": None, "hips": None}) == (
+        "falls_off", "does not stay on the hips: it slid 25 cm down from where it was put on")
+
+
+@pytest.mark.parametrize("verdicts,slid,expected,words", [
+    # trousers on a 90 cm waist, 99 cm hips: L's band a little wider than the waist rests on the hips
+    (["tight", "tight", "falls_off", "fits", "not_draped"], [1, 1, 11, 2, None], "L",
+     "L is the smallest size that is not too tight anywhere (S, M too tight); it sits 11 cm lower than it was put on"),
+    # the chart's S measured a little looser than M: S, not the larger M
+    (["loose", "fits", "not_draped", "not_draped", "not_draped"], [1, 1, None, None, None], "S",
+     "S is the smallest size that is not too tight anywhere; it is loose: 17 cm"),
+    (["tight", "tight", "tight", "tight", "loose"], [15, 14, 13, 2, 1], "XXL", "XXL is the smallest size that is not"),
+    (["not_draped", "tight", "fits", "fits", "not_draped"], [None, 1, 1, 1, None], "L",
+     "L is the smallest size that fits without being tight anywhere (M too tight)"),
+    (["fits", "tight", "fits", "loose", "not_draped"], [1, 1, 1, 1, None], "S", "S is the smallest size that fits"),
+    (["not_draped", "not_draped", "tight", "fits", "tight"], [None, None, 1, 1, 5], "XL", "(L too tight)"),
+    (["tight", "falls_off", "fits", "fits", "not_draped"], [1, 30, 2, 2, None], None,
+     "no size fits: M, the smallest that is not too tight (S too tight), does not stay on"),
+    (["tight", "tight", "tight", "not_draped", "not_draped"], [1, 1, 1, None, None], None,
+     "every size draped is too tight: the largest, L, is"),
+])
+def test_the_answer_is_the_smallest_size_not_too_tight(verdicts, slid, expected, words):
+    from tryon.fit.verdict import recommend
+
+    sizes = ["S", "M", "L", "XL", "XXL"]
+    reasons = {"tight": "too tight at the waist: the cloth is stretched past its limit there",
+               "loose": "loose: 17 cm of ease at the hips (over 16 cm); stays on the hips",
+               "fits": "6 cm of ease at the hips; stays on the hips",
+               "falls_off": "does not stay on the hips: it slid 30 cm down from where it was put on",
+               "not_draped": "not draped"}
+    size, why = recommend(sizes, verdicts, [reasons[v] for v in verdicts], slid)
+    assert size == expected and words in why, why
+
+
+def test_a_larger_body_never_gets_a_smaller_size():
+    """Whatever the sizes' verdicts, a body that makes more sizes tight (a larger body) never gets a smaller
+    recommendation: seeded random verdicts, and the same with the tight ones extended upwards."""
+    import random
+
+    from tryon.fit.verdict import recommend
+
+    rng = random.Random(7)
+    sizes = ["S", "M", "L", "XL", "XXL"]
+    for _ in range(500):
+        verdicts = [rng.choice(["tight", "fits", "loose", "falls_off", "not_draped"]) for _ in sizes]
+        slid = [rng.choice([2.0, 12.0, 30.0]) for _ in sizes]
+        k = rng.randrange(len(sizes))
+        larger = ["tight" if i <= k and v != "not_draped" else v for i, v in enumerate(verdicts)]
+        a, _ = recommend(sizes, verdicts, verdicts, slid)
+        b, _ = recommend(sizes, larger, larger, slid)
+        if a is not None and b is not None:
+            assert sizes.index(b) >= sizes.index(a), (verdicts, larger, a, b)
+
+
 def test_ease_of_a_tube_of_known_girth_around_a_known_body():
     """A straight tube around the body's waist and hips, its sections 8 cm longer than the body's hips: its
     tape ease is its girth minus the body's at each level, within 1 cm."""

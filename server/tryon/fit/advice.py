@@ -35,11 +35,13 @@ class SizeAdvice:
     too_tight: dict = field(default_factory=dict)
     max_strain: float | None = None
     stays_up: bool | None = None
+    slid_cm: float | None = None
 
     def as_dict(self) -> dict:
         return {"size": self.size, "garment_id": self.garment_id, "verdict": self.verdict,
                 "ease_cm": self.ease_cm, "cloth_ease_cm": self.cloth_ease_cm, "too_tight": self.too_tight,
-                "max_strain": self.max_strain, "stays_up": self.stays_up, "reason": self.reason}
+                "max_strain": self.max_strain, "stays_up": self.stays_up, "slid_cm": self.slid_cm,
+                "reason": self.reason}
 
 
 def chart_position(charts: list[dict | None], measurements: dict) -> dict[str, float]:
@@ -90,7 +92,7 @@ def advise_size(size: str, garment_id: str, category: str, body: Body, vertices:
         ease_cm={k: (round(g.ease_cm, 1) if g else None) for k, g in girths.items()},
         cloth_ease_cm={k: (round(g.cloth_ease_cm, 1) if g else None) for k, g in girths.items()},
         too_tight=dict(metrics.get("too_tight") or {}), max_strain=round(float(metrics["max_strain"]), 5),
-        stays_up=bool(metrics.get("stays_up", True)))
+        stays_up=bool(metrics.get("stays_up", True)), slid_cm=float(metrics.get("slid_cm", 0.0)))
 
 
 def not_draped(size: str, garment_id: str, reason: str) -> SizeAdvice:
@@ -99,7 +101,8 @@ def not_draped(size: str, garment_id: str, reason: str) -> SizeAdvice:
 
 def recommendation(advice: list[SizeAdvice]) -> tuple[str | None, str]:
     """``verdict.recommend`` over the sizes' advice in order."""
-    return recommend([a.size for a in advice], [a.verdict for a in advice], [a.reason for a in advice])
+    return recommend([a.size for a in advice], [a.verdict for a in advice], [a.reason for a in advice],
+                     [a.slid_cm for a in advice])
 
 
 @dataclass

@@ -4,10 +4,13 @@ reason in words; and the recommendation over a style's sizes.
 In this order (the first that applies):
 - ``not_draped``: the size was not simulated (its chart is far from the person's, or the run was cut
   short by the service's wall-clock limit).
+- ``tight``, before anything else when the drape holds springs over their limit around the body
+  (``too_tight``: the cloth would have to stretch more than it can): a waistband far smaller than the waist
+  slides down too, but it is too small, not too large (trousers S on a 113 cm waist slid 15 cm, their cloth
+  at 2.5x its length).
 - ``falls_off``: the drape's ``stays_up`` is false: it slid off the shoulders or the hips (a waistband
   wider than the hips). Every other figure of such a drape is measured where it lies, not where it is worn.
-- ``tight``: the drape holds springs over their limit around the body (``too_tight``: the cloth would have
-  to stretch more than it can), or a top's cloth is shorter than the chest (``MIN_CLOTH_EASE_CM``).
+- ``tight``: a top's cloth is shorter than the chest (``MIN_CLOTH_EASE_CM``).
 - ``loose``: at a covered girth the draped garment has more tape ease than ``MAX_EASE_CM``.
 - ``fits``: none of these.
 
@@ -44,6 +47,10 @@ MIN_CLOTH_EASE_CM = {"chest": 0.0}
 MAX_EASE_CM = {"chest": 16.0, "waist": 16.0, "hips": 16.0}
 # Where a garment hangs from, by category: what "stays up" means in words.
 HANGS_FROM = {"top": "the shoulders", "dress": "the shoulders", "bottom": "the hips"}
+# cm: the smallest size that is not too tight is still recommended if it slid at most this far from where it
+# was put on (``metrics.SLID_LIMIT_CM`` calls it falling off from 10 cm): trousers L on a man with a 90 cm waist
+# and 99 cm hips slid 11 cm, their band a little wider than his waist resting on his hips, as it would.
+SITS_LOW_CM = 20.0
 
 
 def _cm(x: float) -> str:
@@ -65,12 +72,13 @@ def judge(category: str, metrics: dict, girths: dict[str, Girth | None]) -> tupl
     """(verdict, reason) of one drape: its ``metrics`` (``TryOnResult.metrics``: too_tight, stays_up,
     slid_cm, sized_to_body) and its ``girths`` (``ease.measure_ease``). See the module doc."""
     hangs = HANGS_FROM.get(category, "the body")
-    if not metrics.get("stays_up", True):
+    slid = metrics.get("stays_up", True) is False
+    if slid and not metrics.get("too_tight"):
         return "falls_off", (f"does not stay on {hangs}: it slid {_cm(metrics.get('slid_cm', 0.0))} down from "
                              f"where it was put on")
     measured = {k: g for k, g in girths.items() if g is not None}
     short = []  # (place, words)
-    if not metrics.get("sized_to_body", False):
+    if not metrics.get("sized_to_body", False) and not slid:  # a slid garment's girths are not where it is worn
         for name, g in measured.items():
             if name in MIN_CLOTH_EASE_CM and g.cloth_ease_cm < MIN_CLOTH_EASE_CM[name]:
                 short.append((name, f"too tight at the {name}: {_cm(g.cloth_ease_cm)} short"))
@@ -81,7 +89,8 @@ def judge(category: str, metrics: dict, girths: dict[str, Girth | None]) -> tupl
         where = stretched[0] if len(stretched) == 1 else f"{', '.join(stretched[:-1])} and {stretched[-1]}"
         short.append(("", f"too tight at {where}: the cloth is stretched past its limit there"))
     if short:
-        return "tight", "; ".join(words for _, words in short)
+        fell = f" (and it slid {_cm(metrics.get('slid_cm', 0.0))} down from where it was put on)" if slid else ""
+        return "tight", "; ".join(words for _, words in short) + fell
     over = [(n, g) for n, g in measured.items() if g.ease_cm > MAX_EASE_CM[n]]
     if over:
         return "loose", "loose: " + ", ".join(f"{_cm(g.ease_cm)} of ease at the {n} (over {MAX_EASE_CM[n]:g} cm)"
@@ -98,21 +107,32 @@ def _ease_phrase(measured: dict[str, Girth]) -> str:
     return ", ".join([first, *parts[1:]])
 
 
-def recommend(sizes: list[str], verdicts: list[str], reasons: list[str]) -> tuple[str | None, str]:
-    """(recommended size or None, why in words) over a style's ``sizes`` in order with their verdicts: the
-    smallest that fits without being tight anywhere."""
-    for size, verdict in zip(sizes, verdicts):
-        if verdict == "fits":
-            smaller = [s for s, v in zip(sizes, verdicts) if v == "tight" and sizes.index(s) < sizes.index(size)]
-            why = f"{size} is the smallest size that fits without being tight anywhere"
-            return size, why + (f" ({', '.join(smaller)} too tight)" if smaller else "")
-    draped = [(s, v, r) for s, v, r in zip(sizes, verdicts, reasons) if v != "not_draped"]
+def recommend(sizes: list[str], verdicts: list[str], reasons: list[str],
+              slid_cm: list[float | None] | None = None) -> tuple[str | None, str]:
+    """(recommended size or None, why in words) over a style's ``sizes`` in order with their verdicts (and how
+    far each drape slid, cm): the smallest draped size that is not too tight. No larger size can be less
+    tight, only looser: if that size fits, it is the answer; if it is loose, or slid at most ``SITS_LOW_CM`` (a
+    band a little wider than the waist rests lower, on the hips), it is still the best there is and the
+    answer says what is wrong with it; if it slid further, no size fits. So a body larger in every girth
+    (more sizes too tight) never gets a smaller size because one size's drape came out a little looser than
+    the next one's (trousers S loose at 17 cm of hip ease and M fitting at 16 cm, on a body the chart calls
+    S: before, M)."""
+    slid_cm = slid_cm or [None] * len(sizes)
+    draped = [i for i, v in enumerate(verdicts) if v != "not_draped"]
     if not draped:
         return None, "no size was draped"
-    if all(v == "tight" for _, v, _ in draped):
-        s, _, r = draped[-1]
-        return None, f"every size draped is too tight: the largest, {s}, is {r}"
-    if all(v in ("loose", "falls_off") for _, v, _ in draped):
-        s, v, r = draped[0]
-        return None, f"every size draped is too large: even {s} {'is ' + r if v == 'loose' else r}"
-    return None, "no size fits: " + "; ".join(f"{s} {v.replace('_', ' ')}" for s, v, _ in draped)
+    tight = [i for i in draped if verdicts[i] == "tight"]
+    free = [i for i in draped if verdicts[i] != "tight"]
+    if not free:
+        return None, f"every size draped is too tight: the largest, {sizes[tight[-1]]}, is {reasons[tight[-1]]}"
+    i = free[0]
+    size, verdict, reason = sizes[i], verdicts[i], reasons[i]
+    smaller = [sizes[k] for k in tight if k < i]
+    tight_words = f" ({', '.join(smaller)} too tight)" if smaller else ""
+    if verdict == "fits":
+        return size, f"{size} is the smallest size that fits without being tight anywhere{tight_words}"
+    sits_low = verdict == "falls_off" and slid_cm[i] is not None and slid_cm[i] <= SITS_LOW_CM
+    if verdict == "loose" or sits_low:
+        what = f"is {reason}" if verdict == "loose" else f"sits {_cm(slid_cm[i])} lower than it was put on"
+        return size, f"{size} is the smallest size that is not too tight anywhere{tight_words}; it {what}"
+    return None, f"no size fits: {size}, the smallest that is not too tight{tight_words}, {reason}"

@@ -46,12 +46,15 @@ class SizeFitOut(BaseModel):
                                                        "length - 1); null if not draped")
     stays_up: bool | None = Field(None, description="whether the garment stayed on the shoulders / hips; null if "
                                                     "not draped")
+    slid_cm: float | None = Field(None, description="how far the garment's top ended under where it was put on, "
+                                                    "cm (over 10: it does not stay up); null if not draped")
     reason: str = Field(description="the verdict in words")
 
 
 class FitOut(BaseModel):
     style: str = Field(description="style id")
-    recommended: str | None = Field(description="the smallest size that fits without being tight anywhere, or "
+    recommended: str | None = Field(description="the smallest size above every size that is too tight, if it "
+                                                "fits, is loose, or sits at most 20 cm lower than put on; else "
                                                 "null (see reason)")
     reason: str = Field(description="why that size, or why none")
     sizes: list[SizeFitOut] = Field(description="every size of the style, in order")

@@ -495,6 +495,19 @@ def test_api_refuses_non_finite_numbers(client, text, field, words):
     assert detail["loc"][-1] == field and words in detail["msg"]
 
 
+@pytest.mark.parametrize("payload, field, words", [
+    ({"measurements": {**AVERAGE, "height": True}}, "height", "measurements.height must be a number (cm), got true"),
+    ({"measurements": {**AVERAGE, "chest": "100"}}, "chest", 'measurements.chest must be a number (cm), got "100"'),
+    ({"measurements": AVERAGE, "pose": {"arm_angle": "45"}}, "arm_angle", 'pose.arm_angle must be a number'),
+])
+def test_api_refuses_booleans_and_strings_as_numbers(client, payload, field, words):
+    """JSON true was read as 1 (and refused as 'outside [140, 210]'), "170" as 170: both are a client's mistake."""
+    r = client.post("/api/bodies", json=payload)
+    assert r.status_code == 422
+    detail = r.json()["detail"][0]
+    assert detail["loc"][-1] == field and words in detail["msg"], detail
+
+
 def test_api_refuses_implausible_combinations(client):
     r = client.post("/api/bodies", json={"measurements": {**AVERAGE, "inseam": 105}})
     assert r.status_code == 422

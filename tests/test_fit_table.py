@@ -114,6 +114,11 @@ def test_input_errors_are_said_in_words(tmp_path, data_dir, bodies, capsys):
     assert main(["fit-table", "tshirt", "--bodies", str(tmp_path / "none.csv"), "--out", out, "--data-dir",
                  str(data_dir)]) == 2
     assert "cannot read" in capsys.readouterr().err
+    typo = tmp_path / "typo.csv"
+    typo.write_text("subjectid,stature,chestcircumference,waistcircumference,buttockcircumference\n"
+                    "1,1700,960,820,1000\n2,1700,96O,820,1000\n")
+    assert main(["fit-table", "tshirt", "--bodies", str(typo), "--out", out, "--data-dir", str(data_dir)]) == 2
+    assert "line 3: chestcircumference is '96O', not a number (mm)" in capsys.readouterr().err
     nowhere = str(tmp_path / "no-such-dir" / "t.csv")
     assert main(["fit-table", "tshirt", "--bodies", str(bodies), "--out", nowhere, "--data-dir", str(data_dir)]) == 2
     assert f"cannot write {nowhere}: there is no directory {tmp_path / 'no-such-dir'}" in capsys.readouterr().err

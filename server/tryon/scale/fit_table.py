@@ -28,6 +28,14 @@ class Person:
     measurements: dict
 
 
+def _is_number(text: str | None) -> bool:
+    try:
+        float(text)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
 def read_bodies(path: Path) -> list[Person]:
     """Every person of an ANSUR II style CSV (millimetres; columns stature, chestcircumference,
     waistcircumference, buttockcircumference). ValueError naming the row for a missing column or a value
@@ -44,7 +52,8 @@ def read_bodies(path: Path) -> list[Person]:
             try:
                 people.append(Person(str(row.get("subjectid") or f"row {i}"), ansur_measurements(row)))
             except ValueError:
-                raise ValueError(f"line {i}: a measurement is not a number") from None
+                bad = next(c for c in REQUIRED_COLUMNS if not _is_number(row.get(c)))
+                raise ValueError(f"line {i}: {bad} is {row.get(bad)!r}, not a number (mm)") from None
     return people
 
 

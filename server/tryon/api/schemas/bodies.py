@@ -7,6 +7,7 @@ longer than the legs can be, a waist twice the chest) are refused with the ratio
 
 from __future__ import annotations
 
+import json
 import math
 from typing import Literal
 
@@ -39,7 +40,9 @@ def _range_check(kind: str, ranges: dict, unit: str):
     ge / le constraints stay on the fields for the schema, and as a backstop)."""
 
     def check(cls, value, info: ValidationInfo):
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if isinstance(value, (bool, str)):  # JSON true or "170": not taken as 1 or 170
+            raise ValueError(f"{kind}.{info.field_name} must be a number ({unit}), got {json.dumps(value)}")
+        if isinstance(value, (int, float)):
             if not math.isfinite(value):  # NaN / Infinity / 1e400 (Python's json reads them)
                 raise ValueError(f"{kind}.{info.field_name} must be a finite number ({unit}), got {value}")
             lo, hi = ranges[info.field_name]

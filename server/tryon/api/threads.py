@@ -3,8 +3,8 @@
 A large garment's passes run on two threads (``sim.blocks``) when the pool gives a try-on both cores. On a
 machine shared with other programs that is a gamble: every pass ends at a barrier where one thread waits for
 the other, and a thread that shares its core with another program waits for its turn on that core. Measured
-on the 2-core machine with a real 20,579-spring dress (``dress-straps-diffavatar``, the mid-size woman, 96
-steps, ``/work/scratch/trial_eval.py``):
+on the 2-core machine with a real 20,579-spring dress (``dress-straps-diffavatar``, a mid-size woman, 96
+steps; drapes of one thread and of two in turn, with 0, 1 and 2 busy loops of another process):
 
 | other programs busy | one thread, s | two threads, s |
 |---|---|---|

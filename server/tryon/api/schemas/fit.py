@@ -53,9 +53,9 @@ class SizeFitOut(BaseModel):
 
 class FitOut(BaseModel):
     style: str = Field(description="style id")
-    recommended: str | None = Field(description="the smallest size above every size that is too tight, if it "
-                                                "fits, is loose, or sits at most 20 cm lower than put on; else "
-                                                "null (see reason)")
+    recommended: str | None = Field(description="the smallest draped size that is not too tight, if it fits, is "
+                                                "loose, or sits at most 20 cm lower than put on (the reason says "
+                                                "which); else null (see reason)")
     reason: str = Field(description="why that size, or why none")
     sizes: list[SizeFitOut] = Field(description="every size of the style, in order")
     wall_seconds: float = Field(description="wall-clock time of this answer, s")

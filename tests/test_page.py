@@ -200,6 +200,13 @@ def test_server_errors_are_shown_in_words(page):
     page.fill("#field-height", "500")
     assert page.get_attribute("#field-height", "aria-invalid") == "true"
     assert page.locator("#tryon-button").is_disabled()
+    # and said under the field, where a phone shows it too (a tooltip alone is not seen there)
+    error = page.locator("#field-height-error")
+    assert error.is_visible() and error.inner_text() == "Must be between 140 and 210 cm."
+    page.fill("#field-height", "")
+    assert error.inner_text() == "Enter a number between 140 and 210 cm."
+    page.fill("#field-height", "172")
+    assert error.is_hidden() and page.get_attribute("#field-height", "aria-invalid") is None
     assert [p for p in page.problems if "422" not in p] == []  # the refused request is the only noise
 
 

@@ -66,7 +66,8 @@ def chromium(browser):
 def open_page(browser, url: str, width: int, height: int):
     """A page at width x height; below 820 px wide a phone's (touch, overlay scrollbars)."""
     phone = width < 820
-    context = browser.new_context(viewport={"width": width, "height": height}, is_mobile=phone, has_touch=phone)
+    context = browser.new_context(viewport={"width": width, "height": height}, is_mobile=phone, has_touch=phone,
+                                  accept_downloads=True)
     page = context.new_page()
     page.problems = []
     page.on("console", lambda m: m.type in ("error", "warning") and not any(b in m.text for b in BENIGN)
@@ -232,6 +233,14 @@ def test_the_fit_summary_judges_the_shown_mesh(browser, big_shop):
         assert at["Too tight at"] == {"value": "nowhere", "tone": ""}  # not green beside a strain at the limit
         beyond = strain(0.25)
         assert beyond["Max strain"] == {"value": "25 %: beyond the cloth's 10 % stretch limit", "tone": "bad"}
+        # every simulated spring within its own limit (a T-shirt L hanging loose, its shown mesh at 17.5 %):
+        # at the limit, not beyond it; with springs over, beyond
+        kinds = {"structural": {"max": 0.103, "limit": 0.1, "over": 0}, "shear": {"max": 0.152, "limit": 0.15, "over": 0}}
+        loose = show(page, {**BASE_METRICS, "display_max_strain": 0.175, "strain_by_kind": kinds})
+        assert loose["Max strain"] == {"value": "18 %: at the cloth's 10 % stretch limit", "tone": "warn"}
+        kinds["shear"]["over"] = 12
+        tight = show(page, {**BASE_METRICS, "display_max_strain": 0.175, "strain_by_kind": kinds})
+        assert tight["Max strain"] == {"value": "18 %: beyond the cloth's 10 % stretch limit", "tone": "bad"}
         broken = strain(3.67)  # the MakeHuman blouse of issue 32, a sleeve opened to a gap
         assert broken["Max strain"]["value"].startswith("367 %: far beyond")
         assert broken["Max strain"]["tone"] == "bad"

@@ -9,6 +9,7 @@ the new pose. The layout stays within the screen at 1366 x 768 and 390 x 844. Sc
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -82,6 +83,15 @@ def test_named_poses_side_sliders_and_live_reposing(browser, pose_shop, width, h
         page.wait_for_timeout(400)
         page.screenshot(path=str(ARTIFACTS / f"page-pose-{width}x{height}-live.png"))
         assert page.evaluate(LAYOUT_PROBLEMS) == []
+        # "Motion .glb": the garment moving through the poses it settled in (the A-pose, then arms raised)
+        assert page.evaluate("window.tryon.motionPoses.length") == 2
+        with page.expect_download(timeout=120_000) as download:
+            page.click("#download-motion")
+        assert download.value.suggested_filename == "t-shirt-m-motion.glb"
+        glb = Path(download.value.path()).read_bytes()
+        assert glb[:4] == b"glTF"
+        gltf = json.loads(glb[20:20 + int.from_bytes(glb[12:16], "little")])
+        assert len(gltf["animations"]) >= 1
         assert page.problems == []
     finally:
         context.close()

@@ -28,6 +28,7 @@ const state = {
   live: null,           // the open live session (re-posing) after a try-on, or null
   poseUpdates: 0,       // pose updates sent over it
   poseDones: 0,         // their settles' done messages received
+  motionPoses: [],      // the poses the garment settled in since the try-on, for "Motion .glb" (at most 10)
 };
 window.tryon = state;
 
@@ -285,6 +286,7 @@ async function tryOn() {
   // uint16 frames: half the bytes of float32, 0.04 mm steps (far below what a screen shows); one garment
   // stays live for re-posing (an outfit is draped once)
   const payload = { ...tryOnPayload(), fps: 30, encoding: 'uint16' };
+  state.motionPoses = [form.poseValues()];
   if (payload.garment_id) payload.live = true;
   state.state = 'draping';
   state.framesReceived = 0;
@@ -321,6 +323,7 @@ async function tryOn() {
     onBodyPose(parts) { stage.poseBody(parts); },
     onPoseDone(done) {
       state.poseDones++;
+      if (done.metrics?.pose) rememberPose(done.metrics.pose);
       state.done = done;
       showDone(done);
       setProgress(1, 'Done.');
@@ -338,6 +341,7 @@ async function tryOn() {
     setProgress(1, done.cached ? 'Done (from the fitting-room memory).' : 'Done.');
     setTimeout(() => { if (state.state === 'done') $('progress').hidden = true; }, 1500);
     $('result').hidden = false;
+    $('download-motion').hidden = Boolean(payload.garment_ids);  // a motion is of one garment
     if (NARROW.matches) $('result').scrollIntoView({ block: 'start' });
     $('legend').hidden = !$('fitmap-toggle').checked;
     state.state = 'done';
@@ -585,6 +589,29 @@ $('download-garment').addEventListener('click', (e) => withBusy(e.currentTarget,
   const worn = [state.garmentId, state.companionId].filter(Boolean).map((id) => garmentById(id)?.name || 'garment');
   const name = worn.join(' with ').replace(/\W+/g, '-').toLowerCase();
   saveBlob(glb, `${name}-fitted.glb`);
+}));
+// The poses a garment settled in, in order, each once in a row; the last MAX_MOTION_POSES kept.
+const MAX_MOTION_POSES = 10;
+function rememberPose(pose) {
+  const last = state.motionPoses.at(-1);
+  if (last !== undefined && JSON.stringify(last) === JSON.stringify(pose)) return;
+  state.motionPoses = [...state.motionPoses, pose].slice(-MAX_MOTION_POSES);
+}
+// What "Motion .glb" animates: the poses tried since the try-on, or, if none was tried yet, a short tour from
+// the pose the garment was tried on in.
+function motionPoses() {
+  const tried = state.motionPoses;
+  return tried.length >= 2 ? tried : [tried[0] ?? form.poseValues(), 'arms_raised', 'hands_on_hips', tried[0] ?? 'a_pose'];
+}
+$('download-motion').addEventListener('click', (e) => withBusy(e.currentTarget, async () => {
+  const poses = motionPoses();
+  const { pose: _, ...request } = form.tryOnRequest(state.garmentId);
+  setProgress(0.1, `Draping the motion: ${poses.length} poses…`);
+  const response = await postJSON('/api/tryon?format=glb', { ...request, poses });
+  const name = (garmentById(state.garmentId)?.name || 'garment').replace(/\W+/g, '-').toLowerCase();
+  saveBlob(await response.blob(), `${name}-motion.glb`);
+  setProgress(1, `Motion saved: ${poses.length} poses.`);
+  setTimeout(() => { if (state.state === 'done') $('progress').hidden = true; }, 1500);
 }));
 $('download-body').addEventListener('click', (e) => withBusy(e.currentTarget, async () => {
   const response = await postJSON('/api/bodies?format=glb', form.bodyRequest());

@@ -93,9 +93,16 @@ class Field {
       });
       label.append(this.reset);
     }
-    wrap.append(label, numberBox, slider);
+    // what is wrong with the entry, in words under the field (a tooltip alone is not seen on a phone)
+    const error = document.createElement('p');
+    error.className = 'field-error';
+    error.id = `${id}-error`;
+    error.setAttribute('role', 'alert');
+    error.hidden = true;
+    number.setAttribute('aria-describedby', error.id);
+    wrap.append(label, numberBox, slider, error);
     container.append(wrap);
-    this.wrap = wrap; this.slider = slider; this.number = number;
+    this.wrap = wrap; this.slider = slider; this.number = number; this.error = error;
 
     const start = spec.default ?? spec.estimate ?? (spec.min + spec.max) / 2;
     slider.value = start;
@@ -130,11 +137,14 @@ class Field {
   }
 
   validate() {
-    if (this.auto) { this.number.removeAttribute('aria-invalid'); return true; }
     const v = Number(this.number.value);
-    const ok = this.number.value !== '' && Number.isFinite(v) && v >= this.spec.min && v <= this.spec.max;
+    const ok = this.auto || (this.number.value !== '' && Number.isFinite(v) && v >= this.spec.min && v <= this.spec.max);
     if (ok) this.number.removeAttribute('aria-invalid'); else this.number.setAttribute('aria-invalid', 'true');
-    this.number.title = ok ? '' : `between ${fmt(this.spec.min)} and ${fmt(this.spec.max)} ${this.spec.unit}`;
+    const range = `between ${fmt(this.spec.min)} and ${fmt(this.spec.max)} ${this.spec.unit}`;
+    this.number.title = ok ? '' : range;
+    // an entry the browser cannot read as a number ("17a") reaches here as ''
+    this.error.textContent = ok ? '' : (this.number.value === '' ? `Enter a number ${range}.` : `Must be ${range}.`);
+    this.error.hidden = ok;
     return ok;
   }
 

@@ -28,15 +28,21 @@ export function percent(ratio) {
   return `${Math.abs(p) < 10 ? p.toFixed(1) : Math.round(p)} %`;
 }
 
-/** The shown mesh's largest strain (`display_max_strain`) in words, relative to the cloth's limit. */
-export function describeStrain(strain, limit = DEFAULT_STRAIN_LIMIT) {
+/**
+ * The shown mesh's largest strain (`display_max_strain`) in words, relative to the cloth's limit.
+ * `springsOver`: the simulated springs past their own type's limit (`strain_by_kind`), or null if unknown. With
+ * none, a shown strain between 1.5 L and 3 L is the shown mesh following the simulated one between its points
+ * (a T-shirt L hanging loose: every spring within its limit, the shown mesh 17.5 %), not cloth stretched past
+ * its limit: it is told as at the limit, not beyond it.
+ */
+export function describeStrain(strain, limit = DEFAULT_STRAIN_LIMIT, springsOver = null) {
   if (!Number.isFinite(strain)) return { value: '—', tone: '' };
   const L = Number.isFinite(limit) && limit > 0 ? limit : DEFAULT_STRAIN_LIMIT;
   const figure = percent(strain);
   const limitText = `${Number((L * 100).toFixed(1))} %`;  // "10 %", "12.5 %"
   if (strain < RELAXED_RATIO * L) return { value: `${figure}: relaxed`, tone: 'good' };
   if (strain <= L) return { value: `${figure}: stretched, within the cloth's ${limitText} limit`, tone: '' };
-  if (strain <= AT_LIMIT_RATIO * L) {
+  if (strain <= AT_LIMIT_RATIO * L || (springsOver === 0 && strain <= FAR_BEYOND_RATIO * L)) {
     return { value: `${figure}: at the cloth's ${limitText} stretch limit`, tone: 'warn' };
   }
   // not "too small here": the page cannot say where (the fit map shows the simulated mesh's strain), and
@@ -73,7 +79,9 @@ export function metricRows(m, { strainLimit = DEFAULT_STRAIN_LIMIT, stoppedBy = 
   const rows = [];
   const add = (name, { value, tone = '' }, wide = false) => rows.push({ name, value, tone, wide });
 
-  const strain = describeStrain(m.display_max_strain, strainLimit);
+  const kinds = m.strain_by_kind ? Object.values(m.strain_by_kind) : [];
+  const springsOver = kinds.length ? kinds.reduce((n, k) => n + (Number(k.over) || 0), 0) : null;
+  const strain = describeStrain(m.display_max_strain, strainLimit, springsOver);
   add('Max strain', strain, true);
   const withinLimit = strain.tone === 'good' || (strain.tone === '' && strain.value !== '—');
 

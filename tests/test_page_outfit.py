@@ -73,6 +73,13 @@ def test_a_top_and_a_bottom_worn_together(browser, outfit_shop, width, height):
         page.wait_for_timeout(300)
         ARTIFACTS.mkdir(exist_ok=True)
         page.screenshot(path=str(ARTIFACTS / f"page-outfit-{width}x{height}.png"))
+        assert not page.is_visible("#download-motion")  # a motion is of one garment
+        # an outfit does not follow a pose live: a new pose takes it off, and the page says so
+        requests = page.evaluate("window.tryon.bodyRequests")
+        page.select_option("#pose-name", "arms_raised")
+        page.wait_for_function(f"window.tryon.bodyRequests > {requests}", timeout=30_000)
+        assert page.is_visible("#notice") and "press “Try on” to see it on this one" in page.inner_text("#notice-text")
+        assert page.evaluate("window.tryon.state") == "ready"
         assert page.problems == []
     finally:
         context.close()

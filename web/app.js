@@ -48,6 +48,11 @@ function showError(error) {
   $('notice').hidden = false;
   $('notice').scrollIntoView({ block: 'nearest' });  // the controls may be scrolled past it
 }
+function showInfo(message) {
+  $('notice').classList.add('info');
+  $('notice-text').textContent = message;
+  $('notice').hidden = false;
+}
 function clearNotice() { $('notice').hidden = true; }
 $('notice-close').addEventListener('click', clearNotice);
 
@@ -243,6 +248,8 @@ async function refreshBody() {
       $('legend').hidden = true;
       $('progress').hidden = true;
       state.state = 'ready';
+      // an outfit is draped once (only one garment follows a pose live), and new measurements are a new body
+      showInfo('The garment was draped on the body as it was: press “Try on” to see it on this one.');
     }
   } catch (error) {
     if (seq !== bodySeq) return;
@@ -408,7 +415,9 @@ function showMetrics(done, strainLimit = state.init?.strain_limit ?? DEFAULT_STR
   if (!Array.isArray(m.garments)) {
     for (const row of metricRows(m, { strainLimit, stoppedBy: done.stopped_by })) addRow(row);
     const g = done.garment || state.init?.garment || {};
-    $('result-garment').textContent = [g.name, g.size ? `size ${g.size}` : null].filter(Boolean).join(' · ');
+    // "T-shirt L", not "T-shirt L · size L": the size is named only when the name does not end with it
+    const sized = g.size && !g.name.endsWith(` ${g.size}`);
+    $('result-garment').textContent = [g.name, sized ? `size ${g.size}` : null].filter(Boolean).join(' · ');
     return;
   }
   for (const row of outfitRows(m)) addRow(row);

@@ -9,6 +9,9 @@ import { RoomEnvironment } from 'three/addons/environments/RoomEnvironment.js';
 import { GLTFExporter } from 'three/addons/exporters/GLTFExporter.js';
 import { strainColor } from './fitmap.js';
 
+// The view is framed on the body again when its height changes by more than this fraction.
+const REFRAME_HEIGHT_CHANGE = 0.06;
+
 const GARMENT_COLORS = { top: 0xb5523b, bottom: 0x3f5f8a, dress: 0x7a4f7f };
 
 function floorTexture() {
@@ -152,7 +155,14 @@ export class Stage {
       this.body.receiveShadow = true;
       this.scene.add(this.body);
     }
-    if (!this.framed) { this.frame(geometry.boundingBox); this.framed = true; }
+    // framed once; again when the body grew or shrank much (a 210 cm body after a 170 cm one lost its head
+    // above the view), from where the shopper turned the view to
+    const height = geometry.boundingBox.max.y - geometry.boundingBox.min.y;
+    if (!this.framed || Math.abs(height - this.framedHeight) > REFRAME_HEIGHT_CHANGE * this.framedHeight) {
+      this.frame(geometry.boundingBox, this.framed);
+      this.framed = true;
+      this.framedHeight = height;
+    }
     this.requestRender();
   }
 
@@ -189,15 +199,17 @@ export class Stage {
     this.requestRender();
   }
 
-  /** Point the camera at a box (the body), from the front and a little to the side. */
-  frame(box) {
+  /** Point the camera at a box (the body), from the front and a little to the side (`keepDirection`: from
+   * where it looks now). */
+  frame(box, keepDirection = false) {
     const size = box.getSize(new THREE.Vector3());
     const center = box.getCenter(new THREE.Vector3());
     const fov = THREE.MathUtils.degToRad(this.camera.fov);
     const fitHeight = (size.y * 1.3) / (2 * Math.tan(fov / 2));
     const fitWidth = (Math.max(size.x, size.z) * 1.5) / (2 * Math.tan(fov / 2) * this.camera.aspect);
     const distance = Math.max(fitHeight, fitWidth, 1.0);
-    const dir = new THREE.Vector3(0.28, 0.12, 1).normalize();
+    const dir = keepDirection ? this.camera.position.clone().sub(this.controls.target).normalize()
+      : new THREE.Vector3(0.28, 0.12, 1).normalize();
     this.controls.target.copy(center);
     this.camera.position.copy(center).addScaledVector(dir, distance);
     this.camera.near = distance / 50;

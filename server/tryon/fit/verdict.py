@@ -81,7 +81,11 @@ def judge(category: str, metrics: dict, girths: dict[str, Girth | None]) -> tupl
     if not metrics.get("sized_to_body", False) and not slid:  # a slid garment's girths are not where it is worn
         for name, g in measured.items():
             if name in MIN_CLOTH_EASE_CM and g.cloth_ease_cm < MIN_CLOTH_EASE_CM[name]:
-                short.append((name, f"too tight at the {name}: {_cm(g.cloth_ease_cm)} short"))
+                # the cloth's own length round the body (unstretched), not the draped tape girth (ease_cm: the
+                # cloth stretched over the body and lying off the skin): "+6 cm of ease" and "3 cm short" at once
+                # read as a contradiction on the page
+                short.append((name, f"too tight at the {name}: its cloth, unstretched, is {_cm(g.cloth_ease_cm)} "
+                                    f"shorter than the {name}"))
     named = {name for name, _ in short}
     stretched = [place_name(p) for p in metrics.get("too_tight") or {}
                  if not (p.startswith("torso ") and p[len("torso "):] in named)]

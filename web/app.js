@@ -568,6 +568,13 @@ $('fit-button').addEventListener('click', findSize);
 // On a narrow screen (the breakpoint of style.css) the fit summary is the first card of the controls,
 // under the 3D view, rather than a card over the figure it describes.
 const NARROW = matchMedia('(max-width: 820px)');
+// the fit summary lies over the stage's right side on a wide screen: the view centres the body beside it
+function syncStageInset() {
+  const card = $('result');
+  stage.setRightInset(!card.hidden && !NARROW.matches ? card.offsetWidth + 18 : 0);
+}
+new MutationObserver(syncStageInset).observe($('result'), { attributes: true, attributeFilter: ['hidden'] });
+NARROW.addEventListener('change', syncStageInset);
 function placeResult() {
   const result = $('result');
   if (NARROW.matches) $('notice').after(result);

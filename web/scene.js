@@ -108,6 +108,7 @@ export class Stage {
     this.strain = null;
     this.fitmapOn = false;
     this.framed = false;
+    this.rightInset = 0;  // px of the stage covered on its right (the fit summary): setRightInset
 
     // Render on demand: only when something changed (a frame arrived, the camera moved, a toggle), so an
     // idle page costs nothing; the loop itself only checks a flag. Damped orbiting keeps it going.
@@ -131,9 +132,21 @@ export class Stage {
 
   resize() {
     this.camera.aspect = this.aspect();
+    const w = Math.max(this.container.clientWidth, 1), h = Math.max(this.container.clientHeight, 1);
+    // a card over the stage's right side: the view's centre moves left by half its width, so the body stands
+    // in the middle of what is left (a raised right hand was under the fit summary at 1366 x 768)
+    if (this.rightInset > 0 && this.rightInset < w / 2) this.camera.setViewOffset(w, h, this.rightInset / 2, 0, w, h);
+    else this.camera.clearViewOffset();
     this.camera.updateProjectionMatrix();
     this.renderer.setSize(this.container.clientWidth, this.container.clientHeight);
     this.requestRender();
+  }
+
+  /** The width (px) of what covers the stage's right side, 0 for nothing. */
+  setRightInset(px) {
+    if (px === this.rightInset) return;
+    this.rightInset = px;
+    this.resize();
   }
 
   // ---- body -------------------------------------------------------------------------------

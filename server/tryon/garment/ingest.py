@@ -21,7 +21,7 @@ import scipy.sparse
 import scipy.sparse.csgraph
 import trimesh
 
-from tryon.garment.topology import vertex_pieces
+from tryon.garment.topology import boundary_loops, vertex_pieces
 
 log = logging.getLogger(__name__)
 
@@ -133,7 +133,7 @@ def load_garment(data: bytes, filename: str, units: str = "auto", max_faces: int
     vertices, faces = _clean(vertices, faces, notes)
     _refuse_sewing_pattern(vertices, faces, stitches)
     vertices, faces = _largest_components(vertices, faces, notes)
-    _refuse_unwearable(faces)
+    _refuse_unwearable(faces, len(vertices))
     vertices = _orient_y_up(vertices, faces, notes)
     vertices, units, guessed = _to_metres(vertices, units, notes)
     return CleanMesh(vertices=vertices, faces=faces, units=units, units_guessed=guessed, notes=notes)
@@ -515,16 +515,14 @@ def _count_lines(data: bytes, keyword: bytes) -> int:
     return data.count(b"\n" + keyword + b" ") + int(data.startswith(keyword + b" "))
 
 
-def _refuse_unwearable(faces: np.ndarray) -> None:
+def _refuse_unwearable(faces: np.ndarray, n_vertices: int) -> None:
     """Refuse a mesh that cannot be put on and draped: too few triangles to fold (``MIN_FACES``), or a closed
     surface (no open edge at all: a solid box, a ball, a body scan), which has no opening for the head,
     arms, waist or legs."""
     if len(faces) < MIN_FACES:
         raise GarmentError(f"the mesh has {len(faces)} triangle{'s' if len(faces) != 1 else ''}, too few to drape as "
                            f"cloth (at least {MIN_FACES}): upload the garment's full mesh")
-    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    _, uses = np.unique(edges, axis=0, return_counts=True)
-    if not (uses == 1).any():
+    if not boundary_loops(faces, n_vertices):
         raise GarmentError("the mesh is a closed surface (no open edge anywhere): a garment has openings for the "
                            "body (neck, arms, waist, legs); a solid object or a body scan cannot be worn")
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from tryon.bench.motion import MOTION_PENETRATION_TARGET_MM, motion_stress
+from tryon.bench.motion import MOTION_PENETRATION_TARGET_MM, deepest_part, motion_stress, too_tight_there
 from tryon.bench.stress import MAX_STRETCH, catalogue_models
 from tryon.body.build import build_body
 from tryon.body.params import Measurements, pose_from
@@ -45,6 +45,21 @@ def test_a_point_inside_a_turned_forearm_is_as_deep_as_it_was_put():
     assert deepest_inside(collider, turned[None]) == pytest.approx(0.005, abs=0.001)
     assert deepest_inside(collider, point[None]) == 0.0
     assert deepest_inside(collider, np.stack([point, turned])) == pytest.approx(0.005, abs=0.001)
+    # the motion stress says where: the forearm, for the deeper of a point 5 mm into it and one 2 mm into the
+    # torso's side
+    t = np.flatnonzero(body.vertex_part == body.parts.index("torso"))[0]
+    shallow = body.vertices[t] - 0.002 * body.vertex_normals[t]
+    assert deepest_part(collider, np.stack([shallow, turned])) == "forearm_l"
+
+
+def test_a_motion_too_deep_is_put_down_to_a_garment_too_tight_only_where_the_done_says_so():
+    """The motion stress's 'too tight there': the done's too_tight places (limbs by name, the torso by band)
+    name the part the deepest point was in."""
+    assert too_tight_there("upper_arm_r", {"upper_arm_r": 3, "torso chest": 1})
+    assert too_tight_there("torso", {"torso waist": 2})
+    assert not too_tight_there("upper_arm_l", {"upper_arm_r": 3, "torso chest": 1})
+    assert not too_tight_there("forearm_l", {})
+    assert not too_tight_there(None, {"torso chest": 1})
 
 
 def test_a_repose_reports_the_deepest_point_of_any_of_its_steps(tmp_path):
@@ -100,6 +115,9 @@ def test_random_pose_sequences_keep_the_cloth_out_of_the_body_and_on_the_limbs(s
     bad = [r for r in small_stress["records"] if not r["ok"]]
     assert a["motion_max_penetration_mm"] < MOTION_PENETRATION_TARGET_MM, bad
     assert a["ending_inside"] == 0 and a["off_limbs"] == 0, bad
+    # a settle whose cloth went in says where (the body part of its deepest point)
+    went_in = [r for r in small_stress["records"] if r["motion_mm"] > 0.0]
+    assert went_in and all(r["motion_part"] in build_body(MEDIUM).parts for r in went_in)
 
 
 def test_a_sleeve_caught_in_a_big_move_is_carried_again_through_the_midway_pose(tmp_path):

@@ -6,7 +6,9 @@ poses in a row, each from where the last left it.
 Checked at every frame (every step of every settle, the afresh drapes' included): positions finite (no NaN),
 the largest spring length / natural length (under ``MAX_STRETCH``). Per settle: a hang (not at rest within
 the settings' ``max_steps``, or an exception), the deepest coarse point inside the body as it was at each
-step (``motion_max_penetration_mm``, target under ``MOTION_PENETRATION_TARGET_MM``), and at its end what the
+step (``motion_max_penetration_mm``, target under ``MOTION_PENETRATION_TARGET_MM``; the body part that point was
+in, and whether the settle's done names that part too tight: a garment too small for the pose, held there by its
+springs at their limit, as issue 26 allows at rest), and at its end what the
 done of a live pose update says: vertices more than 2 mm inside the body (target 0) and every sleeve and
 trouser leg round its limb (``openings_on_limbs``; ``redraped``: the carried garment had one off and was
 draped afresh in that pose).
@@ -77,7 +79,9 @@ def random_pose(rng: np.random.Generator):
 
 class FrameCheck:
     """An ``on_frame`` callback that watches every frame of a drape of ``model``: whether every position was
-    finite, and the largest spring length / natural length seen (``worst``); ``reset`` starts a new settle."""
+    finite, and the largest spring length / natural length seen (``worst``); ``reset`` starts a new settle.
+    While it ``watch``es a re-posed drape, also the body part that drape's deepest point was in when ``settle``
+    last found a deeper one (``deepest_part``; None while nothing went in)."""
 
     def __init__(self, model):
         self.springs = np.ascontiguousarray(model.springs, dtype=np.int64)
@@ -86,6 +90,11 @@ class FrameCheck:
 
     def reset(self) -> None:
         self.finite, self.worst, self.frames = True, 0.0, 0
+        self.watch(None)
+
+    def watch(self, drape) -> None:
+        """Track where ``drape`` (being settled; None: none) goes deepest into the body, from now on."""
+        self.drape, self.depth_seen, self.deepest_part = drape, 0.0, None
 
     def __call__(self, step: int, x: np.ndarray) -> bool:
         from tryon.sim.constraints import spring_lengths
@@ -95,7 +104,27 @@ class FrameCheck:
             self.finite = False
             return True
         self.worst = max(self.worst, float((spring_lengths(x, self.springs) / self.rest).max()))
+        d = self.drape
+        if d is not None and d.state.x is x and d.motion_depth > self.depth_seen:
+            self.depth_seen = d.motion_depth
+            self.deepest_part = deepest_part(d.collider, x)
         return True
+
+
+def deepest_part(collider, x: np.ndarray) -> str:
+    """The name of the body part the deepest of the points ``x`` (k, 3) m is inside (the body as ``collider``
+    has it now)."""
+    parts = collider.body.parts
+    every = np.arange(len(parts), dtype=np.int64)
+    i = int(collider.depth(x, every, offset=False).argmax())
+    depths = [float(collider.depth(x[i:i + 1], every[k:k + 1], offset=False)[0]) for k in range(len(parts))]
+    return parts[int(np.argmax(depths))]
+
+
+def too_tight_there(part: str | None, too_tight: dict) -> bool:
+    """Whether a settle's ``too_tight`` places (``metrics.too_tight_places``: limb parts by name, the torso by
+    band) name the body part ``part``: the garment is too small for the pose where its cloth went in."""
+    return part is not None and any(place.split(" ")[0] == part for place in too_tight)
 
 
 def run_sequence(model, measurements, poses: list, settings=None) -> list[dict]:
@@ -123,10 +152,14 @@ def run_sequence(model, measurements, poses: list, settings=None) -> list[dict]:
         try:
             d = repose(d, build_body(measurements, pose))
             rec["transition_steps"] = int(d.arms.steps)
+            check.watch(d)
             result, _ = settle(d, check)
             m = result.metrics
             rec.update(steps=m["steps"], rest=bool(m["rest_reached"]),
-                       motion_mm=float(m["motion_max_penetration_mm"]), carried_on_limbs=m["openings_on_limbs"])
+                       motion_mm=float(m["motion_max_penetration_mm"]), carried_on_limbs=m["openings_on_limbs"],
+                       motion_part=check.deepest_part, too_tight=dict(m["too_tight"]))
+            rec["tight_there"] = too_tight_there(rec["motion_part"], rec["too_tight"])
+            check.watch(None)  # an afresh drape's frames (below) are not a motion
             d, result, redraped = redrape_if_off(d, result, check)
             m = result.metrics
             rec.update(redraped=redraped, penetrating=int(m["penetrating_vertices"]),
@@ -200,6 +233,8 @@ def summarise(records: list[dict]) -> dict:
             "motion_max_penetration_mm": max((r["motion_mm"] for r in done), default=0.0),
             "motion_median_mm": float(np.median([r["motion_mm"] for r in done])) if done else 0.0,
             "over_motion_target": sum(r["motion_mm"] >= MOTION_PENETRATION_TARGET_MM for r in done),
+            "over_motion_target_tight": sum(r["motion_mm"] >= MOTION_PENETRATION_TARGET_MM and r["tight_there"]
+                                            for r in done),
             "ending_inside": sum(r["penetrating"] > 0 for r in done),
             "carried_off_limbs": sum(r["carried_on_limbs"] is False for r in done),
             "off_limbs": sum(r["on_limbs"] is False for r in done),
@@ -221,7 +256,8 @@ def _failure(r: dict) -> str:
     if r["hang"]:
         out.append(f"not at rest in {r['steps']} steps")
     if r["motion_mm"] >= MOTION_PENETRATION_TARGET_MM:
-        out.append(f"motion {fmt(r['motion_mm'])} mm")
+        out.append(f"motion {fmt(r['motion_mm'])} mm in {r['motion_part']}"
+                   + (" (too tight there)" if r["tight_there"] else ""))
     if r["penetrating"]:
         out.append(f"{r['penetrating']} vertices inside at rest ({fmt(r['max_penetration_mm'])} mm)")
     if r["on_limbs"] is False:
@@ -251,19 +287,21 @@ def run(ctx: Context, sec: Section) -> None:
     rows = []
     for name, g in summary["garments"].items():
         rows.append([name, g["settles"], fmt(g["never_nan"]), fmt(g["max_stretch"]), g["hangs"],
-                     fmt(g["motion_max_penetration_mm"]), fmt(g["motion_median_mm"]), g["over_motion_target"],
+                     fmt(g["motion_max_penetration_mm"]), fmt(g["motion_median_mm"]), g["over_motion_target"], g["over_motion_target_tight"],
                      g["ending_inside"], g["carried_off_limbs"], g["off_limbs"], g["ok"], fmt(g["wall_s"])])
     sec.tables.append(Table(
         f"Random pose sequences ({sequences} of {POSES[mode]} poses per garment, seed {SEED}, medium body)",
         ["garment", "settles", "never NaN", "max stretch (x)", "hangs", "motion penetration max (mm)",
-         "median (mm)", f"over {MOTION_PENETRATION_TARGET_MM:g} mm", "ending inside", "off a limb carried",
+         "median (mm)", f"over {MOTION_PENETRATION_TARGET_MM:g} mm", "of them too tight there", "ending inside", "off a limb carried",
          "off a limb at the end", "ok", "seconds"], rows,
         note=("each sequence: the garment draped in the default pose, then carried through random poses (every "
               "angle of each side uniform over its range) as a live session does (repose, settle, draped afresh "
               "when a sleeve or leg came off and that puts it on). Max stretch: largest spring length / natural "
               f"length of any frame (limit {MAX_STRETCH:g}); hangs: not at rest within the settings' max steps, or "
               "raised; motion penetration: the deepest coarse point inside the body as it was at that step, over "
-              "every step of a settle; ending inside: settles ending with a vertex more than 2 mm inside; off a "
+              "every step of a settle; too tight there: the settle's done names the body part that point was in "
+              "among its too_tight places (the garment is too small for that pose there, its springs at their "
+              "limit pull the cloth in); ending inside: settles ending with a vertex more than 2 mm inside; off a "
               "limb carried: a sleeve or leg off its limb after the carry (then draped afresh), at the end: still "
               "off; ok: every check met.")))
     failures = [r for r in summary["records"] if not r["ok"]]
@@ -283,6 +321,7 @@ def run(ctx: Context, sec: Section) -> None:
         f"{POSES[mode]} poses), {'no NaN' if a['never_nan'] else 'NaN seen'}, max stretch {fmt(a['max_stretch'])}x "
         f"(limit {MAX_STRETCH:g}), hangs {a['hangs']}, deepest motion penetration {fmt(a['motion_max_penetration_mm'])}"
         f" mm (median {fmt(a['motion_median_mm'])}; over {MOTION_PENETRATION_TARGET_MM:g} mm in "
-        f"{a['over_motion_target']}), ending inside {a['ending_inside']}, off a limb at the end {a['off_limbs']} "
+        f"{a['over_motion_target']}, {a['over_motion_target_tight']} of them where the garment is too tight for the "
+        f"pose), ending inside {a['ending_inside']}, off a limb at the end {a['off_limbs']} "
         f"(draped afresh {a['redraped']}), every check met {a['ok']}/{a['settles']}; "
         f"{summary['crossing_poses']} of the {sequences * POSES[mode]} poses put a limb through the body")

@@ -176,7 +176,8 @@ def test_the_page_fits_the_screen(chromium, big_shop, width, height):
         page.wait_for_function("window.tryon.state === 'done' || window.tryon.state === 'error'", timeout=120_000)
         assert page.evaluate("window.tryon.state") == "done", page.evaluate("window.tryon.lastError")
         page.check("#fitmap-toggle")
-        assert page.locator("#result").is_visible() and page.locator("#legend").is_visible()
+        assert page.locator("#result").is_visible()
+        page.wait_for_selector("#legend", state="visible", timeout=5_000)  # on the phone once "Done." has gone
         problems = page.evaluate(LAYOUT_PROBLEMS)
         # the fit summary: on the phone in the controls, on the laptop over the stage, clear of the legend
         result = page.evaluate("""() => { const e = document.querySelector('#result');
@@ -188,6 +189,17 @@ def test_the_page_fits_the_screen(chromium, big_shop, width, height):
         assert not result["overLegend"] or result["inPanel"]
         assert result["left"] >= 0 and result["right"] <= width
         assert problems == []
+        # the progress: on the phone a strip at the bottom of the short view (at the top it hid the head), the
+        # legend making way for it; on the laptop at the top, clear of the figure's feet and of the legend
+        stage = page.evaluate("""() => { const p = document.querySelector('#progress'); p.hidden = false;
+            const r = p.getBoundingClientRect(), s = document.querySelector('#stage').getBoundingClientRect();
+            const out = {top: r.top - s.top, bottom: s.bottom - r.bottom, height: s.height,
+                         legend: document.querySelector('#legend').getBoundingClientRect().height};
+            p.hidden = true; return out; }""")
+        if width < 820:
+            assert stage["top"] > stage["height"] / 2 and 0 <= stage["bottom"] < 20 and stage["legend"] == 0, stage
+        else:
+            assert stage["top"] < 40 and stage["legend"] > 0, stage
         page.evaluate("document.querySelector('#result').scrollIntoView({block: 'start'})")
         page.mouse.move(width / 2, 10)
         page.wait_for_timeout(300)

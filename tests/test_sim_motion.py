@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from tryon.bench.motion import MOTION_PENETRATION_TARGET_MM, deepest_part, motion_stress, too_tight_there
+from tryon.bench.motion import MOTION_PENETRATION_TARGET_MM, deepest_point, motion_stress, too_tight_there
 from tryon.bench.stress import MAX_STRETCH, catalogue_models
 from tryon.body.build import build_body
 from tryon.body.params import Measurements, pose_from
@@ -49,7 +49,7 @@ def test_a_point_inside_a_turned_forearm_is_as_deep_as_it_was_put():
     # torso's side
     t = np.flatnonzero(body.vertex_part == body.parts.index("torso"))[0]
     shallow = body.vertices[t] - 0.002 * body.vertex_normals[t]
-    assert deepest_part(collider, np.stack([shallow, turned])) == "forearm_l"
+    assert deepest_point(collider, np.stack([shallow, turned])) == (1, "forearm_l")
 
 
 def test_a_motion_too_deep_is_put_down_to_a_garment_too_tight_only_where_the_done_says_so():

@@ -6,12 +6,13 @@ poses in a row, each from where the last left it.
 Checked at every frame (every step of every settle, the afresh drapes' included): positions finite (no NaN),
 the largest spring length / natural length (under ``MAX_STRETCH``). Per settle: a hang (not at rest within
 the settings' ``max_steps``, or an exception), the deepest coarse point inside the body as it was at each
-step (``motion_max_penetration_mm``, target under ``MOTION_PENETRATION_TARGET_MM``; the body part that point was
-in, and whether the settle's done names that part too tight: a garment too small for the pose, held there by its
-springs at their limit, as issue 26 allows at rest), and at its end what the
+step (``motion_max_penetration_mm``, target under ``MOTION_PENETRATION_TARGET_MM``), and at its end what the
 done of a live pose update says: vertices more than 2 mm inside the body (target 0) and every sleeve and
 trouser leg round its limb (``openings_on_limbs``; ``redraped``: the carried garment had one off and was
-draped afresh in that pose).
+draped afresh in that pose). Of the deepest point also the body part it was in and why it may be there:
+``tight_there``, the settle's done names that part too tight (a garment too small for the pose, its springs at
+their limit pulling the cloth in: the exception issue 26 allows at rest), or ``motion_pinched``, the collision
+held it in a pinch between two parts pressed into each other.
 
 ``tryon bench --only motion --sequences N`` runs each garment's first N sequences (~10 minutes each over the
 catalogue) instead of all twenty.
@@ -81,7 +82,8 @@ class FrameCheck:
     """An ``on_frame`` callback that watches every frame of a drape of ``model``: whether every position was
     finite, and the largest spring length / natural length seen (``worst``); ``reset`` starts a new settle.
     While it ``watch``es a re-posed drape, also the body part that drape's deepest point was in when ``settle``
-    last found a deeper one (``deepest_part``; None while nothing went in)."""
+    last found a deeper one (``deepest_part``; None while nothing went in), and whether the collision held that
+    point in a pinch between two parts then (``deepest_pinched``)."""
 
     def __init__(self, model):
         self.springs = np.ascontiguousarray(model.springs, dtype=np.int64)
@@ -94,7 +96,7 @@ class FrameCheck:
 
     def watch(self, drape) -> None:
         """Track where ``drape`` (being settled; None: none) goes deepest into the body, from now on."""
-        self.drape, self.depth_seen, self.deepest_part = drape, 0.0, None
+        self.drape, self.depth_seen, self.deepest_part, self.deepest_pinched = drape, 0.0, None, False
 
     def __call__(self, step: int, x: np.ndarray) -> bool:
         from tryon.sim.constraints import spring_lengths
@@ -107,18 +109,19 @@ class FrameCheck:
         d = self.drape
         if d is not None and d.state.x is x and d.motion_depth > self.depth_seen:
             self.depth_seen = d.motion_depth
-            self.deepest_part = deepest_part(d.collider, x)
+            i, self.deepest_part = deepest_point(d.collider, x)
+            self.deepest_pinched = bool(d.state.held[i])
         return True
 
 
-def deepest_part(collider, x: np.ndarray) -> str:
-    """The name of the body part the deepest of the points ``x`` (k, 3) m is inside (the body as ``collider``
-    has it now)."""
+def deepest_point(collider, x: np.ndarray) -> tuple[int, str]:
+    """The deepest of the points ``x`` (k, 3) m inside the body (the body as ``collider`` has it now): its index
+    and the name of the body part it is deepest in."""
     parts = collider.body.parts
     every = np.arange(len(parts), dtype=np.int64)
     i = int(collider.depth(x, every, offset=False).argmax())
     depths = [float(collider.depth(x[i:i + 1], every[k:k + 1], offset=False)[0]) for k in range(len(parts))]
-    return parts[int(np.argmax(depths))]
+    return i, parts[int(np.argmax(depths))]
 
 
 def too_tight_there(part: str | None, too_tight: dict) -> bool:
@@ -157,7 +160,8 @@ def run_sequence(model, measurements, poses: list, settings=None) -> list[dict]:
             m = result.metrics
             rec.update(steps=m["steps"], rest=bool(m["rest_reached"]),
                        motion_mm=float(m["motion_max_penetration_mm"]), carried_on_limbs=m["openings_on_limbs"],
-                       motion_part=check.deepest_part, too_tight=dict(m["too_tight"]))
+                       motion_part=check.deepest_part, motion_pinched=check.deepest_pinched,
+                       too_tight=dict(m["too_tight"]))
             rec["tight_there"] = too_tight_there(rec["motion_part"], rec["too_tight"])
             check.watch(None)  # an afresh drape's frames (below) are not a motion
             d, result, redraped = redrape_if_off(d, result, check)
@@ -235,6 +239,8 @@ def summarise(records: list[dict]) -> dict:
             "over_motion_target": sum(r["motion_mm"] >= MOTION_PENETRATION_TARGET_MM for r in done),
             "over_motion_target_tight": sum(r["motion_mm"] >= MOTION_PENETRATION_TARGET_MM and r["tight_there"]
                                             for r in done),
+            "over_motion_target_pinched": sum(r["motion_mm"] >= MOTION_PENETRATION_TARGET_MM and r["motion_pinched"]
+                                              and not r["tight_there"] for r in done),
             "ending_inside": sum(r["penetrating"] > 0 for r in done),
             "carried_off_limbs": sum(r["carried_on_limbs"] is False for r in done),
             "off_limbs": sum(r["on_limbs"] is False for r in done),
@@ -257,7 +263,7 @@ def _failure(r: dict) -> str:
         out.append(f"not at rest in {r['steps']} steps")
     if r["motion_mm"] >= MOTION_PENETRATION_TARGET_MM:
         out.append(f"motion {fmt(r['motion_mm'])} mm in {r['motion_part']}"
-                   + (" (too tight there)" if r["tight_there"] else ""))
+                   + (" (too tight there)" if r["tight_there"] else " (pinched)" if r["motion_pinched"] else ""))
     if r["penetrating"]:
         out.append(f"{r['penetrating']} vertices inside at rest ({fmt(r['max_penetration_mm'])} mm)")
     if r["on_limbs"] is False:
@@ -287,12 +293,13 @@ def run(ctx: Context, sec: Section) -> None:
     rows = []
     for name, g in summary["garments"].items():
         rows.append([name, g["settles"], fmt(g["never_nan"]), fmt(g["max_stretch"]), g["hangs"],
-                     fmt(g["motion_max_penetration_mm"]), fmt(g["motion_median_mm"]), g["over_motion_target"], g["over_motion_target_tight"],
+                     fmt(g["motion_max_penetration_mm"]), fmt(g["motion_median_mm"]), g["over_motion_target"], g["over_motion_target_tight"], g["over_motion_target_pinched"],
                      g["ending_inside"], g["carried_off_limbs"], g["off_limbs"], g["ok"], fmt(g["wall_s"])])
     sec.tables.append(Table(
         f"Random pose sequences ({sequences} of {POSES[mode]} poses per garment, seed {SEED}, medium body)",
         ["garment", "settles", "never NaN", "max stretch (x)", "hangs", "motion penetration max (mm)",
-         "median (mm)", f"over {MOTION_PENETRATION_TARGET_MM:g} mm", "of them too tight there", "ending inside", "off a limb carried",
+         "median (mm)", f"over {MOTION_PENETRATION_TARGET_MM:g} mm", "of them too tight there", "pinched",
+         "ending inside", "off a limb carried",
          "off a limb at the end", "ok", "seconds"], rows,
         note=("each sequence: the garment draped in the default pose, then carried through random poses (every "
               "angle of each side uniform over its range) as a live session does (repose, settle, draped afresh "
@@ -301,7 +308,9 @@ def run(ctx: Context, sec: Section) -> None:
               "raised; motion penetration: the deepest coarse point inside the body as it was at that step, over "
               "every step of a settle; too tight there: the settle's done names the body part that point was in "
               "among its too_tight places (the garment is too small for that pose there, its springs at their "
-              "limit pull the cloth in); ending inside: settles ending with a vertex more than 2 mm inside; off a "
+              "limit pull the cloth in); pinched: otherwise, the collision held that point where it was, between two body "
+              "parts pressed into each other (an arm lowered against the torso), with no place outside both nearby; "
+              "ending inside: settles ending with a vertex more than 2 mm inside; off a "
               "limb carried: a sleeve or leg off its limb after the carry (then draped afresh), at the end: still "
               "off; ok: every check met.")))
     failures = [r for r in summary["records"] if not r["ok"]]
@@ -321,7 +330,7 @@ def run(ctx: Context, sec: Section) -> None:
         f"{POSES[mode]} poses), {'no NaN' if a['never_nan'] else 'NaN seen'}, max stretch {fmt(a['max_stretch'])}x "
         f"(limit {MAX_STRETCH:g}), hangs {a['hangs']}, deepest motion penetration {fmt(a['motion_max_penetration_mm'])}"
         f" mm (median {fmt(a['motion_median_mm'])}; over {MOTION_PENETRATION_TARGET_MM:g} mm in "
-        f"{a['over_motion_target']}, {a['over_motion_target_tight']} of them where the garment is too tight for the "
-        f"pose), ending inside {a['ending_inside']}, off a limb at the end {a['off_limbs']} "
+        f"{a['over_motion_target']}: {a['over_motion_target_tight']} where the garment is too tight for the pose, "
+        f"{a['over_motion_target_pinched']} pinched between two parts), ending inside {a['ending_inside']}, off a limb at the end {a['off_limbs']} "
         f"(draped afresh {a['redraped']}), every check met {a['ok']}/{a['settles']}; "
         f"{summary['crossing_poses']} of the {sequences * POSES[mode]} poses put a limb through the body")

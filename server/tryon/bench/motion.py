@@ -293,14 +293,14 @@ def run(ctx: Context, sec: Section) -> None:
     rows = []
     for name, g in summary["garments"].items():
         rows.append([name, g["settles"], fmt(g["never_nan"]), fmt(g["max_stretch"]), g["hangs"],
-                     fmt(g["motion_max_penetration_mm"]), fmt(g["motion_median_mm"]), g["over_motion_target"], g["over_motion_target_tight"], g["over_motion_target_pinched"],
-                     g["ending_inside"], g["carried_off_limbs"], g["off_limbs"], g["ok"], fmt(g["wall_s"])])
+                     fmt(g["motion_max_penetration_mm"]), fmt(g["motion_median_mm"]), g["over_motion_target"],
+                     g["over_motion_target_tight"], g["over_motion_target_pinched"], g["ending_inside"],
+                     g["carried_off_limbs"], g["off_limbs"], g["ok"], fmt(g["wall_s"])])
     sec.tables.append(Table(
         f"Random pose sequences ({sequences} of {POSES[mode]} poses per garment, seed {SEED}, medium body)",
         ["garment", "settles", "never NaN", "max stretch (x)", "hangs", "motion penetration max (mm)",
          "median (mm)", f"over {MOTION_PENETRATION_TARGET_MM:g} mm", "of them too tight there", "pinched",
-         "ending inside", "off a limb carried",
-         "off a limb at the end", "ok", "seconds"], rows,
+         "ending inside", "off a limb carried", "off a limb at the end", "ok", "seconds"], rows,
         note=("each sequence: the garment draped in the default pose, then carried through random poses (every "
               "angle of each side uniform over its range) as a live session does (repose, settle, draped afresh "
               "when a sleeve or leg came off and that puts it on). Max stretch: largest spring length / natural "
@@ -308,11 +308,11 @@ def run(ctx: Context, sec: Section) -> None:
               "raised; motion penetration: the deepest coarse point inside the body as it was at that step, over "
               "every step of a settle; too tight there: the settle's done names the body part that point was in "
               "among its too_tight places (the garment is too small for that pose there, its springs at their "
-              "limit pull the cloth in); pinched: otherwise, the collision held that point where it was, between two body "
-              "parts pressed into each other (an arm lowered against the torso), with no place outside both nearby; "
-              "ending inside: settles ending with a vertex more than 2 mm inside; off a "
-              "limb carried: a sleeve or leg off its limb after the carry (then draped afresh), at the end: still "
-              "off; ok: every check met.")))
+              "limit pull the cloth in); pinched: otherwise, the collision held that point where it was, between "
+              "two body parts pressed into each other (an arm lowered against the torso), with no place outside "
+              "both nearby; ending inside: settles ending with a vertex more than 2 mm inside; off a limb carried: "
+              "a sleeve or leg off its limb after the carry (then draped afresh), at the end: still off; ok: every "
+              "check met.")))
     failures = [r for r in summary["records"] if not r["ok"]]
     if failures:
         sec.tables.append(Table(
@@ -331,6 +331,7 @@ def run(ctx: Context, sec: Section) -> None:
         f"(limit {MAX_STRETCH:g}), hangs {a['hangs']}, deepest motion penetration {fmt(a['motion_max_penetration_mm'])}"
         f" mm (median {fmt(a['motion_median_mm'])}; over {MOTION_PENETRATION_TARGET_MM:g} mm in "
         f"{a['over_motion_target']}: {a['over_motion_target_tight']} where the garment is too tight for the pose, "
-        f"{a['over_motion_target_pinched']} pinched between two parts), ending inside {a['ending_inside']}, off a limb at the end {a['off_limbs']} "
+        f"{a['over_motion_target_pinched']} pinched between two parts), ending inside {a['ending_inside']}, "
+        f"off a limb at the end {a['off_limbs']} "
         f"(draped afresh {a['redraped']}), every check met {a['ok']}/{a['settles']}; "
         f"{summary['crossing_poses']} of the {sequences * POSES[mode]} poses put a limb through the body")

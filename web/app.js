@@ -40,19 +40,18 @@ let bodyTimer = null;
 let bodySeq = 0;
 
 // ---- notices ----------------------------------------------------------------------------------
+function showNotice(message, info) {
+  $('notice').classList.toggle('info', info);
+  $('notice-text').textContent = message;
+  $('notice').hidden = false;
+}
 function showError(error) {
   const message = error instanceof ApiError || error instanceof Error ? error.message : String(error);
   state.lastError = message;
-  $('notice').classList.remove('info');
-  $('notice-text').textContent = message;
-  $('notice').hidden = false;
+  showNotice(message, false);
   $('notice').scrollIntoView({ block: 'nearest' });  // the controls may be scrolled past it
 }
-function showInfo(message) {
-  $('notice').classList.add('info');
-  $('notice-text').textContent = message;
-  $('notice').hidden = false;
-}
+function showInfo(message) { showNotice(message, true); }
 function clearNotice() { $('notice').hidden = true; }
 $('notice-close').addEventListener('click', clearNotice);
 
@@ -281,6 +280,11 @@ function setProgress(fraction, text) {
   $('progress-bar').style.width = `${Math.round(Math.min(Math.max(fraction, 0), 1) * 100)}%`;
   $('progress-text').textContent = text;
 }
+// the progress full with a last word, gone 1.5 s later unless something new started meanwhile
+function finishProgress(text) {
+  setProgress(1, text);
+  setTimeout(() => { if (state.state === 'done') $('progress').hidden = true; }, 1500);
+}
 
 async function tryOn() {
   if (state.state === 'draping') { live?.cancel(); return; }
@@ -333,8 +337,7 @@ async function tryOn() {
       if (done.metrics?.pose) rememberPose(done.metrics.pose);
       state.done = done;
       showDone(done);
-      setProgress(1, 'Done.');
-      setTimeout(() => { if (state.state === 'done') $('progress').hidden = true; }, 1500);
+      finishProgress('Done.');
     },
     onLiveError(message) { showError(message.reason); },
     onClosed() { if (state.live === session) state.live = null; },
@@ -345,8 +348,7 @@ async function tryOn() {
     const done = await live.promise;
     state.done = done;
     showDone(done);
-    setProgress(1, done.cached ? 'Done (from the fitting-room memory).' : 'Done.');
-    setTimeout(() => { if (state.state === 'done') $('progress').hidden = true; }, 1500);
+    finishProgress(done.cached ? 'Done (from the fitting-room memory).' : 'Done.');
     $('result').hidden = false;
     $('download-motion').hidden = Boolean(payload.garment_ids);  // a motion is of one garment
     if (NARROW.matches) $('result').scrollIntoView({ block: 'start' });
@@ -626,8 +628,7 @@ $('download-motion').addEventListener('click', (e) => withBusy(e.currentTarget, 
   const response = await postJSON('/api/tryon?format=glb', { ...request, poses });
   const name = (garmentById(state.garmentId)?.name || 'garment').replace(/\W+/g, '-').toLowerCase();
   saveBlob(await response.blob(), `${name}-motion.glb`);
-  setProgress(1, `Motion saved: ${poses.length} poses.`);
-  setTimeout(() => { if (state.state === 'done') $('progress').hidden = true; }, 1500);
+  finishProgress(`Motion saved: ${poses.length} poses.`);
 }));
 $('download-body').addEventListener('click', (e) => withBusy(e.currentTarget, async () => {
   const response = await postJSON('/api/bodies?format=glb', form.bodyRequest());

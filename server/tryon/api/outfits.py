@@ -16,12 +16,13 @@ from tryon.api.schemas.tryon import TryOnRequest
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
 from tryon.geometry import stack_meshes
-from tryon.sim.outfit import layer_order
+from tryon.sim.outfit import layer_order, piece_categories
 
 
 def check_garments(catalogue: Catalogue, request: TryOnRequest) -> None:
     """HTTPException for garments a request cannot have: an unknown ``garment_id`` is 404 (as before
-    outfits); in ``garment_ids`` an unknown id, or two bottoms, is 422 naming the field."""
+    outfits); in ``garment_ids`` an unknown id, two bottoms, or a file that is itself a top and a bottom (a
+    MakeHuman outfit, draped as layers when tried on alone) is 422 naming the field."""
     if not request.outfit:
         if catalogue.get(request.garment_id) is None:
             raise HTTPException(status.HTTP_404_NOT_FOUND, f"no garment with id {request.garment_id!r}")
@@ -33,6 +34,10 @@ def check_garments(catalogue: Catalogue, request: TryOnRequest) -> None:
             raise HTTPException(422, f"garment_ids[{k}]: no garment with id {gid!r} in the catalogue "
                                      "(see GET /api/garments)")
         metas.append(meta)
+        if len(request.ids) > 1 and piece_categories(catalogue.model(gid)) is not None:
+            raise HTTPException(422, f"garment_ids[{k}]: {meta.name!r} is already an outfit (a top and a bottom in one "
+                                     "file, layered when it is tried on alone): try it on by itself, or pick its "
+                                     "pieces' catalogue counterparts")
     try:
         layer_order([m.category for m in metas], request.tuck)
     except ValueError as e:

@@ -95,6 +95,9 @@ class TryOnRequest(BaseModel):
             raise ValueError("give either pose (one pose) or poses (a motion), not both")
         if self.poses is not None and self.garment_ids is not None:
             raise ValueError("poses (a motion) takes one garment (garment_id), not an outfit (garment_ids)")
+        if "tuck" in self.model_fields_set and self.garment_ids is None:
+            raise ValueError("tuck is how an outfit's top meets its bottom: give it with garment_ids, not with one "
+                             "garment (garment_id)")
         if self.garment_ids is not None and len(set(self.garment_ids)) < len(self.garment_ids):
             raise ValueError("garment_ids: each garment at most once")
         return self

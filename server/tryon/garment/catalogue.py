@@ -312,6 +312,7 @@ class Catalogue:
             data = path.read_bytes()
             filename = filename or path.name
         ext = file_extension(filename)
+        asked_category = category
         category = resolve_category(category, filename)
         style, size, chart = check_labels(style, size, chart)
         if not 0.0 < simplify <= 1.0:
@@ -326,6 +327,12 @@ class Catalogue:
         existing = self.get(gid)
         if existing is not None:
             check_readable(data, filename)  # the same bytes under another name must still be what it says
+            if asked_category != "auto" and category != existing.category:
+                # the entry's id does not hold the category (ids stay what they were): the same file asked for
+                # as another kind of garment is a conflict to resolve, not the old entry to take silently
+                raise GarmentError(f"this file is already in the catalogue as a {existing.category} (garment "
+                                   f"{gid}, {existing.name!r}): delete it first to add it as a {category}",
+                                   status=409, field="category")
             if style is not None and (existing.style, existing.size, existing.chart) != (style, size, chart):
                 self._check_size_free(style, size, gid)
                 with self._connect() as db:
@@ -409,7 +416,8 @@ class Catalogue:
         for other in self.style(style):
             if other.id != gid and (other.size or "").upper() == size.upper():
                 raise GarmentError(f"style {style!r} already has a size {other.size} (garment {other.id}, "
-                                   f"{other.name!r}): delete it first, or give another size label", status=409)
+                                   f"{other.name!r}): delete it first, or give another size label", status=409,
+                                   field="style")
 
     def _row(self, garment_id: str):
         with self._connect() as db:

@@ -76,11 +76,13 @@ class GarmentError(ValueError):
     """A garment file was refused; ``str(error)`` is a reason a user can act on.
 
     ``status`` is the HTTP status the service answers with: 422 (a file it cannot use), 415 (a file
-    type it does not read), 413 (too large), 400 (a bad file name)."""
+    type it does not read), 413 (too large), 400 (a bad file name), 409 (it conflicts with an entry already
+    in); ``field`` the request field it is about (the file, unless said)."""
 
-    def __init__(self, message: str, status: int = 422):
+    def __init__(self, message: str, status: int = 422, field: str = "file"):
         super().__init__(message)
         self.status = status
+        self.field = field
 
 
 @dataclass
@@ -278,13 +280,15 @@ def _read(data: bytes, ext: str, filename: str, max_faces: int) -> tuple[np.ndar
     if loaded is None:
         raise GarmentError("the file has no triangle or quad faces (no mesh in the scene)")
     if isinstance(loaded, trimesh.PointCloud):
-        raise GarmentError("the file is a point cloud (vertices without faces): a garment needs faces")
+        raise GarmentError("the file is a point cloud (vertices without faces): a garment needs faces"
+                           + _cut_before_faces(ext, data))
     if not isinstance(loaded, trimesh.Trimesh):
         log.info("%s holds a %s", filename, type(loaded).__name__)
         raise GarmentError("the file holds lines or curves, not a surface mesh with faces")
     faces = np.asarray(loaded.faces)
     if faces.size == 0:
-        raise GarmentError("the file has no faces (a point cloud or empty mesh): a garment needs faces")
+        raise GarmentError("the file has no faces (a point cloud or empty mesh): a garment needs faces"
+                           + _cut_before_faces(ext, data))
     if len(faces) > max_faces:
         raise GarmentError(f"the mesh has {len(faces):,} faces, more than the limit of {max_faces:,}", 413)
     vertices = np.asarray(loaded.vertices, dtype=np.float64)
@@ -388,6 +392,15 @@ def _shown(token: bytes) -> str:
     """A token of a file, quoted, cut short if long (a line of a million digits is not sent back whole)."""
     text = token.decode("utf-8", "replace")  # the checked text is UTF-8
     return repr(text) if len(text) <= 40 else repr(text[:30] + "...") + f" ({len(text):,} characters)"
+
+
+def _cut_before_faces(ext: str, data: bytes) -> str:
+    """What to add to "no faces" for an OBJ that ends in the middle of a line (no final line break): its
+    faces come after its vertices, so it was most likely cut off before them."""
+    if ext != "obj" or data.rstrip(b" \t").endswith((b"\n", b"\r")):
+        return ""
+    return ("; the file ends in the middle of a line, so it looks truncated: its faces, which follow the "
+            "vertices, are missing")
 
 
 def _truncated(cut: bool) -> str:

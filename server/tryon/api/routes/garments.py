@@ -112,7 +112,7 @@ async def upload_garment(
             max_faces=settings.max_faces, style=style, chart=chart,
         )
     except GarmentError as exc:
-        raise HTTPException(exc.status, f"{'style' if exc.status == 409 else 'file'}: {exc}") from None
+        raise HTTPException(exc.status, f"{exc.field}: {exc}") from None
     if not created:
         response.status_code = status.HTTP_200_OK
     return GarmentEntry.from_meta(meta)

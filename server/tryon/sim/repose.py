@@ -318,16 +318,19 @@ def repose(d: Drape, body: Body, transition: PoseTransition | None = None) -> Dr
     along as the body moves from the old pose to the new over the first steps (``transition``, made here if
     not given: ``PoseTransition(d.body, body, garment=d.state.x)``); see the module doc. ``d`` is left as it
     was."""
-    return carry(d.body, d.state.x, d.model, d.settings, d.tuning, body, transition)
+    return carry(d.body, d.state.x, d.model, d.settings, d.tuning, body, transition, d.sized)
 
 
 def carry(old: Body, garment: np.ndarray, model: GarmentModel, settings: SimSettings, tuning: Tuning, body: Body,
-          transition: PoseTransition | None = None) -> Drape:
+          transition: PoseTransition | None = None, sized: bool = False) -> Drape:
     """``repose`` from the ``garment`` (k, 3) m of ``model`` as it lies on ``old`` (no drape needed: a re-pose
-    done again from where it started, ``through_midway``)."""
+    done again from where it started, ``through_midway``). ``sized``: ``model`` is a garment of guessed units
+    sized to this person (``start``), as the drape it comes from says: it stays so in every pose."""
     if transition is None:
         transition = PoseTransition(old, body, garment=garment)
-    return start(body, model, settings, tuning, initial=garment.copy(), motion=transition.bind)
+    d = start(body, model, settings, tuning, initial=garment.copy(), motion=transition.bind)
+    d.sized = sized
+    return d
 
 
 def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape, TryOnResult, bool]:
@@ -368,7 +371,7 @@ def through_midway(d: Drape, on_frame=None) -> tuple[Drape, TryOnResult] | None:
     mid = {k: 0.5 * (old[k] + v) if isinstance(v, float) and isinstance(old.get(k), float) else v
            for k, v in new.items()}
     half = carry(t.old, t.garment, d.model, d.settings, d.tuning,
-                 build_body(Measurements(**d.body.requested), Pose(**mid), d.body.resolution))
+                 build_body(Measurements(**d.body.requested), Pose(**mid), d.body.resolution), sized=d.sized)
     first, _ = settle(half)
     again, result = settle_after(half, first, d.body, on_frame)
     result.metrics["motion_max_penetration_mm"] = max(first.metrics.get("motion_max_penetration_mm") or 0.0,

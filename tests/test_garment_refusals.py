@@ -365,6 +365,32 @@ def test_api_outfit_file_is_one_garment_guessed_a_dress(client):
     assert len(client.get("/api/garments").json()["garments"]) == 1
 
 
+def test_api_the_same_file_asked_for_as_another_category_is_a_409(client, catalogued):
+    """The same bytes and parameters give the entry already in, but not as another kind of garment: the
+    category decides how it is put on (it took the old entry silently); auto takes the entry as it is."""
+    r = upload(client, TUBE.encode(), category="top")
+    assert r.status_code == 409, r.text
+    assert r.json()["detail"] == (f"category: this file is already in the catalogue as a bottom (garment "
+                                  f"{catalogued['garments'][0]['id']}, 'Tube'): delete it first to add it as a top")
+    assert client.get("/api/garments").json() == catalogued
+    for category in ("bottom", "auto"):
+        again = upload(client, TUBE.encode(), category=category)
+        assert again.status_code == 200 and again.json()["category"] == "bottom", again.text
+
+
+def test_api_an_obj_cut_before_its_faces_is_called_truncated(client, catalogued):
+    """An OBJ cut inside its vertex lines (the faces come after them) is a point cloud that ends mid-line: the
+    message says the file looks truncated (it said only "point cloud")."""
+    vertex_part = "\n".join(line for line in TUBE.splitlines() if line.startswith("v "))
+    r = upload(client, vertex_part[:-3].encode(), category="bottom")  # the last line "v 0.15 0 0.0" still parses
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    assert "vertices without faces" in detail and "looks truncated" in detail, detail
+    whole_lines = upload(client, (vertex_part + "\n").encode(), category="bottom")
+    assert whole_lines.status_code == 422 and "truncated" not in whole_lines.json()["detail"]
+    assert client.get("/api/garments").json() == catalogued
+
+
 def test_api_schema_says_what_auto_does(client):
     schema = client.get("/api/openapi.json").json()
     form = next(v for k, v in schema["components"]["schemas"].items() if k.startswith("Body_upload_garment"))

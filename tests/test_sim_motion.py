@@ -143,3 +143,26 @@ def test_a_sleeve_caught_in_a_big_move_is_carried_again_through_the_midway_pose(
     assert fixed.metrics["openings_on_limbs"] is True and fixed.metrics["penetrating_vertices"] == 0
     assert fixed.metrics["rest_reached"] and fixed.metrics["steps"] > result.metrics["steps"]  # both halves
     assert again.body is d.body and again.body.pose == d.body.pose
+
+
+def test_a_garment_sized_to_the_body_stays_sized_in_every_pose():
+    """A dress of guessed units is sized to the person where it is first draped (``start``); carried to another
+    pose it is the same resized garment, and the answer for that pose says so too (it said false from the second
+    pose of a motion on: a user's upload in ``poses`` read [true, false, false, false])."""
+    from tryon.garment.generate import garment_mesh
+    from tryon.garment.ingest import CleanMesh
+    from tryon.garment.prepare import prepare
+
+    g = garment_mesh("dress", "S")
+    v = np.array(g.vertices, dtype=np.float64)
+    centre = v.mean(axis=0)
+    v[:, [0, 2]] = centre[[0, 2]] + 0.7 * (v[:, [0, 2]] - centre[[0, 2]])  # too small as made: sized up
+    mesh = CleanMesh(vertices=v, faces=np.asarray(g.faces, dtype=np.int32), units="m", units_guessed=True)
+    model = prepare(mesh, id="guessed", name="guessed", category="dress", size="S", source_sha256="0",
+                    source_name="guessed.obj")
+    d = start(build_body(MEDIUM), model, SimSettings(max_steps=3))
+    assert d.sized
+    moved = repose(d, build_body(MEDIUM, pose_from("hands_on_hips")))
+    assert moved.sized and moved.model is d.model
+    result, _ = settle(moved)
+    assert result.metrics["sized_to_body"]

@@ -287,8 +287,9 @@ def test_an_outfit_is_the_same_whether_its_garments_step_at_once_or_in_turn(cata
 
 def test_a_file_that_is_already_an_outfit_is_not_layered_with_more(tmp_path):
     """A top and trousers in one file (a MakeHuman outfit) drapes as its own layers when tried on alone; listed
-    with another bottom it would be an outfit of two bottoms (it was draped as one 'dress' under them: never at
-    rest, 240 vertices through the trousers). 422 naming the list entry; alone, or its own pieces, it drapes."""
+    with another bottom it would be an outfit of two bottoms (a user's MakeHuman outfit with the catalogue trousers
+    was draped as one 'dress' under them: never at rest, 240 vertices through the trousers). 422 naming the list
+    entry; alone it drapes."""
     from tryon.garment.generate import garment_mesh
 
     shirt, trousers = garment_mesh("tshirt", "M"), garment_mesh("trousers", "M")

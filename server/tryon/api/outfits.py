@@ -36,8 +36,7 @@ def check_garments(catalogue: Catalogue, request: TryOnRequest) -> None:
         metas.append(meta)
         if len(request.ids) > 1 and piece_categories(catalogue.model(gid)) is not None:
             raise HTTPException(422, f"garment_ids[{k}]: {meta.name!r} is already an outfit (a top and a bottom in one "
-                                     "file, layered when it is tried on alone): try it on by itself, or pick its "
-                                     "pieces' catalogue counterparts")
+                                     "file, layered when it is tried on alone): try it on by itself")
     try:
         layer_order([m.category for m in metas], request.tuck)
     except ValueError as e:

@@ -11,7 +11,8 @@ Peers run in subprocesses (``peer_taichi``, ``peer_newton``): a crash or a missi
 note in the report, never a failure of the benchmark. Headline: our per-frame time over the fastest
 peer's, among the peers whose cloth stretched as much as ours or more (and, beside it, over the fastest
 peer at all), and against Taichi at our thread count, with whether our quality (max stretch and max
-penetration over all frames) is no worse than its.
+penetration over all frames) is no worse than its; then ours at Taichi's quality (``equal_quality``): the
+fewest substeps that match it, and what they cost.
 """
 
 from __future__ import annotations
@@ -28,6 +29,9 @@ import numpy as np
 
 from tryon.bench.cloth_scene import FRAMES, SIZES, WARMUP_FRAMES
 from tryon.bench.common import Context, Section, Table, fmt
+from tryon.bench.equal_quality import (
+    QUALITY_MAX_PARTICLES, at_equal_quality, quality_headline, quality_table, quality_target,
+)
 from tryon.bench.report import plot_peers
 from tryon.sim.blocks import MIN_SPLIT_SPRINGS, machine_threads, parallel_ok, use_threads
 
@@ -210,6 +214,24 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
               "on the larger cloths its figures cover only the frames it reached (see 'frames run')."),
     ))
     sec.headline.extend(ball_headline(h) for h in ratios)
+    quality = []
+    for n in sizes:
+        if n * n > QUALITY_MAX_PARTICLES:
+            continue
+        rows = results[str(n * n)]
+        default = next((r for r in rows if r["engine"] == threads_label("ours", 1)), None)
+        if default is None or "error" in default:
+            continue
+        ctx.log(f"[bench]   cloth on ball, {n * n} particles: ours at {threads_label('taichi', 1)}'s quality")
+        use_threads(1)
+        quality.append(at_equal_quality(n, default, quality_target(rows, threads_label("taichi", 1)),
+                                        lambda settings, n=n: run_sphere(n, FRAMES, settings, substeps=our_substeps(n),
+                                                                         max_seconds=budget * 4)))
+        use_threads(machine_threads())
+    sec.data["equal_quality"] = quality
+    if quality:
+        sec.tables.append(quality_table(quality))
+        sec.headline.extend(quality_headline(r) for r in quality)
 
 
 def ball_headline(h: dict) -> str:

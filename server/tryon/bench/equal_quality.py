@@ -1,12 +1,12 @@
 """Ours at a peer's quality on the ball scene (issue 26: speed is compared at equal quality).
 
 With its default 16 substeps a step our cloth stretches past its limit while it hangs over the ball: each
-substep lets gravity pull the hanging cloth by g h^2 and one Gauss-Seidel pass does not take all of it back up
-the chain, so the sag grows with the square of the substep. Smaller substeps cost time. Here our drape runs
-again with 32, 64 and 128 substeps a step (as many passes), on one thread, until its stretch over all frames and
-its deepest penetration are no worse than the target's: Taichi's on one thread where it ran (but never less than
-the issue's bound), else the issue's bound (the structural limit + 1 %, 2 mm). The fewest substeps that get there, and their time per frame beside
-the target's, is what we cost at that quality.
+substep lets gravity pull the hanging cloth by g h^2 (h the substep's length) and one Gauss-Seidel pass does
+not take all of it back up the chain. Smaller substeps cost time. Here our drape runs again with 32, 64 and 128
+substeps a step (as many passes), on one thread, until its stretch over all frames and its deepest penetration
+are no worse than the target's: Taichi's on one thread where it ran, but never less than the issue's bound (the
+structural limit + 1 %, 2 mm), which is the target when no peer ran. The fewest substeps that get there, and
+their time per frame beside the target's, is what we cost at that quality.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from tryon.sim.settings import SimSettings
 QUALITY_SUBSTEPS = (32, 64, 128)
 # Cloths larger than this are not searched: 128 substeps of the 40k cloth would run for ~20 min here.
 QUALITY_MAX_PARTICLES = 10_000
-# The issue's bound when no peer ran: strain over the structural limit by at most 1 %, and penetration in mm.
+# The issue's bound, the least target: strain over the structural limit by at most 1 %, and penetration in mm.
 BOUND_OVER_LIMIT = 0.01
 BOUND_PENETRATION_MM = 2.0
 

@@ -178,6 +178,11 @@ def fmt(value, digits: int = 3) -> str:
     return str(value)
 
 
+def speed_words(ratio: float) -> str:
+    """A time ratio (theirs / ours) in words: '2.5x faster', '1.3x slower'."""
+    return f"{fmt(ratio)}x faster" if ratio >= 1 else f"{fmt(1 / ratio)}x slower"
+
+
 def fmt_range(values, digits: int = 3) -> str:
     """'a-b' of the smallest and largest of ``values`` (one number when they are equal)."""
     lo, hi = min(values), max(values)

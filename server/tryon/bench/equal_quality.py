@@ -12,7 +12,7 @@ their time per frame beside the target's, is what we cost at that quality.
 from __future__ import annotations
 
 from tryon.bench.cloth_scene import FRAMES
-from tryon.bench.common import Table, fmt
+from tryon.bench.common import Table, fmt, speed_words
 from tryon.sim.settings import SimSettings
 
 # Substeps (= passes) a step tried after the default's, in order.
@@ -65,8 +65,8 @@ def at_equal_quality(n: int, default: dict, target: dict, run) -> dict:
 def quality_table(results: list[dict]) -> Table:
     """The section's table of ``at_equal_quality`` summaries."""
     rows = [[r["particles"], r["target_target"], fmt(r["target_stretch"]), fmt(r["target_penetration_mm"]),
-             r["substeps"], "yes" if r["met"] else "no", fmt(r["frame_ms"]), fmt(r["target_frame_ms"]) or "-",
-             fmt(r.get("speedup")) or "-", fmt(r["max_stretch"]), fmt(r["final_stretch"]),
+             r["substeps"], fmt(r["met"]), fmt(r["frame_ms"]), fmt(r["target_frame_ms"]),
+             fmt(r.get("speedup")), fmt(r["max_stretch"]), fmt(r["final_stretch"]),
              fmt(r["max_penetration_mm"]), "; ".join(f"{k}: {fmt(s)} in {fmt(ms)} ms" for k, s, ms in r["tried"])]
             for r in results]
     return Table(
@@ -94,6 +94,5 @@ def quality_headline(r: dict) -> str:
                        f"{fmt(r['target_penetration_mm'])} mm, {fmt(r['frame_ms'])} ms/frame)")
     text += f"ours (1 thread) with {r['substeps']} substeps a step, {fmt(r['frame_ms'])} ms/frame"
     if r.get("speedup"):
-        words = f"{fmt(r['speedup'])}x faster" if r["speedup"] >= 1 else f"{fmt(1 / r['speedup'])}x slower"
-        text += f" vs {fmt(r['target_frame_ms'])} ms: {words}"
+        text += f" vs {fmt(r['target_frame_ms'])} ms: {speed_words(r['speedup'])}"
     return text + f" (max stretch {fmt(r['max_stretch'])} vs {fmt(r['target_stretch'])})"

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from tryon.bench.cloth_scene import FRAMES, SIZES, WARMUP_FRAMES
-from tryon.bench.common import Context, Section, Table, fmt
+from tryon.bench.common import Context, Section, Table, fmt, speed_words
 from tryon.bench.equal_quality import (
     QUALITY_MAX_PARTICLES, at_equal_quality, quality_headline, quality_table, quality_target,
 )
@@ -139,10 +139,6 @@ def headline_ratio(rows: list[dict], threads: int = 1) -> dict | None:
     return out
 
 
-def _speed_words(x: float) -> str:
-    return f"{fmt(x)}x faster" if x >= 1 else f"{fmt(1 / x)}x slower"
-
-
 def cloth_on_ball(ctx: Context, sec: Section) -> None:
     from tryon.bench.ours_cloth import run_sphere
 
@@ -242,10 +238,10 @@ def ball_headline(h: dict) -> str:
         text += f" but UNSTABLE (ended {h['ours_outcome']})"
     if h["peer"]:
         text += (f"; vs the fastest peer at equal or higher stretch, {h['peer']} {fmt(h['peer_frame_ms'])} ms: "
-                 f"{_speed_words(h['speedup'])} (stretch {fmt(h['ours_stretch'])} vs {fmt(h['peer_stretch'])})")
+                 f"{speed_words(h['speedup'])} (stretch {fmt(h['ours_stretch'])} vs {fmt(h['peer_stretch'])})")
     if h.get("same_threads_peer"):
         text += (f"; vs {h['same_threads_peer']} {fmt(h['same_threads_frame_ms'])} ms: "
-                 f"{_speed_words(h['same_threads_speedup'])}, our quality "
+                 f"{speed_words(h['same_threads_speedup'])}, our quality "
                  f"{'no worse' if h['same_threads_quality_ok'] else 'WORSE'}")
         if "same_threads_stretch" in h:
             worse = lambda ours, its: "worse" if ours > its + 1e-9 else "no worse"  # noqa: E731
@@ -255,7 +251,7 @@ def ball_headline(h: dict) -> str:
                      f"{worse(h['ours_penetration_mm'], h['same_threads_penetration_mm'])})")
     if h["fastest_peer"] != h["peer"]:
         text += (f"; vs the fastest peer, {h['fastest_peer']} {fmt(h['fastest_peer_frame_ms'])} ms: "
-                 f"{_speed_words(h['speedup_vs_fastest'])} (its stretch {fmt(h['fastest_peer_stretch'])}, "
+                 f"{speed_words(h['speedup_vs_fastest'])} (its stretch {fmt(h['fastest_peer_stretch'])}, "
                  f"ours {fmt(h['ours_stretch'])})")
     return text
 

@@ -65,8 +65,8 @@ from tryon.sim.collision.cloth import (
     build_tri_grid, face_sides, outward_from_axes, overlap, push_layer, signed_face_normals,
 )
 from tryon.sim.collision.crossings import layer_depths, signed_distances
-from tryon.sim.constraints import cap_stretch
 from tryon.sim.collision.over_fixed import OverFixed
+from tryon.sim.constraints import cap_stretch
 from tryon.sim.finish import TryOnResult, full_mesh, result
 from tryon.sim.pieces import bottom_mask, piece_labels, waistband_mask
 from tryon.sim.relax import collide_all, relax

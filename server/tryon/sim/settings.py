@@ -51,6 +51,12 @@ class SimSettings:
     compression: fraction of a spring's compression (l < l0) corrected per pass, per type. Structural and
         shear springs go back to their natural length (paper eq. 2-3); bending springs only a little, so
         the cloth can still buckle and fold (a hard compression limit on them makes cloth a plate).
+    projection_steps: Newton steps of the fast projection of the strain limits at the end of every step
+        (``projection.py``: the springs over their limit solved together, so a correction crosses the whole
+        sheet at once); 0 = none. Off by default: the cloth on the ball meets Taichi's quality with 4 (its
+        stretch over all frames 0.47 -> 0.16 on the 4k cloth, ``tryon bench --only peers``), but on the
+        catalogue it costs 60-120 % more time to rest, and shows more skin through the small body's
+        long-sleeves (``docs/benchmarks.md``).
     max_speed: m/s, per-particle speed clamp; a guard that keeps any scene bounded (gravity alone gives
         ~4 m/s after a 0.8 m fall, so it never acts on a normal drape).
     seed: random seed for anything random (stress scenes).
@@ -75,6 +81,7 @@ class SimSettings:
     strain_limit: tuple[float, float, float] = (0.10, 0.15, 0.30)
     band_limit: float = 0.02
     compression: tuple[float, float, float] = (1.0, 1.0, 0.1)
+    projection_steps: int = 0
     max_speed: float = 10.0
     seed: int = 0
 

@@ -1,4 +1,5 @@
-"""One time step of a drape: the body's start-up change, Verlet, collision, the substeps' passes, the guards.
+"""One time step of a drape: the body's start-up change, Verlet, collision, the substeps' passes, the fast
+projection of the strain limits if asked for, the guards.
 
 See ``run.py``'s doc for the method. ``step`` advances ``drape.state`` in place and tells whether the
 garment has come to rest; it works from whatever state it is given (a fresh ``start`` or a drape that has
@@ -10,12 +11,15 @@ from __future__ import annotations
 import numpy as np
 
 from tryon.sim.blocks import block_order
-from tryon.sim.collision.contacts import flipped, points_to_test, reuse_planes, take_stricter_planes
+from tryon.sim.collision.contacts import (
+    flipped, points_to_test, project_listed, reuse_planes, take_stricter_planes,
+)
 from tryon.sim.constraints import (
     cap_stretch, contact_springs, pack_sweep, solve_listed, sweep_springs, top_down_order,
 )
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.pieces import hanging_pieces
+from tryon.sim.projection import project_stretch, sticking
 from tryon.sim.state import Drape
 from tryon.sim.substeps import finish_step
 
@@ -97,6 +101,8 @@ def step(d: Drape) -> bool:
                                              hold_pinched=not changing, retest_planes=d.moving,
                                              hold_depth=hold_depth, two=bool(d.blocks[2])), d.blocks, d.body_blocks,
                 d.sweep_blocks)
+    if s.projection_steps and not changing:
+        _project(d, w_eff)
     # guard: collision wins over the springs within the step, so a garment far too small for its body (a
     # size S shirt on the largest body) would be stretched without bound; past ``tear_guard`` x its natural
     # length a spring wins instead (the point may stay inside the body: the metrics report it). In a normal
@@ -105,6 +111,19 @@ def step(d: Drape) -> bool:
     # sole there), and a re-pose's straddled limbs.
     cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
     return _at_rest(d)
+
+
+def _project(d: Drape, w_eff: np.ndarray) -> None:
+    """The step's fast projection of the strain limits (``projection.py``), ``settings.projection_steps``
+    Newton steps, with the passes' weights ``w_eff`` (k,) 1/kg; positions only (x_prev moves with x), then
+    the contact planes again."""
+    st = d.state
+    w = np.empty_like(w_eff)
+    sticking(st.x, st.x_step, w_eff, st.has_plane, st.plane_normal, w)
+    before = st.x.copy()
+    project_stretch(st.x, w, d.ends, d.table, st.has_plane, st.plane_normal, d.settings.projection_steps)
+    st.x_prev += st.x - before
+    project_listed(st.x, st.x_prev, np.flatnonzero(st.has_plane), st.plane_point, st.plane_normal, 0.0, 0.0)
 
 
 def _at_rest(d: Drape) -> bool:

@@ -154,13 +154,15 @@ def test_a_missing_peer_is_a_note_not_a_failure(monkeypatch, tmp_path):
     rows = sec.data["cloth_on_ball"]["1024"]
     assert [r["engine"] for r in rows] == ["ours (1 thread)"]  # 1,024 points: one block, one thread
     assert sec.data["headline"] == []  # no peer, no ratio
-    # ours at the bound instead (no peer to match): more substeps a step until the cloth's stretch over all
-    # 300 frames is within its limit + 1 %; each try stretches less than the one before, the last meets it
+    # ours at the bound instead (no peer to match): the fast projection of the strain limits, then more
+    # substeps a step, until the cloth's stretch over all 300 frames is within its limit + 1 %; each try stretches
+    # less than the one before, the last meets it
     (quality,) = sec.data["equal_quality"]
     assert quality["target_target"].startswith("the bound") and quality["target_stretch"] == pytest.approx(0.11)
     tried = quality["tried"]
-    assert tried[0][0] == 16 and tried[0][1] > 0.11 and quality["substeps"] == tried[-1][0]
-    assert [t[1] for t in tried] == sorted((t[1] for t in tried), reverse=True)
+    assert tried[0][:2] == [16, 0] and tried[0][2] > 0.11 and tried[1][:2] == [16, 4]
+    assert (quality["substeps"], quality["projection_steps"]) == tuple(tried[-1][:2])
+    assert [t[2] for t in tried] == sorted((t[2] for t in tried), reverse=True)
     assert quality["met"] and quality["max_stretch"] <= 0.11 + 1e-9 and quality["frames"] == 300
 
 

@@ -190,6 +190,21 @@ def test_fit_with_fewer_substeps_says_so(tmp_path, capsys):
     assert report["command"].endswith("--substeps 8")
 
 
+def test_fit_with_the_fast_projection_says_so(tmp_path, capsys):
+    assert main(["bench", "--quick", "--only", "fit", "--projection", "9", "--out", str(tmp_path / "bad")]) == 2
+    assert "--projection must be 1 to 8, got 9" in capsys.readouterr().err
+    out = tmp_path / "out"
+    assert main(["bench", "--quick", "--only", "fit", "--projection", "4", "--out", str(out)]) == 0
+    report = json.loads((out / "bench.json").read_text())
+    fit = _section(report, "fit")
+    assert fit["data"]["projection_steps"] == 4 and fit["data"]["substeps"] == 16
+    assert fit["headline"][0].startswith("fit, 4 projection steps: 3 drapes")
+    assert "4 Newton steps of the fast projection a step" in (out / "bench.md").read_text()
+    assert report["command"].endswith("--projection 4")
+    # the T-shirt M still drapes as a try-on must: at rest, nothing in the body, sleeves round the arms
+    assert all(d["rest"] and d["penetrating"] == 0 and d["on_limbs"] for d in fit["data"]["drapes"])
+
+
 def test_motion_with_more_sequences_says_so(tmp_path, capsys):
     assert main(["bench", "--quick", "--only", "motion", "--sequences", "21", "--out", str(tmp_path / "bad")]) == 2
     assert "--sequences must be 1 to 20, got 21" in capsys.readouterr().err

@@ -47,15 +47,16 @@ def sections():
 
 
 def run_bench(out_dir: Path | str = "bench-results", quick: bool = False, stress: bool = False,
-              only: list[str] | None = None, log=print, substeps: int | None = None,
+              only: list[str] | None = None, log=print, substeps: int | None = None, projection: int | None = None,
               bodies: Path | None = None, sequences: int | None = None) -> tuple[dict, int]:
     """Run the benchmark into ``out_dir``; returns (report dict, exit code). The exit code is 1 when a
     section failed (our code raised), 0 otherwise (skipped optional peers are not failures). ``substeps``:
-    the fit section's substeps per step (one spring pass each) instead of the default settings; ``sequences``:
+    the fit section's substeps per step (one spring pass each) instead of the default settings; ``projection``:
+    its Newton steps of the fast projection of the strain limits (``sim/projection.py``); ``sequences``:
     the motion section's random pose sequences per garment instead of its mode's."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    ctx = Context(out_dir=out, quick=quick, stress=stress, log=log, substeps=substeps, bodies=bodies,
+    ctx = Context(out_dir=out, quick=quick, stress=stress, log=log, substeps=substeps, projection=projection, bodies=bodies,
                   sequences=sequences)
     started = now()
     info = machine()
@@ -76,6 +77,7 @@ def run_bench(out_dir: Path | str = "bench-results", quick: bool = False, stress
            + (f" --only {' '.join(only)}" if only else "")
            + (f" --bodies {bodies}" if bodies is not None else "")
            + (f" --substeps {substeps}" if substeps is not None else "")
+           + (f" --projection {projection}" if projection is not None else "")
            + (f" --sequences {sequences}" if sequences is not None else ""))
     report = write_report(out, done, {
         "started": started, "mode": mode, "command": cmd, "seconds": time.perf_counter() - t0,

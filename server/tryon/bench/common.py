@@ -63,7 +63,8 @@ class SkipSection(Exception):
 class Context:
     """What every section gets: the output directory, the run mode, and a cache shared between sections
     (bodies, prepared garments) so that nothing is built twice in one run. ``substeps``: the fit section's
-    substeps per step (one spring pass each), None for the default settings; ``sequences``: the motion section's
+    substeps per step (one spring pass each), None for the default settings; ``projection``: its Newton steps of
+    the fast projection of the strain limits, None for the default (none); ``sequences``: the motion section's
     random pose sequences per garment, None for its mode's."""
 
     out_dir: Path
@@ -72,6 +73,7 @@ class Context:
     cache: dict = field(default_factory=dict)
     log: Callable[[str], None] = print
     substeps: int | None = None
+    projection: int | None = None
     bodies: Path | None = None  # the sizes section's people (an ANSUR II style CSV); None: the shipped sample
     sequences: int | None = None
 

@@ -12,6 +12,8 @@ are the "over on body" column, the fit verdict "too tight there".
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from tryon.bench.common import Context, Section, Table, fmt
 from tryon.bench.scenes import catalogue_entries, main_entry, prepared
 
@@ -32,6 +34,8 @@ def run(ctx: Context, sec: Section) -> None:
     from tryon.sim.settings import SimSettings
 
     settings = SimSettings() if ctx.substeps is None else SimSettings(substeps=ctx.substeps, passes=ctx.substeps)
+    if ctx.projection:
+        settings = replace(settings, projection_steps=ctx.projection)
     entries = [main_entry()] if ctx.quick else catalogue_entries()
     rows, data = [], []
     for body_name, measurements in BODIES.items():
@@ -57,10 +61,10 @@ def run(ctx: Context, sec: Section) -> None:
                          d["over_on_body"], fmt(d["max_strain"]),
                          fmt(d["display_max_strain"]), _limbs(d), _stays_up(d), d["self_intersections"]])
             ctx.log(f"  fit {body_name} {entry['name']}: over {d['over']}, penetrating {d['penetrating']}")
-    sec.data = {"bodies": BODIES, "substeps": settings.substeps, "passes": settings.passes, "drapes": data}
+    sec.data = {"bodies": BODIES, "substeps": settings.substeps, "passes": settings.passes,
+                "projection_steps": settings.projection_steps, "drapes": data}
     sec.tables.append(Table(
-        "Every garment on three bodies (" + ("default settings" if ctx.substeps is None else
-                                             f"{settings.substeps} substeps of one pass a step") + ")",
+        f"Every garment on three bodies ({_settings_words(ctx, settings) or 'default settings'})",
         ["body", "garment", "steps", "at rest", "wall s", "penetrating", "deepest mm", "body through",
          "body through mm", "springs over",
          "over on body", "max strain", "shown mesh max strain", "sleeves / legs", "stays up", "self-crossings"],
@@ -83,7 +87,8 @@ def run(ctx: Context, sec: Section) -> None:
         ds = [d for d in data if d["body"] == body_name]
         met = sum(d["over"] == 0 and d["penetrating"] == 0 and d["rest"] and d["on_limbs"] is not False for d in ds)
         per_body.append(f"{body_name} {met}/{len(ds)} (over {sum(d['over'] for d in ds)})")
-    label = "fit" if ctx.substeps is None else f"fit, {settings.substeps} substeps"
+    label = ", ".join(["fit"] + ([f"{settings.substeps} substeps"] if ctx.substeps is not None else [])
+                      + ([f"{settings.projection_steps} projection steps"] if ctx.projection else []))
     sec.headline.append(
         f"{label}: {len(data)} drapes, penetrating vertices {sum(d['penetrating'] for d in data)}, body through "
         f"{sum(d['body_through'] for d in data)}, at rest "
@@ -91,6 +96,16 @@ def run(ctx: Context, sec: Section) -> None:
         f"{sum(d['on_limbs'] is not False for d in data)}/{len(data)}, staying up {sum(d['stays_up'] for d in data)}/"
         f"{len(data)}; meeting every target: " + ", ".join(per_body)
         + f"; self-crossing edges {sum(d['self_intersections'] for d in data)}")
+
+
+def _settings_words(ctx: Context, settings) -> str:
+    """The section's settings other than the default, in words ("" for none)."""
+    words = []
+    if ctx.substeps is not None:
+        words.append(f"{settings.substeps} substeps of one pass a step")
+    if ctx.projection:
+        words.append(f"{settings.projection_steps} Newton steps of the fast projection a step")
+    return ", ".join(words)
 
 
 def _stays_up(d: dict) -> str:

@@ -10,6 +10,8 @@ from tryon.sim.settings import SimSettings
 
 # the most substeps ``--substeps`` takes (as the API's settings)
 MAX_SUBSTEPS = 16
+# the most Newton steps of the fast projection ``--projection`` takes
+MAX_PROJECTION = 8
 # the most random pose sequences per garment ``--sequences`` takes (the motion section's full run)
 MAX_SEQUENCES = 20
 
@@ -30,6 +32,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--substeps", type=int, default=None, metavar="N",
                    help=f"fit section: N substeps per step, one spring pass each (default {SimSettings().substeps}), "
                         f"to see what fewer cost in accuracy; 1 to {MAX_SUBSTEPS}")
+    p.add_argument("--projection", type=int, default=None, metavar="N",
+                   help="fit section: N Newton steps of the fast projection of the strain limits at the end of every "
+                        f"step (default none), to see what it costs and changes on the catalogue; 1 to {MAX_PROJECTION}")
     p.add_argument("--sequences", type=int, default=None, metavar="N",
                    help=f"motion section: N random pose sequences of ten poses per garment instead of all "
                         f"{MAX_SEQUENCES} (each garment's first N; ~10 minutes per sequence); 1 to {MAX_SEQUENCES}")
@@ -48,13 +53,15 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"unknown section {', '.join(map(repr, unknown))} for --only: choose from {' '.join(known)}")
     if args.substeps is not None and not 1 <= args.substeps <= MAX_SUBSTEPS:
         raise CliError(f"--substeps must be 1 to {MAX_SUBSTEPS}, got {args.substeps}")
+    if args.projection is not None and not 1 <= args.projection <= MAX_PROJECTION:
+        raise CliError(f"--projection must be 1 to {MAX_PROJECTION}, got {args.projection}")
     if args.sequences is not None and not 1 <= args.sequences <= MAX_SEQUENCES:
         raise CliError(f"--sequences must be 1 to {MAX_SEQUENCES}, got {args.sequences}")
     writable_dir(args.out, "--out")  # before the run, not after minutes of it
     if args.bodies is not None and not args.bodies.is_file():
         raise CliError(f"--bodies: no such file {args.bodies}")
     report, code = run_bench(args.out, quick=args.quick, stress=args.stress, only=args.only,
-                             substeps=args.substeps, bodies=args.bodies, sequences=args.sequences)
+                             substeps=args.substeps, projection=args.projection, bodies=args.bodies, sequences=args.sequences)
     for s in report["sections"]:
         for h in s["headline"]:
             print(h)

@@ -12,7 +12,8 @@ note in the report, never a failure of the benchmark. Headline: our per-frame ti
 peer's, among the peers whose cloth stretched as much as ours or more (and, beside it, over the fastest
 peer at all), and against Taichi at our thread count, with whether our quality (max stretch and max
 penetration over all frames) is no worse than its; then ours at Taichi's quality (``equal_quality``): the
-fewest substeps that match it, and what they cost.
+cheapest of our settings that match it (the fast projection of the strain limits, more substeps), and what
+they cost.
 """
 
 from __future__ import annotations

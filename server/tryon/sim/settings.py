@@ -52,11 +52,12 @@ class SimSettings:
         shear springs go back to their natural length (paper eq. 2-3); bending springs only a little, so
         the cloth can still buckle and fold (a hard compression limit on them makes cloth a plate).
     projection_steps: Newton steps of the fast projection of the strain limits at the end of every step
-        (``projection.py``: the springs over their limit solved together, so a correction crosses the whole
-        sheet at once); 0 = none. Off by default: the cloth on the ball meets Taichi's quality with 4 (its
-        stretch over all frames 0.47 -> 0.16 on the 4k cloth, ``tryon bench --only peers``), but on the
-        catalogue it costs 60-120 % more time to rest, and shows more skin through the small body's
-        long-sleeves (``docs/benchmarks.md``).
+        (``projection.py``: the springs over their limit solved together, so a correction crosses many springs
+        at once); 0 = none. Off by default. With 4, the 4k cloth on the ball stretches 0.16 instead of 0.47 over
+        all frames, and with 64 substeps meets Taichi's 0.118 (``tryon bench --only peers``); but on the
+        catalogue (``tryon bench --only fit --projection 4``), with every other figure kept, more skin shows
+        through the shown mesh (body-through vertices 122 -> 169, the small body's long-sleeves most) and a
+        drape takes a third longer (median 0.18 -> 0.23 s).
     max_speed: m/s, per-particle speed clamp; a guard that keeps any scene bounded (gravity alone gives
         ~4 m/s after a 0.8 m fall, so it never acts on a normal drape).
     seed: random seed for anything random (stress scenes).

@@ -56,8 +56,8 @@ def run_bench(out_dir: Path | str = "bench-results", quick: bool = False, stress
     the motion section's random pose sequences per garment instead of its mode's."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    ctx = Context(out_dir=out, quick=quick, stress=stress, log=log, substeps=substeps, projection=projection, bodies=bodies,
-                  sequences=sequences)
+    ctx = Context(out_dir=out, quick=quick, stress=stress, log=log, substeps=substeps, projection=projection,
+                  bodies=bodies, sequences=sequences)
     started = now()
     info = machine()
     # every kernel compiled (or loaded) before the first section times anything, as the service does

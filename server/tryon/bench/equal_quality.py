@@ -70,7 +70,8 @@ def at_equal_quality(n: int, default: dict, target: dict, run) -> dict:
 def quality_table(results: list[dict]) -> Table:
     """The section's table of ``at_equal_quality`` summaries."""
     rows = [[r["particles"], r["target_target"], fmt(r["target_stretch"]), fmt(r["target_penetration_mm"]),
-             _setting(r["substeps"], r.get("projection_steps", 0)), fmt(r["met"]), fmt(r["frame_ms"]), fmt(r["target_frame_ms"]),
+             _setting(r["substeps"], r.get("projection_steps", 0)), fmt(r["met"]), fmt(r["frame_ms"]),
+             fmt(r["target_frame_ms"]),
              fmt(r.get("speedup")), fmt(r["max_stretch"]), fmt(r["final_stretch"]),
              fmt(r["max_penetration_mm"]), "; ".join(f"{_setting(k, p)}: {fmt(s)} in {fmt(ms)} ms"
                                                     for k, p, s, ms in r["tried"])]
@@ -101,7 +102,8 @@ def quality_headline(r: dict) -> str:
                        f"(max stretch {fmt(r['max_stretch'])} "
                        f"vs {fmt(r['target_stretch'])}, penetration {fmt(r['max_penetration_mm'])} vs "
                        f"{fmt(r['target_penetration_mm'])} mm, {fmt(r['frame_ms'])} ms/frame)")
-    text += f"ours (1 thread) with {_setting(r['substeps'], r.get('projection_steps', 0))}, {fmt(r['frame_ms'])} ms/frame"
+    text += (f"ours (1 thread) with {_setting(r['substeps'], r.get('projection_steps', 0))}, "
+             f"{fmt(r['frame_ms'])} ms/frame")
     if r.get("speedup"):
         text += f" vs {fmt(r['target_frame_ms'])} ms: {speed_words(r['speedup'])}"
     return text + f" (max stretch {fmt(r['max_stretch'])} vs {fmt(r['target_stretch'])})"

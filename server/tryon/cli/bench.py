@@ -33,8 +33,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help=f"fit section: N substeps per step, one spring pass each (default {SimSettings().substeps}), "
                         f"to see what fewer cost in accuracy; 1 to {MAX_SUBSTEPS}")
     p.add_argument("--projection", type=int, default=None, metavar="N",
-                   help="fit section: N Newton steps of the fast projection of the strain limits at the end of every "
-                        f"step (default none), to see what it costs and changes on the catalogue; 1 to {MAX_PROJECTION}")
+                   help="fit section: N Newton steps of the fast projection of the strain limits at the end of "
+                        "every step (default none), to see what it costs and changes on the catalogue; "
+                        f"1 to {MAX_PROJECTION}")
     p.add_argument("--sequences", type=int, default=None, metavar="N",
                    help=f"motion section: N random pose sequences of ten poses per garment instead of all "
                         f"{MAX_SEQUENCES} (each garment's first N; ~10 minutes per sequence); 1 to {MAX_SEQUENCES}")
@@ -61,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
     if args.bodies is not None and not args.bodies.is_file():
         raise CliError(f"--bodies: no such file {args.bodies}")
     report, code = run_bench(args.out, quick=args.quick, stress=args.stress, only=args.only,
-                             substeps=args.substeps, projection=args.projection, bodies=args.bodies, sequences=args.sequences)
+                             substeps=args.substeps, projection=args.projection, bodies=args.bodies,
+                             sequences=args.sequences)
     for s in report["sections"]:
         for h in s["headline"]:
             print(h)

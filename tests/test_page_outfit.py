@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import trimesh
 
 from conftest import serve_process
 from test_page_layout import LAYOUT_PROBLEMS, open_page
@@ -35,6 +36,10 @@ def outfit_shop(tmp_path_factory) -> str:
         path = root / f"{kind}-m.obj"
         path.write_text(obj_text(garment_mesh(kind, "M"), name))
         catalogue.ingest(path, name=name, category=category, size="M", units="m")
+    # a file that is already an outfit (a shirt and trousers in one, as MakeHuman's): worn alone
+    both = trimesh.util.concatenate([garment_mesh("tshirt", "L"), garment_mesh("trousers", "L")])
+    catalogue.ingest(both.export(file_type="obj").encode(), name="Shirt and trousers", category="top", units="m",
+                     filename="shirt-and-trousers.obj")
     with serve_process(root / "data") as url:
         yield url
 
@@ -80,6 +85,21 @@ def test_a_top_and_a_bottom_worn_together(browser, outfit_shop, width, height):
         page.wait_for_function(f"window.tryon.bodyRequests > {requests}", timeout=30_000)
         assert page.is_visible("#notice") and "press “Try on” to see it on this one" in page.inner_text("#notice-text")
         assert page.evaluate("window.tryon.state") == "ready"
+        assert page.problems == []
+    finally:
+        context.close()
+
+
+def test_a_file_that_is_already_an_outfit_is_worn_alone(browser, outfit_shop):
+    """A shirt-and-trousers file (``pieces`` in the catalogue) offers nothing to wear with it, and is not offered
+    as a top to wear with the trousers: either would be refused (422) by the service."""
+    context, page = open_page(browser, outfit_shop, 1366, 768)
+    try:
+        page.get_by_role("radio", name="Shirt and trousers, size one size", exact=True).click()
+        assert not page.is_visible("#outfit") and not page.is_visible("#tuck")
+        page.get_by_role("radio", name="Trousers, size M", exact=True).click()
+        assert page.is_visible("#outfit")
+        assert page.locator("#companion option").all_text_contents() == ["nothing else", "T-shirt M"]
         assert page.problems == []
     finally:
         context.close()

@@ -163,10 +163,12 @@ const garmentById = (id) => state.garments.find((g) => g.id === id);
 const isBottom = (g) => g?.category === 'bottom';
 
 /** The "Wear with" choice: the catalogue's garments of the other kind (bottoms for a top or a dress, tops
- * and dresses for a bottom); the tuck choice only once one is chosen. */
+ * and dresses for a bottom); the tuck choice only once one is chosen. A file that is already an outfit (its
+ * `pieces`: a MakeHuman shirt and trousers) is worn alone: no choice beside it, and it is no one's companion. */
 function renderCompanions() {
   const chosen = garmentById(state.garmentId);
-  const others = chosen ? state.garments.filter((g) => isBottom(g) !== isBottom(chosen)) : [];
+  const others = chosen && !chosen.pieces
+    ? state.garments.filter((g) => !g.pieces && isBottom(g) !== isBottom(chosen)) : [];
   const select = $('companion');
   if (!others.some((g) => g.id === state.companionId)) state.companionId = null;
   select.replaceChildren(new Option('nothing else', ''));

@@ -19,6 +19,20 @@ from tryon.geometry import stack_meshes
 from tryon.sim.outfit import layer_order, piece_categories
 
 
+# Each entry's pieces (``file_pieces``) by id: an id stands for one file's content and preparation, so its pieces
+# never change; a listing then loads each model once per process, not on every call.
+_PIECES: dict[str, list[str] | None] = {}
+
+
+def file_pieces(catalogue: Catalogue, garment_id: str) -> list[str] | None:
+    """For an entry that is a file of separate garments worn together (a MakeHuman outfit: a shirt and
+    trousers), each piece's category in the file's order (``sim.outfit.piece_categories``); None for one
+    garment."""
+    if garment_id not in _PIECES:
+        _PIECES[garment_id] = piece_categories(catalogue.model(garment_id))
+    return _PIECES[garment_id]
+
+
 def check_garments(catalogue: Catalogue, request: TryOnRequest) -> None:
     """HTTPException for garments a request cannot have: an unknown ``garment_id`` is 404 (as before
     outfits); in ``garment_ids`` an unknown id, two bottoms, or a file that is itself a top and a bottom (a
@@ -34,7 +48,7 @@ def check_garments(catalogue: Catalogue, request: TryOnRequest) -> None:
             raise HTTPException(422, f"garment_ids[{k}]: no garment with id {gid!r} in the catalogue "
                                      "(see GET /api/garments)")
         metas.append(meta)
-        if len(request.ids) > 1 and piece_categories(catalogue.model(gid)) is not None:
+        if len(request.ids) > 1 and file_pieces(catalogue, gid) is not None:
             raise HTTPException(422, f"garment_ids[{k}]: {meta.name!r} is already an outfit (a top and a bottom in one "
                                      "file, layered when it is tried on alone): try it on by itself")
     try:

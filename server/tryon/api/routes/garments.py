@@ -9,10 +9,12 @@ from fastapi.concurrency import run_in_threadpool
 
 from tryon.api.deps import AdminDep, CatalogueDep, SettingsDep
 from tryon.api.export import MEDIA_TYPES, json_bytes, mesh_bytes, mesh_json
+from tryon.api.outfits import file_pieces
 from tryon.api.schemas.garments import (CATEGORY_CHOICE_DESCRIPTION, SIZE_CHART_DESCRIPTION, CategoryChoice,
                                         GarmentEntry, GarmentList, MeshFormat, Units)
-from tryon.garment.catalogue import resolve_category
+from tryon.garment.catalogue import Catalogue, resolve_category
 from tryon.garment.ingest import GarmentError, file_extension
+from tryon.garment.model import GarmentMeta
 from tryon.garment.prepare import DEFAULT_SIMPLIFICATION
 from tryon.garment.sizes import check_labels
 
@@ -22,6 +24,11 @@ router = APIRouter(tags=["garments"])
 UPLOAD_CHUNK = 1 << 20
 
 
+def _entry(catalogue: Catalogue, meta: GarmentMeta) -> GarmentEntry:
+    """A catalogue entry as the API gives it, with its pieces if it is a file of separate garments."""
+    return GarmentEntry.from_meta(meta, pieces=file_pieces(catalogue, meta.id))
+
+
 def _not_found(garment_id: str) -> HTTPException:
     return HTTPException(status.HTTP_404_NOT_FOUND, f"no garment with id {garment_id!r}")
 
@@ -29,7 +36,7 @@ def _not_found(garment_id: str) -> HTTPException:
 @router.get("/garments", response_model=GarmentList)
 def list_garments(catalogue: CatalogueDep) -> GarmentList:
     """The catalogue: every entry with counts (original and simplified), size and units."""
-    return GarmentList(garments=[GarmentEntry.from_meta(m) for m in catalogue.list()])
+    return GarmentList(garments=[_entry(catalogue, m) for m in catalogue.list()])
 
 
 @router.get("/garments/{garment_id}", response_model=GarmentEntry)
@@ -37,7 +44,7 @@ def get_garment(garment_id: str, catalogue: CatalogueDep) -> GarmentEntry:
     meta = catalogue.get(garment_id)
     if meta is None:
         raise _not_found(garment_id)
-    return GarmentEntry.from_meta(meta)
+    return _entry(catalogue, meta)
 
 
 @router.get("/garments/{garment_id}/mesh")
@@ -115,7 +122,7 @@ async def upload_garment(
         raise HTTPException(exc.status, f"{exc.field}: {exc}") from None
     if not created:
         response.status_code = status.HTTP_200_OK
-    return GarmentEntry.from_meta(meta)
+    return await run_in_threadpool(_entry, catalogue, meta)
 
 
 @router.delete("/garments/{garment_id}", status_code=status.HTTP_204_NO_CONTENT)

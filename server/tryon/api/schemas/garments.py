@@ -49,16 +49,21 @@ class GarmentEntry(BaseModel):
     springs: SpringCounts = Field(description="springs of the simplified mesh by type")
     source_name: str = Field(description="file name as uploaded")
     notes: list[str] = Field(default_factory=list, description="what loading and cleaning did, in words")
+    pieces: list[Category] | None = Field(
+        default=None, description="for a file of separate garments worn together (a MakeHuman outfit: a shirt and "
+                                  "trousers), each piece's category in the file's order: tried on alone it drapes "
+                                  "as its own outfit, and it cannot go in garment_ids with other garments; null "
+                                  "for one garment")
 
     @classmethod
-    def from_meta(cls, meta: GarmentMeta) -> "GarmentEntry":
+    def from_meta(cls, meta: GarmentMeta, pieces: list[str] | None = None) -> "GarmentEntry":
         return cls(
             id=meta.id, name=meta.name, category=meta.category, size=meta.size, style=meta.style,
             chart=meta.chart, units=meta.units,
             units_guessed=meta.units_guessed, simplification=meta.simplification, vertices=meta.vertices,
             faces=meta.faces, coarse_vertices=meta.coarse_vertices, coarse_faces=meta.coarse_faces,
             springs=SpringCounts(**{k: meta.springs.get(k, 0) for k in ("structural", "shear", "bending")}),
-            source_name=meta.source_name, notes=list(meta.notes),
+            source_name=meta.source_name, notes=list(meta.notes), pieces=pieces,
         )
 
 

@@ -29,7 +29,11 @@ def file_pieces(catalogue: Catalogue, garment_id: str) -> list[str] | None:
     trousers), each piece's category in the file's order (``sim.outfit.piece_categories``); None for one
     garment."""
     if garment_id not in _PIECES:
-        _PIECES[garment_id] = piece_categories(catalogue.model(garment_id))
+        try:
+            model = catalogue.model(garment_id)
+        except KeyError:  # deleted since it was listed
+            return None
+        _PIECES[garment_id] = piece_categories(model)
     return _PIECES[garment_id]
 
 

@@ -84,3 +84,35 @@ def test_an_armhole_the_arm_leaves_across_its_plane_is_round_the_arm():
     side = np.cross(axis, up)
     across = a + 0.45 * (b - a) + 0.06 * (np.cos(angles) * side + np.sin(angles) * up)  # round the middle
     assert around_part(across, a, b, part_points(body, k)) and not through_root(across, body, k)
+
+
+def test_a_tight_coarse_hem_chorded_across_the_leg_is_judged_on_the_shown_hem():
+    """The MakeHuman trousers on a 163 cm ANSUR body: a few coarse hem points, one chord across the ankle,
+    leave the shin's centre outside the coarse ring while the shown hem goes round it."""
+    from types import SimpleNamespace
+
+    from tryon.body.build import build_body
+    from tryon.body.params import Measurements, Pose
+    from tryon.sim.landmarks import part_points
+    from tryon.sim.limbs import openings_on_limbs, openings_on_shown_limbs
+
+    body = build_body(Measurements(height=170, chest=96, waist=82, hips=100), Pose())
+    k = body.parts.index("shin_l")
+    a, b = body.part_axes[k]
+    skin = part_points(body, k)
+    y = float((a + 0.7 * (b - a))[1])
+    section = skin[np.abs(skin[:, 1] - y) < 0.015]
+    centre = section.mean(axis=0)
+    radius = float(np.linalg.norm((section - centre)[:, [0, 2]], axis=1).max()) + 0.006
+
+    def hem(shift: float) -> np.ndarray:
+        return _ring(radius, y, n=18, centre=(centre[0] + shift, centre[2]))
+
+    coarse_ids = np.array([1, 3, 6, 8])  # 20, 60, 120, 160 degrees: the chord 160 -> 20 passes the front
+    for shift, on in ((0.0, True), (0.15, False)):  # round the shin; hanging 15 cm beside it
+        full = hem(shift)
+        model = SimpleNamespace(vertices=full, loops=[np.arange(18)], coarse_index=coarse_ids)
+        openings = [("left", "leg", np.arange(4))]
+        assert not openings_on_limbs(full[coarse_ids], body, openings)[0]["ok"]
+        judged = openings_on_shown_limbs(full[coarse_ids], full, model, body, openings)[0]
+        assert judged["ok"] is on and judged["around"] == ("shin_l" if on else None)

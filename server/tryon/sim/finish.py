@@ -9,7 +9,7 @@ from typing import Callable
 import numpy as np
 
 from tryon.sim.full_mesh import display_strain, follow_coarse
-from tryon.sim.limbs import openings_on_limbs
+from tryon.sim.limbs import openings_on_shown_limbs
 from tryon.sim.metrics import penetration_metrics, slid_metrics, strain_metrics, too_tight_places
 from tryon.sim.relax import Relaxation
 from tryon.sim.show_through import show_through_depth, show_through_metrics
@@ -54,7 +54,7 @@ def result(d: Drape, relaxation: Relaxation, full: np.ndarray, full_parts: np.nd
     depth = d.collider.depth(full, full_parts, offset=False)
     spring_strain_, per_vertex, by_kind = strain_metrics(x, model, d.limits, on_body=st.has_plane.copy())
     too_tight = too_tight_places(x, model, spring_strain_, d.limits, st.has_plane, body)
-    on_limbs = openings_on_limbs(x, body, d.openings)
+    on_limbs = openings_on_shown_limbs(x, full, model, body, d.openings)
     metrics = {
         "steps": int(st.step),
         "sim_seconds": float(st.step * float(s.time_step)),

@@ -422,3 +422,22 @@ def test_trousers_on_legs_spread_20_degrees(catalogue):
     assert m["rest_reached"] and m["penetrating_vertices"] == 0
     assert m["openings_on_limbs"] is True, m["limb_openings"]
     assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, m["strain_by_kind"]
+
+
+def test_the_start_up_is_not_shown_only_the_garment_on_the_whole_body(catalogue, body):
+    """A garment put on tangled with the body is draped on a body grown from half its girth; a caller draws the
+    whole body, so those steps are not handed over: the first frame is the first step on the whole body, and in
+    none is the garment more than a centimetre inside it (the start-up's went up to 78 mm)."""
+    from tryon.sim.collision.collider import BodyCollider
+    from tryon.sim.metrics import deepest_inside
+    from tryon.sim.run import settle
+    from tryon.sim.start import start
+
+    model = _model(catalogue, "trousers-m.obj", "bottom")
+    d = start(body, model, SimSettings())
+    assert d.grow_steps and d.startup >= d.grow_steps  # the trousers start tangled with the legs
+    whole, frames = BodyCollider(body, SimSettings().collision_margin), []
+    result = settle(d, lambda step, x: frames.append((step, deepest_inside(whole, x))) is None)[0]
+    assert frames[0][0] == d.startup + 1 and frames[-1][0] == result.metrics["steps"]
+    assert [s for s, _ in frames] == list(range(d.startup + 1, result.metrics["steps"] + 1))
+    assert max(depth for _, depth in frames) < 0.01

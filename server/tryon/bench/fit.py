@@ -41,7 +41,7 @@ def run(ctx: Context, sec: Section) -> None:
     rows, data = [], []
     for body_name, measurements in BODIES.items():
         body = build_body(Measurements(**measurements), Pose())
-        shown = BodyCollider(body, settings.collision_margin)  # the body the page shows beside every frame
+        shown = BodyCollider(body, settings.collision_margin)  # the body a page draws beside the frames
         for entry in entries:
             model, _ = prepared(ctx, entry)
             result, frames = drape_watched(body, model, settings, shown)
@@ -62,7 +62,7 @@ def run(ctx: Context, sec: Section) -> None:
                          fmt(d["max_penetration_mm"]), d["body_through"], fmt(d["max_body_through_mm"]), d["over"],
                          d["over_on_body"], fmt(d["max_strain"]),
                          fmt(d["display_max_strain"]), _limbs(d), _stays_up(d), d["self_intersections"],
-                         fmt(d["startup_frame_depth_mm"]), fmt(d["frame_depth_mm"])])
+                         fmt(d["frame_depth_mm"])])
             ctx.log(f"  fit {body_name} {entry['name']}: over {d['over']}, penetrating {d['penetrating']}")
     sec.data = {"bodies": BODIES, "substeps": settings.substeps, "passes": settings.passes,
                 "projection_steps": settings.projection_steps, "drapes": data}
@@ -71,7 +71,7 @@ def run(ctx: Context, sec: Section) -> None:
         ["body", "garment", "steps", "at rest", "wall s", "penetrating", "deepest mm", "body through",
          "body through mm", "springs over",
          "over on body", "max strain", "shown mesh max strain", "sleeves / legs", "stays up", "self-crossings",
-         "deepest frame mm, start-up", "deepest frame mm, after"],
+         "deepest frame mm"],
         rows,
         note="body through: body vertices showing more than 2 mm through the shown mesh where it covers them "
              "(``sim/show_through.py``), and the deepest; springs over: beyond their type's limit by more than 1 % "
@@ -85,10 +85,9 @@ def run(ctx: Context, sec: Section) -> None:
              "``slid_cm``: a waistband wider than the hips slides off them, meeting every target where it "
              "lands); self-crossings: edges of the shown mesh through one of its own triangles "
              "(``collision.crossings.self_intersections``: cloth through its own folds; the solver has no "
-             "self-collision yet); deepest frame: the deepest simulated point inside the body at its full size (the "
-             "body the page draws beside the streamed frames) in any step of the start-up (the body grown into the "
-             "garment from half its girth, the arms turned from the sleeves) and in any step after it (issue 26: "
-             "at most 2 mm in every streamed frame, not only the answer)"))
+             "self-collision yet); deepest frame: the deepest simulated point inside the body in any step a caller "
+             "is shown (``run.settle``: all but the start-up, where the body is grown into the garment and the arms "
+             "turned from the sleeves; issue 26: at most 2 mm in every streamed frame, not only the answer)"))
     per_body = []
     for body_name in BODIES:
         ds = [d for d in data if d["body"] == body_name]
@@ -102,29 +101,27 @@ def run(ctx: Context, sec: Section) -> None:
         f"{sum(d['rest'] for d in data)}/{len(data)}, sleeves and legs around their limbs "
         f"{sum(d['on_limbs'] is not False for d in data)}/{len(data)}, staying up {sum(d['stays_up'] for d in data)}/"
         f"{len(data)}; meeting every target: " + ", ".join(per_body)
-        + f"; self-crossing edges {sum(d['self_intersections'] for d in data)}; a frame after the start-up more than "
-        f"2 mm inside {sum(d['frame_depth_mm'] > 2.0 for d in data)}/{len(data)} (deepest "
-        f"{fmt(max(d['frame_depth_mm'] for d in data))} mm)")
+        + f"; self-crossing edges {sum(d['self_intersections'] for d in data)}; a shown frame more than 2 mm inside "
+        f"{sum(d['frame_depth_mm'] > 2.0 for d in data)}/{len(data)} (deepest {fmt(max(d['frame_depth_mm'] for d in data))} mm)")
 
 
 def drape_watched(body, model, settings, shown) -> tuple:
-    """``run.drape`` of a one-piece garment (the catalogue's) in the body's own pose, watching every step: (the
-    result, {"startup_frame_depth_mm", "frame_depth_mm"}), the deepest coarse point inside ``shown`` (a
-    ``BodyCollider`` of the full body) during the drape's start-up and after it (``metrics.deepest_inside``).
+    """``run.drape`` of a one-piece garment (the catalogue's) in the body's own pose, watching every frame it
+    shows a caller (``run.settle``: the steps after the start-up): (the result, {"frame_depth_mm"}), the deepest
+    coarse point inside ``shown`` (a ``BodyCollider`` of the body) in any of them (``metrics.deepest_inside``).
     The result's ``wall_seconds`` leaves the watching out."""
     from tryon.sim.metrics import deepest_inside
     from tryon.sim.run import settle
     from tryon.sim.start import start
 
     d = start(body, model, settings)
-    deepest = {"startup_frame_depth_mm": 0.0, "frame_depth_mm": 0.0}
+    deepest = {"frame_depth_mm": 0.0}
     spent = 0.0
 
     def watch(step, x):
         nonlocal spent
         t = time.perf_counter()
-        key = "startup_frame_depth_mm" if step <= d.startup else "frame_depth_mm"
-        deepest[key] = max(deepest[key], 1000.0 * deepest_inside(shown, x))
+        deepest["frame_depth_mm"] = max(deepest["frame_depth_mm"], 1000.0 * deepest_inside(shown, x))
         spent += time.perf_counter() - t
         return True
 

@@ -316,7 +316,8 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
         for k, d in enumerate(drapes):
             if n > layered_from and d.state.rest_run >= settings.rest_steps:
                 asleep[k] = True
-        if on_frame is not None and on_frame(n, [d.state.x for d in drapes]) is False:
+        # the start-up is not shown (``run.settle``)
+        if on_frame is not None and n > layered_from and on_frame(n, [d.state.x for d in drapes]) is False:
             stopped = True
             break
         if asleep.all():

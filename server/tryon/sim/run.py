@@ -116,13 +116,20 @@ def settle(d: Drape, on_frame=None, give_way=None) -> tuple[TryOnResult | None, 
     motion is over; True ends the settle there without a result: (None, True). A re-posed drape (``d.moving``)
     has its coarse points' depth inside the body measured after every step (``metrics.deepest_inside``, the
     body as it is at that step), the deepest kept in ``d.motion_depth``: the result's
-    ``motion_max_penetration_mm``."""
+    ``motion_max_penetration_mm``.
+
+    A fresh drape's start-up (``d.startup`` steps: the body grown into the garment from half its girth, the
+    arms turned back from the sleeves) is not handed to ``on_frame``: its body is not the one a caller draws
+    beside the frames, and the garment would be shown up to 8 cm into it (the catalogue on three bodies,
+    ``tryon bench --only fit``: median 16 mm). A re-posed drape's start-up is its body's motion, which a caller
+    draws in step (``api.live``'s ``body_pose``): shown."""
     stopped = False
     for _ in range(d.settings.max_steps):
         at_rest = step(d)
         if d.moving:  # a re-pose: how deep the cloth is inside the body as it is at this step
             d.motion_depth = max(d.motion_depth, deepest_inside(d.collider, d.state.x))
-        if on_frame is not None and on_frame(d.state.step, d.state.x) is False:
+        shown = d.moving or d.state.step > d.startup
+        if on_frame is not None and shown and on_frame(d.state.step, d.state.x) is False:
             stopped = True
             break
         if at_rest:

@@ -15,7 +15,9 @@ Protocol (one try-on per connection):
    step; float32 seconds since the request was accepted) followed by ``vertex_count * 3`` little-endian
    float32 x, y, z in metres (``12 + 12 * vertex_count`` bytes). The last frame is the final state. With
    ``"encoding": "uint16"`` in the request the positions are uint16 q instead, position = origin + q * scale
-   (metres, per axis; origin and scale in the init message's ``encoding``): half the bytes;
+   (metres, per axis; origin and scale in the init message's ``encoding``): half the bytes. The frames start
+   once the garment is on the whole body: the start-up, where the body is grown into a garment put on tangled
+   with it and the arms are turned back from the sleeves, is not streamed (``run.settle``);
 4. then one JSON ``{"type": "done", "metrics": {...}, "strain": [...], "cached": bool, ...}`` and a
    normal close (1000); an outfit's metrics are ``POST /api/tryon``'s outfit metrics, with ``garments``: each
    garment's own metrics (its strain in ``strain``, every garment's one after the other).

@@ -441,3 +441,7 @@ def test_the_start_up_is_not_shown_only_the_garment_on_the_whole_body(catalogue,
     assert frames[0][0] == d.startup + 1 and frames[-1][0] == result.metrics["steps"]
     assert [s for s, _ in frames] == list(range(d.startup + 1, result.metrics["steps"] + 1))
     assert max(depth for _, depth in frames) < 0.01
+    # a checker of the whole run (the stability stress) is handed the start-up too
+    steps = []
+    settle(start(body, model, SimSettings()), lambda step, x: steps.append(step) is None, start_up=True)
+    assert steps[:3] == [1, 2, 3] and steps[-1] == result.metrics["steps"]

@@ -24,7 +24,8 @@ from tryon.body.params import MEASUREMENT_RANGES, POSE_RANGES, REQUIRED, Measure
 from tryon.garment.model import GarmentModel
 from tryon.sim.align import align_garment
 from tryon.sim.constraints import spring_lengths
-from tryon.sim.run import drape
+from tryon.sim.run import settle
+from tryon.sim.start import start
 from tryon.sim.settings import SimSettings
 
 GARMENTS_DIR = Path(__file__).resolve().parents[3] / "garments"
@@ -114,7 +115,8 @@ def run_scene(model: GarmentModel, settings: SimSettings, measurements: Measurem
 
     error = None
     try:
-        result = drape(body, model, settings, on_frame=check, initial=x0)
+        # every step checked, the start-up's too (``drape`` with ``initial``, its start-up handed over)
+        result = settle(start(body, model, settings, initial=x0), check, start_up=True)[0]
         final_ok = bool(np.all(np.isfinite(result.vertices)))
     except FloatingPointError as exc:  # the loop's own NaN guard
         error, final_ok = str(exc), False

@@ -109,7 +109,7 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     return settle(start(body, model, settings, tuning, initial), on_frame)[0]
 
 
-def settle(d: Drape, on_frame=None, give_way=None) -> tuple[TryOnResult | None, bool]:
+def settle(d: Drape, on_frame=None, give_way=None, start_up: bool = False) -> tuple[TryOnResult | None, bool]:
     """Step ``d`` until it is at rest (or ``settings.max_steps``, or until ``on_frame(step, x)``, called after
     every step, returns False), then relax and finish it: (the result, False). A fresh drape (``drape``) and a
     re-posed one (``repose.repose``) alike. ``give_way()``: asked after every step once the body's start-up
@@ -122,13 +122,14 @@ def settle(d: Drape, on_frame=None, give_way=None) -> tuple[TryOnResult | None, 
     arms turned back from the sleeves) is not handed to ``on_frame``: its body is not the one a caller draws
     beside the frames, and the garment would be shown up to 8 cm into it (the catalogue on three bodies,
     ``tryon bench --only fit``: median 16 mm). A re-posed drape's start-up is its body's motion, which a caller
-    draws in step (``api.live``'s ``body_pose``): shown."""
+    draws in step (``api.live``'s ``body_pose``): shown. ``start_up=True`` hands every step over (a checker that
+    watches the whole run: the stability stress)."""
     stopped = False
     for _ in range(d.settings.max_steps):
         at_rest = step(d)
         if d.moving:  # a re-pose: how deep the cloth is inside the body as it is at this step
             d.motion_depth = max(d.motion_depth, deepest_inside(d.collider, d.state.x))
-        shown = d.moving or d.state.step > d.startup
+        shown = start_up or d.moving or d.state.step > d.startup
         if on_frame is not None and shown and on_frame(d.state.step, d.state.x) is False:
             stopped = True
             break

@@ -102,7 +102,8 @@ def run(ctx: Context, sec: Section) -> None:
         f"{sum(d['on_limbs'] is not False for d in data)}/{len(data)}, staying up {sum(d['stays_up'] for d in data)}/"
         f"{len(data)}; meeting every target: " + ", ".join(per_body)
         + f"; self-crossing edges {sum(d['self_intersections'] for d in data)}; a shown frame more than 2 mm inside "
-        f"{sum(d['frame_depth_mm'] > 2.0 for d in data)}/{len(data)} (deepest {fmt(max(d['frame_depth_mm'] for d in data))} mm)")
+        f"{sum(d['frame_depth_mm'] > 2.0 for d in data)}/{len(data)} "
+        f"(deepest {fmt(max(d['frame_depth_mm'] for d in data))} mm)")
 
 
 def drape_watched(body, model, settings, shown) -> tuple:

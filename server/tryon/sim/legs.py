@@ -143,8 +143,9 @@ def leg_girth(x: np.ndarray, lm: BodyLandmarks, legs: dict[float, np.ndarray], c
     ``_align_piece``), but not to less than ``LEG_EASE`` x the body's leg (``leg_surface``: its points by
     side, ``leg_points``), widened past the scaled girth where even that is narrower: a hem too narrow for the
     calf would start inside it (the MakeHuman T-shirt outfit's trousers, ending mid-calf on a 178 cm ANSUR
-    body: a ten-point coarse hem 42 mm round a 49 mm calf, off the shin within the body's growth). ``crotch``: the garment's
-    (``garment_crotch``); ``legs``: the body's leg axes (``leg_axes``). Unchanged without two legs."""
+    body: a ten-point coarse hem 42 mm round a 49 mm calf, off the shin within the body's growth).
+    ``crotch``: the garment's (``garment_crotch``); ``legs``: the body's leg axes (``leg_axes``). Unchanged
+    without two legs."""
     bands = _leg_bands(x, lm, legs, crotch)
     if bands is None or girth == 1.0:
         return x

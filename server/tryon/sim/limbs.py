@@ -203,7 +203,7 @@ def openings_on_shown_limbs(x: np.ndarray, full: np.ndarray, model, body: Body,
     """``openings_on_limbs`` judged on the simulated points x (k, 3) m and, for an opening not around its limb
     there, on the shown mesh ``full`` (n, 3) m: the cloth a person sees. A tight hem of few coarse points can
     miss its limb's centre while the cloth round it does not (the MakeHuman trousers on a 163 cm ANSUR body: a
-    nine-point coarse hem chorded across the ankle, the shown hem's eighteen round it)."""
+    ten-point coarse hem chorded across the ankle, the shown hem's eighteen round it)."""
     coarse = openings_on_limbs(x, body, openings)
     if all(o["ok"] for o in coarse):
         return coarse

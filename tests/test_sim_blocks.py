@@ -193,3 +193,22 @@ def test_the_collision_on_two_threads_equals_one_call_over_all_points():
     assert outs[0][0] > 500  # about half the points started inside
     for a, b in zip(outs[0], outs[1]):
         assert np.array_equal(a, b)
+
+
+def test_the_depth_on_two_threads_equals_one_call_over_all_points():
+    """``depth_halves``: half the points a thread, each writing its own half of the answer: the depths of one
+    ``penetration_depth`` call (an odd count, so the halves differ in size)."""
+    from tryon.bench.ours_cloth import sphere_body
+    from tryon.sim.collision.collider import BodyCollider
+
+    collider = BodyCollider(sphere_body(0.3), 0.004)
+    rng = np.random.default_rng(12)
+    d = rng.normal(size=(2001, 3))
+    x = d / np.linalg.norm(d, axis=1)[:, None] * rng.uniform(0.27, 0.33, (2001, 1))
+    one, two = (collider.depth(x, np.zeros(1, np.int64), two=t) for t in (False, True))
+    assert np.array_equal(one, two)
+    # about half start inside, as deep as the ball's radius minus theirs (within its facets' sag)
+    expected = 0.3 - np.linalg.norm(x, axis=1)
+    inside = expected > 0.002
+    assert inside.sum() > 500 and np.abs(one[inside] - expected[inside]).max() < 0.002
+    assert np.all(one[expected < -0.002] == 0.0)

@@ -12,7 +12,7 @@ backward pass). Within a block the springs keep the garment's own order.
 Only garments with at least ``MIN_SPLIT_SPRINGS`` springs are split: a parallel launch costs a few
 microseconds, and the catalogue's garments (at most 12,480 springs, the XXL dress; ~0.1 ms a pass) keep
 their one block and their drapes bit for bit. The body collision of such a garment's points also runs on two
-threads, half the points each (``collide_halves``). How many threads a launch uses is the caller's thread setting
+threads, half the points each (``collide_halves``, ``depth_halves``). How many threads a launch uses is the caller's thread setting
 (``numba.set_num_threads``: the service's pool gives a try-on both cores while it runs alone, one each when
 two run at once, ``api.pool``); where no thread-safe threading layer loads (OpenMP or TBB: the pool's threads
 launch kernels at the same time), the blocks run one after the other on the calling thread.
@@ -27,7 +27,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from tryon.sim.collision.kernels import collide_points
+from tryon.sim.collision.kernels import collide_points, penetration_depth
 from tryon.sim.constraints import sweep_downward
 
 # springs: a garment with fewer keeps one block (the perf T-shirt has 16,938, the catalogue at most 12,480)
@@ -164,3 +164,18 @@ def collide_halves(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, 
                                   mu_static, mu_kinetic, contact[lo:hi], near, has_plane[lo:hi], plane_point[lo:hi],
                                   plane_normal[lo:hi], hold_pinched, held[lo:hi], hold_depth)
     return moved[0] + moved[1]
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def depth_halves(points, parts, surface):
+    """``collision.kernels.penetration_depth`` (same arguments) on two threads: the points [0, n/2) on one,
+    the rest on the other. No races: a point's depth reads only the body surface and each thread writes its
+    own half of the answer; the result is that of one call over all."""
+    n = points.shape[0]
+    half = n // 2
+    out = np.empty(n)
+    for t in prange(2):
+        lo = 0 if t == 0 else half
+        hi = half if t == 0 else n
+        out[lo:hi] = penetration_depth(points[lo:hi], parts, surface)
+    return out

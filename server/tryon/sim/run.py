@@ -19,8 +19,10 @@ substeps converge much further than the same passes on one step). Each substep:
    (``hold_pinched``, once the body no longer grows or turns), and one flipping between the parts is kept
    still through the step's substeps too (``pinch_flip``); in later substeps, a point without a plane that
    has moved more than the margin plus ``frame_depth`` since its test (cloth landing fast, a point the
-   springs pull in) is tested again the same way (``collision/movers.py``), so no frame has cloth more than
-   ``frame_depth`` inside the body;
+   springs pull in) is tested again the same way (``collision/movers.py``); at the step's end a contact
+   point more than ``frame_depth`` inside the body (slid along its plane into another part where two
+   overlap) is taken out (``step._out_of_the_body``), so no frame has cloth deeper than that but a pinched
+   point held where it was;
 3. the strain-limited springs (eq. 2-3), ``passes / substeps`` Gauss-Seidel passes, each followed by the
    contact planes (springs and contacts converge together);
 4. the top-down sweep for hanging cloth (``sweep_downward``: a sagging free end follows the point above

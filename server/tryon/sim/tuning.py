@@ -69,7 +69,9 @@ class Tuning:
         without bound.
     frame_depth: m, how deep a point may get into the body within a step: a point without a contact plane
         that moved more than the collision margin plus this since its collision test is tested again after
-        the next substep's prediction (``collision.movers``). Issue 26's bound for any streamed frame: 2 mm.
+        the next substep's prediction (``collision.movers``), and a contact point deeper than this in the real
+        body at the step's end is taken out (``step._out_of_the_body``). Issue 26's bound for any streamed
+        frame: 2 mm.
     unfold_per_pass: m, in a re-posed drape the most a pass lengthens a compressed spring by (``pack_springs``'
         cap; 0 = none). Cloth crushed in a fold (the inside of a bent elbow: structural springs down to 2 % of
         their length) sprang open at once when the fold opened, every pass putting each spring back to its

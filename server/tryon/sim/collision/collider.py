@@ -16,7 +16,7 @@ from tryon.sim.collision.kernels import (
     BodySurface, cell_max_radius, collide_points, face_boxes, grow_vertices, offset_body, part_max_radius,
     penetration_depth, vertex_parts,
 )
-from tryon.sim.blocks import collide_halves
+from tryon.sim.blocks import collide_halves, depth_halves
 from tryon.sim.collision.movers import Movers
 from tryon.body.maps import build_part_maps, rebuild_part_maps
 from tryon.geometry import face_normals, face_vertex_normals
@@ -196,9 +196,10 @@ class BodyCollider:
         return Movers(surface, parts, state.x_checked, state.contact, state.held, state.movers, float(reach),
                       float(lam), float(near), bool(hold_pinched), bool(retest_planes), float(hold_depth), bool(two))
 
-    def depth(self, points: np.ndarray, parts: np.ndarray, offset: bool = False) -> np.ndarray:
+    def depth(self, points: np.ndarray, parts: np.ndarray, offset: bool = False, two: bool = False) -> np.ndarray:
         """Depth (m) of each point (n, 3) inside the body (``offset=False``: the real, un-offset surface of
-        the current shape), 0 outside."""
+        the current shape), 0 outside. two: half the points on each of two threads (``blocks.depth_halves``;
+        the same result)."""
         if offset:
             bv, fn, rmax, boxes = self.offset, self.offset_normals, self.cell_rmax, self.offset_boxes
         else:
@@ -217,8 +218,9 @@ class BodyCollider:
                            self.corners, self.plain_boxes)
                 self._plain_shape = self.shape
             fn, rmax, boxes = self.plain_normals, self.plain_rmax, self.plain_boxes
-        return penetration_depth(np.ascontiguousarray(points, dtype=np.float64), parts,
-                                 self._surface(bv, fn, rmax, boxes))
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        surface = self._surface(bv, fn, rmax, boxes)
+        return depth_halves(points, parts, surface) if two else penetration_depth(points, parts, surface)
 
     def _surface(self, vertices, face_normals, cell_rmax, boxes) -> BodySurface:
         """The kernels' view of the offset or the real surface of the current shape."""

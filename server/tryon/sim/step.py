@@ -103,7 +103,7 @@ def step(d: Drape) -> bool:
                 d.sweep_blocks)
     if s.projection_steps and not changing:
         _project(d, w_eff)
-    if not changing:  # no contact point in the body past the frame's tolerance, whatever part it touched
+    if not changing or d.moving:  # a re-pose's start-up is the body's motion, shown: its frames too
         _out_of_the_body(d)
     # guard: collision wins over the springs within the step, so a garment far too small for its body (a
     # size S shirt on the largest body) would be stretched without bound; past ``tear_guard`` x its natural
@@ -127,7 +127,9 @@ def _out_of_the_body(d: Drape) -> None:
     since its test was tested again within the substeps (``collision.movers``). A point pinched between two
     parts (``held``) keeps its place, as ``hold_pinched`` asks (pushed on it would flip between the parts);
     one pushed out of one part into another ends where the pushes leave it least deep (``collide_points``'
-    hold_depth). Before the tear guard: a garment far too small for its body is still let into it there."""
+    hold_depth). Before the tear guard: a garment far too small for its body is still let into it there.
+    Not while a drape from scratch starts up (the body grows round the cloth, unseen), but in every step of a
+    re-pose, whose start-up frames show the body moving."""
     st, tu = d.state, d.tuning
     touching = np.flatnonzero(st.has_plane & ~st.held)
     deep = touching[d.collider.depth(st.x[touching], d.parts, two=bool(d.blocks[2])) > tu.frame_depth]

@@ -48,10 +48,12 @@ def sphere_body(radius: float = RADIUS, center=(0.0, 0.0, 0.0)):
 
 def timed_drape(body, model, settings, initial=None, steps_per_frame: int = 1, probe=None,
                 max_seconds: float = 1e9, tuning=None):
-    """Run ``drape`` for exactly ``settings.max_steps`` steps (no rest stop), timing each frame of
-    ``steps_per_frame`` steps between the ``on_frame`` callbacks (the probe's own time excluded).
+    """Run a drape (``start``, ``settle``) for exactly ``settings.max_steps`` steps (no rest stop), timing each
+    frame of ``steps_per_frame`` steps between the ``on_frame`` callbacks (the probe's own time excluded); the
+    start-up's steps too (``settle``'s ``start_up``: a try-on does not stream them, but it runs them).
     Returns (frame seconds list, TryOnResult)."""
-    from tryon.sim.run import drape
+    from tryon.sim.run import settle
+    from tryon.sim.start import start
     from tryon.sim.tuning import TUNING
 
     settings = replace(settings, min_steps=settings.max_steps + 1)
@@ -73,7 +75,7 @@ def timed_drape(body, model, settings, initial=None, steps_per_frame: int = 1, p
         state["last"] = time.perf_counter()
         return keep_going
 
-    result = drape(body, model, settings, on_frame=on_frame, initial=initial, tuning=tuning or TUNING)
+    result = settle(start(body, model, settings, tuning or TUNING, initial), on_frame, start_up=True)[0]
     return frames, result
 
 

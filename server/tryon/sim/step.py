@@ -129,7 +129,10 @@ def _out_of_the_body(d: Drape) -> None:
     one pushed out of one part into another ends where the pushes leave it least deep (``collide_points``'
     hold_depth). Before the tear guard: a garment far too small for its body is still let into it there.
     Not while a drape from scratch starts up (the body grows round the cloth, unseen), but in every step of a
-    re-pose, whose start-up frames show the body moving."""
+    re-pose, whose start-up frames show the body moving. Nor on a body of one part (the bench's ball): there
+    is no other part to slide into, and the test would cost 9 % of the ball's steps."""
+    if len(d.parts) < 2:
+        return
     st, tu = d.state, d.tuning
     touching = np.flatnonzero(st.has_plane & ~st.held)
     deep = touching[d.collider.depth(st.x[touching], d.parts, two=bool(d.blocks[2])) > tu.frame_depth]

@@ -12,10 +12,11 @@ backward pass). Within a block the springs keep the garment's own order.
 Only garments with at least ``MIN_SPLIT_SPRINGS`` springs are split: a parallel launch costs a few
 microseconds, and the catalogue's garments (at most 12,480 springs, the XXL dress; ~0.1 ms a pass) keep
 their one block and their drapes bit for bit. The body collision of such a garment's points also runs on two
-threads, half the points each (``collide_halves``, ``depth_halves``). How many threads a launch uses is the caller's thread setting
-(``numba.set_num_threads``: the service's pool gives a try-on both cores while it runs alone, one each when
-two run at once, ``api.pool``); where no thread-safe threading layer loads (OpenMP or TBB: the pool's threads
-launch kernels at the same time), the blocks run one after the other on the calling thread.
+threads, half the points each (``collide_halves``), and so does the step's depth test (``depth_halves``). How
+many threads a launch uses is the caller's thread setting (``numba.set_num_threads``: the service's pool gives a
+try-on both cores while it runs alone, one each when two run at once, ``api.pool``); where no thread-safe
+threading layer loads (OpenMP or TBB: the pool's threads launch kernels at the same time), the blocks run one
+after the other on the calling thread.
 """
 
 from __future__ import annotations

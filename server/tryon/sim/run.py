@@ -22,7 +22,7 @@ substeps converge much further than the same passes on one step). Each substep:
    springs pull in) is tested again the same way (``collision/movers.py``); at the step's end a contact
    point more than ``frame_depth`` inside the body (slid along its plane into another part where two
    overlap) is taken out (``step._out_of_the_body``), so no frame has cloth deeper than that but a pinched
-   point held where it was;
+   point held where it was and one the tear guard (below) pulls in;
 3. the strain-limited springs (eq. 2-3), ``passes / substeps`` Gauss-Seidel passes, each followed by the
    contact planes (springs and contacts converge together);
 4. the top-down sweep for hanging cloth (``sweep_downward``: a sagging free end follows the point above

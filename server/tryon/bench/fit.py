@@ -107,15 +107,12 @@ def run(ctx: Context, sec: Section) -> None:
 
 
 def drape_watched(body, model, settings, shown) -> tuple:
-    """``run.drape`` of a one-piece garment (the catalogue's) in the body's own pose, watching every frame it
-    shows a caller (``run.settle``: the steps after the start-up): (the result, {"frame_depth_mm"}), the deepest
-    coarse point inside ``shown`` (a ``BodyCollider`` of the body) in any of them (``metrics.deepest_inside``).
-    The result's ``wall_seconds`` leaves the watching out."""
+    """``run.drape``, watching every frame it shows a caller (``run.settle``: the steps after the start-up):
+    (the result, {"frame_depth_mm"}), the deepest coarse point inside ``shown`` (a ``BodyCollider`` of the body)
+    in any of them (``metrics.deepest_inside``). The result's ``wall_seconds`` leaves the watching out."""
     from tryon.sim.metrics import deepest_inside
-    from tryon.sim.run import settle
-    from tryon.sim.start import start
+    from tryon.sim.run import drape
 
-    d = start(body, model, settings)
     deepest = {"frame_depth_mm": 0.0}
     spent = 0.0
 
@@ -126,7 +123,7 @@ def drape_watched(body, model, settings, shown) -> tuple:
         spent += time.perf_counter() - t
         return True
 
-    result = settle(d, watch)[0]
+    result = drape(body, model, settings, on_frame=watch)
     # the drape's wall time without the watching
     result.metrics["wall_seconds"] -= spent
     return result, deepest

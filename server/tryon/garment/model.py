@@ -18,8 +18,9 @@ from tryon.garment.springs import BENDING, spring_model
 
 # Version of what preparation makes of a source file; a model saved by another version is prepared again
 # from its kept source (``is_current``). Raise it whenever ingest, simplification or springs change their
-# output. 2: a file's connected pieces are simplified each by its own share.
-PREPARATION_VERSION = 2
+# output. 2: a file's connected pieces are simplified each by its own share. 3: no coarse edge of an opening longer
+# than 1/8 of its loop (``simplify.MIN_LOOP_SPANS``).
+PREPARATION_VERSION = 3
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,8 @@ blouse-and-skirt outfit kept 49 vertices at B = 0.3, a coarse mesh too thin to h
 With ``vertices`` given, collapses that would spoil the garment are skipped (we go further than the
 paper here), and the next vertex of the face is tried as v0:
 - openings stay open: a boundary vertex is only removed into its neighbour along the same boundary
-  loop, and a loop keeps at least ``sqrt(B)`` of its vertices (a 1-D loop thinned like the 2-D surface);
+  loop, and a loop keeps at least ``sqrt(B)`` of its vertices (a 1-D loop thinned like the 2-D surface),
+  with no coarse edge longer than ``1 / MIN_LOOP_SPANS`` of the loop's length (below);
   vertices on non-manifold edges or pinched boundaries are never removed;
 - no flipped faces (a changed face's normal turns by less than ``MAX_TURN_DEG``), no slivers (quality
   above ``MIN_QUALITY`` unless it was already worse), no duplicate faces and no edge with more than two
@@ -48,6 +49,13 @@ MIN_ORIGINAL_COS = 0.0
 # more and B is not reached yet, the scan goes on with the looser ``MIN_QUALITY_FALLBACK``.
 MIN_QUALITY = 0.3
 MIN_QUALITY_FALLBACK = 0.12
+# An opening's coarse edges are at most 1/this of its loop's length. Collapsed unevenly, the ten coarse points of
+# the hem of a MakeHuman trouser leg (29 cm round, 18 points) were 1 to 8 cm apart, and a shin 7 cm across went
+# through the 8 cm chord: the leg ended off the shin, the hem on its inner side (a 178.5 cm ANSUR body; the
+# collision keeps points, not edges, out of the body). A limb through a chord needs the chord as wide as the limb,
+# about the opening's perimeter / pi when it is tight; 1/8 of it leaves a margin. The catalogue's generated
+# openings have edges of at most 1/15 of theirs (their coarse meshes do not change).
+MIN_LOOP_SPANS = 8.0
 # Neighbourhood scratch size (faces around the three vertices of a collapse); a collapse touching more
 # is skipped (never happens on garment meshes, whose vertex valence is < 20).
 SCRATCH_FACES = 4096
@@ -73,12 +81,14 @@ def collapse_with_parents(faces: np.ndarray, n_vertices: int, B: float, vertices
     pos = np.ascontiguousarray(vertices, dtype=np.float64) if guard else np.zeros((n_vertices, 3))
     vf_start, vf_list = _vertex_faces(faces, n_vertices)
     fixed, bnext, bprev, loop_id, loop_count, loop_min = _boundary(faces, n_vertices, B, guard)
+    loop_max_edge = _loop_lengths(pos, bnext, loop_id, len(loop_count)) / MIN_LOOP_SPANS
     piece, piece_kept = _pieces(faces, n_vertices)
     piece_target = np.maximum(np.floor(B * piece_kept), np.minimum(piece_kept, MIN_PIECE_VERTICES)).astype(np.int64)
     vnorm = vertex_normals(pos, faces) if guard else pos
     fv, alive, parent = _collapse_kernel(
         faces, n_vertices, piece, piece_kept, piece_target, pos, vnorm, guard, vf_start, vf_list, fixed,
-        bnext, bprev, loop_id, loop_count, loop_min, math.cos(math.radians(MAX_TURN_DEG)), MIN_ORIGINAL_COS,
+        bnext, bprev, loop_id, loop_count, loop_min, loop_max_edge, math.cos(math.radians(MAX_TURN_DEG)),
+        MIN_ORIGINAL_COS,
         MIN_QUALITY, MIN_QUALITY_FALLBACK, SCRATCH_FACES,
     )
     coarse_orig = fv[alive]
@@ -149,6 +159,14 @@ def _boundary(faces: np.ndarray, n: int, B: float, guard: bool):
     return fixed, bnext, bprev, loop_id, loop_count, loop_min
 
 
+def _loop_lengths(pos: np.ndarray, bnext: np.ndarray, loop_id: np.ndarray, n_loops: int) -> np.ndarray:
+    """(n_loops,) m: the length of each boundary loop (``_boundary``) on the vertices ``pos`` (n, 3)."""
+    on = np.flatnonzero(bnext >= 0)
+    lengths = np.zeros(n_loops)
+    np.add.at(lengths, loop_id[on], np.linalg.norm(pos[bnext[on]] - pos[on], axis=1))
+    return lengths
+
+
 def _roots(parent: np.ndarray) -> np.ndarray:
     root = parent.copy()
     while True:
@@ -184,8 +202,9 @@ def _quality(p, a, b, c, nx, ny, nz):
 
 
 @njit(cache=True)
-def _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, guard):
-    """May b and c (removed) go into a without closing or pinching an opening?"""
+def _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, loop_max_edge, pos, guard):
+    """May b and c (removed) go into a without closing or pinching an opening, or leaving it an edge longer than
+    ``loop_max_edge`` of its loop (m)?"""
     if not guard:
         return True
     if fixed[b] or fixed[c]:
@@ -201,6 +220,8 @@ def _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, gu
     # Simulate the removals in order: each removed boundary vertex must be a's loop neighbour then.
     an, ap = bnext[a], bprev[a]
     removed = 0
+    lengthened_next = False
+    lengthened_prev = False
     for r in (b, c):
         if loop_id[r] < 0:
             continue
@@ -208,19 +229,29 @@ def _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, gu
             return False
         if an == r:
             an = bnext[r]
+            lengthened_next = True
         elif ap == r:
             ap = bprev[r]
+            lengthened_prev = True
         else:
             return False
         removed += 1
         if an == a or ap == a:
             return False
+    longest = loop_max_edge[loop_id[a]]
+    if (lengthened_next and _distance(pos, a, an) > longest) or (lengthened_prev and _distance(pos, a, ap) > longest):
+        return False
     return loop_count[loop_id[a]] - removed >= loop_min[loop_id[a]]
+
+
+@njit(cache=True, inline="always")
+def _distance(pos, i, j):
+    return math.sqrt((pos[i, 0] - pos[j, 0]) ** 2 + (pos[i, 1] - pos[j, 1]) ** 2 + (pos[i, 2] - pos[j, 2]) ** 2)
 
 
 @njit(cache=True, nogil=True)  # nogil: an upload prepared in a worker thread does not stall the server
 def _collapse_kernel(faces, n, piece, piece_kept, piece_target, pos, vnorm, guard, vf_start, vf_list, fixed,
-                     bnext, bprev, loop_id, loop_count, loop_min, cos_turn, cos_original, min_quality,
+                     bnext, bprev, loop_id, loop_count, loop_min, loop_max_edge, cos_turn, cos_original, min_quality,
                      min_quality_fallback, scratch):
     """Sequential collapse (each collapse depends on the previous ones: no parallelism) until every piece
     p has ``piece_kept[p] <= piece_target[p]`` (``piece_kept`` is updated in place)."""
@@ -257,7 +288,8 @@ def _collapse_kernel(faces, n, piece, piece_kept, piece_target, pos, vnorm, guar
                 a = fv[f, rot]
                 b = fv[f, (rot + 1) % 3]
                 c = fv[f, (rot + 2) % 3]
-                if not _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, guard):
+                if not _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, loop_max_edge, pos,
+                                    guard):
                     continue
                 # Gather the alive faces around a, b, c (over every original vertex merged into them).
                 stamp += 1

@@ -470,3 +470,29 @@ def test_no_shown_frame_has_a_contact_point_in_another_part(catalogue, body, fil
     assert result.metrics["rest_reached"] and result.metrics["penetrating_vertices"] == 0
     assert len(deepest) == result.metrics["steps"] - d.startup
     assert max(deepest) <= 0.002 + 1e-9, (int(np.argmax(deepest)), max(deepest))
+
+
+@pytest.mark.parametrize("filename", ["trousers-m.obj", "trousers-l.obj"])
+def test_no_shown_frame_has_trousers_pinched_into_a_thigh(catalogue, filename):
+    """On the small body the trousers' crotch is pinched between the thighs, its points held there (pushed out of
+    one thigh they would flip into the other). The start-up left some 12.5 mm inside a thigh (trousers L), and
+    a step's springs drew one 7.3 mm in (trousers M). The stream starts once no held point is more than 2 mm
+    inside (``run.showing``), and a held point the springs draw in goes back to where it began the step
+    (``step._held_back``): no shown frame has a point more than 2 mm inside the body."""
+    from tryon.bench.fit import BODIES
+    from tryon.sim.collision.collider import BodyCollider
+    from tryon.sim.metrics import deepest_inside
+    from tryon.sim.run import settle
+    from tryon.sim.start import start
+
+    small = build_body(Measurements(**BODIES["small"]))
+    d = start(small, _model(catalogue, filename, "bottom"), SimSettings())
+    whole, frames = BodyCollider(small, SimSettings().collision_margin), []
+    result = settle(d, lambda step, x: frames.append((step, deepest_inside(whole, x))) is None)[0]
+    assert result.metrics["rest_reached"] and result.metrics["penetrating_vertices"] == 0
+    assert result.metrics["openings_on_limbs"]
+    # the stream starts at most ``unseen_pinch_steps`` after the start-up and has every step from there on
+    first = frames[0][0]
+    assert d.startup < first <= d.startup + d.tuning.unseen_pinch_steps + 1
+    assert [s for s, _ in frames] == list(range(first, result.metrics["steps"] + 1))
+    assert max(depth for _, depth in frames) <= 0.002 + 1e-9, max(frames, key=lambda f: f[1])

@@ -123,15 +123,16 @@ def settle(d: Drape, on_frame=None, give_way=None, start_up: bool = False) -> tu
     A fresh drape's start-up (``d.startup`` steps: the body grown into the garment from half its girth, the
     arms turned back from the sleeves) is not handed to ``on_frame``: its body is not the one a caller draws
     beside the frames, and the garment would be shown up to 8 cm into it (the catalogue on three bodies,
-    ``tryon bench --only fit``: median 16 mm). A re-posed drape's start-up is its body's motion, which a caller
-    draws in step (``api.live``'s ``body_pose``): shown. ``start_up=True`` hands every step over (a checker that
+    ``tryon bench --only fit``: median 16 mm), nor are the few steps after it while cloth the start-up left
+    pinched between two parts is still inside the body (``showing``). A re-posed drape's start-up is its body's
+    motion, which a caller draws in step (``api.live``'s ``body_pose``): shown. ``start_up=True`` hands every step over (a checker that
     watches the whole run: the stability stress)."""
     stopped = False
     for _ in range(d.settings.max_steps):
         at_rest = step(d)
         if d.moving:  # a re-pose: how deep the cloth is inside the body as it is at this step
             d.motion_depth = max(d.motion_depth, deepest_inside(d.collider, d.state.x))
-        shown = start_up or d.moving or d.state.step > d.startup
+        shown = start_up or d.moving or showing(d)
         if on_frame is not None and shown and on_frame(d.state.step, d.state.x) is False:
             stopped = True
             break
@@ -140,3 +141,25 @@ def settle(d: Drape, on_frame=None, give_way=None, start_up: bool = False) -> tu
         if give_way is not None and d.state.step > d.startup and give_way():
             return None, True
     return finish(d, relax(d), stopped), False
+
+
+def showing(d: Drape) -> bool:
+    """Whether a fresh drape's step just taken is one a caller is shown (``settle``'s ``on_frame``): not during the
+    start-up, nor in the ``tuning.unseen_pinch_steps`` steps after it while a point held in a pinch between two
+    parts is still more than ``tuning.frame_depth`` inside the body; from the first step shown on, every step.
+
+    The start-up's growth leaves cloth pinched between two parts (a trouser crotch between the thighs) up to
+    12.5 mm inside the body, held there (``hold_pinched``: pushed, it would flip between the parts) until its
+    springs draw it out, 1 to 6 steps later on the catalogue: 12 of the 90 drapes of ``tryon bench --only fit``
+    showed such a frame. The steps are the same either way; only the stream starts later."""
+    st = d.state
+    if st.step <= d.startup:
+        return False
+    if d.shown_from:
+        return True
+    if st.step <= d.startup + d.tuning.unseen_pinch_steps and st.held.any():
+        held = np.flatnonzero(st.held)
+        if d.collider.depth(st.x[held], d.parts).max() > d.tuning.frame_depth:
+            return False
+    d.shown_from = st.step
+    return True

@@ -109,6 +109,7 @@ class Drape:
     moving: a re-posed drape (``start``'s ``motion``: the body moves from another pose while the garment steps
     on); for these ``run.settle`` measures after every step how deep the garment's coarse points are inside
     the body as it is at that step, and ``motion_depth`` (m) keeps the deepest (``motion_max_penetration_mm``).
+    shown_from: the first step of a fresh drape shown to a caller (``run.showing``), 0 before it.
     """
 
     body: Body
@@ -152,3 +153,4 @@ class Drape:
     started: float = 0.0
     moving: bool = False
     motion_depth: float = 0.0
+    shown_from: int = 0

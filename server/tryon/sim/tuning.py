@@ -72,6 +72,10 @@ class Tuning:
         the next substep's prediction (``collision.movers``), and a contact point deeper than this in the real
         body at the step's end is taken out (``step._out_of_the_body``). Issue 26's bound for any streamed
         frame: 2 mm.
+    unseen_pinch_steps: steps after a fresh drape's start-up during which its frames are not shown while a point
+        held in a pinch is more than ``frame_depth`` inside the body (``run.showing``): the growth leaves a trouser
+        crotch pinched between the thighs up to 12.5 mm in, drawn out by its springs within 1-6 steps on the
+        catalogue. A bound, so that a pinch that stays (a garment too small there) does not hold back the stream.
     unfold_per_pass: m, in a re-posed drape the most a pass lengthens a compressed spring by (``pack_springs``'
         cap; 0 = none). Cloth crushed in a fold (the inside of a bent elbow: structural springs down to 2 % of
         their length) sprang open at once when the fold opened, every pass putting each spring back to its
@@ -106,6 +110,7 @@ class Tuning:
     tear_guard: float = 2.5
     tear_passes: int = 100
     frame_depth: float = 0.002
+    unseen_pinch_steps: int = 10
     contact_weight: float = 0.2
     contact_passes: int = 1
     unfold_per_pass: float = 0.0005

@@ -125,8 +125,8 @@ def settle(d: Drape, on_frame=None, give_way=None, start_up: bool = False) -> tu
     beside the frames, and the garment would be shown up to 8 cm into it (the catalogue on three bodies,
     ``tryon bench --only fit``: median 16 mm), nor are the few steps after it while cloth the start-up left
     pinched between two parts is still inside the body (``showing``). A re-posed drape's start-up is its body's
-    motion, which a caller draws in step (``api.live``'s ``body_pose``): shown. ``start_up=True`` hands every step over (a checker that
-    watches the whole run: the stability stress)."""
+    motion, which a caller draws in step (``api.live``'s ``body_pose``): shown. ``start_up=True`` hands every step
+    over (a checker that watches the whole run: the stability stress)."""
     stopped = False
     for _ in range(d.settings.max_steps):
         at_rest = step(d)
@@ -150,8 +150,9 @@ def showing(d: Drape) -> bool:
 
     The start-up's growth leaves cloth pinched between two parts (a trouser crotch between the thighs) up to
     12.5 mm inside the body, held there (``hold_pinched``: pushed, it would flip between the parts) until its
-    springs draw it out, 1 to 6 steps later on the catalogue: 12 of the 90 drapes of ``tryon bench --only fit``
-    showed such a frame. The steps are the same either way; only the stream starts later."""
+    springs draw it out, 1 to 6 steps later on the catalogue: 8 of the 90 drapes of ``tryon bench --only fit``
+    showed such a frame (the small body's trousers S and L; the large body's dress L and XL, trousers XL and XXL,
+    shorts L and XL). The steps are the same either way; only the stream starts later."""
     st = d.state
     if st.step <= d.startup:
         return False

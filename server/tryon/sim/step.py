@@ -126,11 +126,12 @@ def _out_of_the_body(d: Drape) -> None:
     points with a plane is enough: one without a plane that moved more than the margin plus ``frame_depth``
     since its test was tested again within the substeps (``collision.movers``). A point pinched between two
     parts (``held``) keeps its place, as ``hold_pinched`` asks (pushed on it would flip between the parts), and
-    goes back to it if the springs drew it in (``_held_back``); one pushed out of one part into another ends where the pushes leave it least deep (``collide_points``'
-    hold_depth). Before the tear guard: a garment far too small for its body is still let into it there.
-    Not while a drape from scratch starts up (the body grows round the cloth, unseen), but in every step of a
-    re-pose, whose start-up frames show the body moving. Nor on a body of one part (the bench's ball): there
-    is no other part to slide into, and the test would cost 9 % of the ball's steps."""
+    goes back to it if the springs drew it in (``_held_back``); one pushed out of one part into another ends
+    where the pushes leave it least deep (``collide_points``' hold_depth). Before the tear guard: a garment far
+    too small for its body is still let into it there. Not while a drape from scratch starts up (the body grows
+    round the cloth, unseen), but in every step of a re-pose, whose start-up frames show the body moving. Nor on
+    a body of one part (the bench's ball): there is no other part to slide into, and the test would cost 9 % of
+    the ball's steps."""
     if len(d.parts) < 2:
         return
     st, tu = d.state, d.tuning

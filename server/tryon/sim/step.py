@@ -160,11 +160,11 @@ def _held_back(d: Drape) -> None:
     if len(held) == 0:
         return
     now = d.collider.depth(st.x[held], d.parts)
-    drawn = held[now > tu.frame_depth]
-    if len(drawn) == 0:
+    deep = now > tu.frame_depth
+    if not deep.any():
         return
-    began = d.collider.depth(st.x_step[drawn], d.parts)
-    back = drawn[began < now[now > tu.frame_depth]]
+    drawn = held[deep]
+    back = drawn[d.collider.depth(st.x_step[drawn], d.parts) < now[deep]]
     st.x[back] = st.x_step[back]
     st.x_prev[back] = st.x_step[back]
 

@@ -19,8 +19,8 @@ from tryon.garment.springs import BENDING, spring_model
 # Version of what preparation makes of a source file; a model saved by another version is prepared again
 # from its kept source (``is_current``). Raise it whenever ingest, simplification or springs change their
 # output. 2: a file's connected pieces are simplified each by its own share. 3: no coarse edge of an opening longer
-# than 1/8 of its loop (``simplify.MIN_LOOP_SPANS``).
-PREPARATION_VERSION = 3
+# than 1/8 of its loop (``simplify.MIN_LOOP_SPANS``). 4: no coarse edge under 3 % of the median (``weld.py``).
+PREPARATION_VERSION = 4
 
 
 @dataclass(frozen=True)

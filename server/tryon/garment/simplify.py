@@ -19,7 +19,8 @@ paper here), and the next vertex of the face is tried as v0:
   vertices on non-manifold edges or pinched boundaries are never removed;
 - no flipped faces (a changed face's normal turns by less than ``MAX_TURN_DEG``), no slivers (quality
   above ``MIN_QUALITY`` unless it was already worse), no duplicate faces and no edge with more than two
-  faces (the collapse must not fold or pinch the surface).
+  faces (the collapse must not fold or pinch the surface);
+- then the coarse edges far shorter than the others are welded (``weld.py``).
 
 ``attach(vertices, parent, kept_faces) -> attach_face, attach_bary, attach_offset`` re-attaches every
 original vertex to its nearest coarse face (unclamped barycentric coordinates of its projection on the
@@ -36,6 +37,7 @@ import scipy.sparse.csgraph
 from numba import njit
 
 from tryon.garment.topology import vertex_pieces
+from tryon.garment.weld import weld_short_edges
 from tryon.geometry import vertex_normals
 
 # A collapse may turn a changed face's normal by at most this much (degrees): beyond it the coarse
@@ -96,8 +98,11 @@ def collapse_with_parents(faces: np.ndarray, n_vertices: int, B: float, vertices
     kept = np.unique(coarse_orig).astype(np.int32)
     remap = np.full(n_vertices, -1, dtype=np.int64)
     remap[kept] = np.arange(len(kept))
-    root = _roots(parent)
-    return kept, remap[coarse_orig].astype(np.int32), root.astype(np.int32)
+    root = _roots(parent).astype(np.int32)
+    coarse = remap[coarse_orig].astype(np.int32)
+    if guard:
+        return weld_short_edges(pos, kept, coarse, root, fixed)
+    return kept, coarse, root
 
 
 def _pieces(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:

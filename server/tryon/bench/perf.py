@@ -51,6 +51,8 @@ from tryon.sim.substeps import finish_step
 
 # Grid spacing (m) that gives the generator's T-shirt (size M) about 7,500 vertices.
 FINE_SPACING = 0.0106
+# The body the perf T-shirt is draped on, cm.
+PERF_BODY = dict(height=170, chest=96, waist=82, hips=100)
 
 
 def fine_garment(data_dir: Path, kind: str = "tshirt", size: str = "M", spacing: float = FINE_SPACING,
@@ -184,7 +186,7 @@ def perf(repeats: int = 3, settings: SimSettings = SimSettings()) -> dict:
     """Best-of-``repeats`` timings (wall, after a warm-up run) of a full drape; see the module doc."""
     with tempfile.TemporaryDirectory() as tmp:
         model = fine_garment(Path(tmp))
-    body = build_body(Measurements(height=170, chest=96, waist=82, hips=100), Pose())
+    body = build_body(Measurements(**PERF_BODY), Pose())
     drape(body, model, settings)  # compile and warm up
     best = None
     for _ in range(repeats):

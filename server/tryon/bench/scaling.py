@@ -1,10 +1,14 @@
 """Scaling: time per step against the garment's vertex count (a skirt-like tube around the size M body's
-hips, 1k to 50k vertices, simulated at full resolution) and against the body's mesh resolution (the main
-garment on bodies from coarse to fine)."""
+hips, 1k to 50k vertices, simulated at full resolution), against the body's mesh resolution (the main
+garment on bodies from coarse to fine), and the time to rest of T-shirts of 7k to 50k vertices as a try-on
+runs them (prepared at B = 0.3, the coarse mesh simulated)."""
 
 from __future__ import annotations
 
 import math
+import tempfile
+import time
+from pathlib import Path
 
 import numpy as np
 
@@ -51,6 +55,47 @@ def per_step_ms(body, model, steps: int, x0=None) -> float:
     settings = replace(SimSettings(), max_steps=WARMUP_STEPS + steps + 1)
     times, _ = timed_drape(body, model, settings, initial=x0)
     return float(np.median(times[WARMUP_STEPS:])) * 1e3
+
+
+# Grid spacings (m) of the perf generator's T-shirt M (``perf.fine_garment``): ~7,300 vertices (the perf T-shirt),
+# ~19,000 and ~49,000; each prepared at B = 0.3 and draped to rest on the perf body (issue 26: the perf T-shirt
+# under 0.15 s, a 50,000-vertex garment under 1.5 s). Drapes timed per thread count after a warm-up drape.
+REST_SPACINGS = {False: (0.0106, 0.0065, 0.0041), True: (0.0106,)}
+REST_REPEATS = {False: 3, True: 1}
+
+
+def rest_rows(spacings, repeats: int, two: bool) -> list[dict]:
+    """Wall seconds to rest (median of ``repeats``) of the perf T-shirt made at each grid spacing, on one thread
+    and, if ``two``, on two."""
+    from tryon.body.build import build_body
+    from tryon.body.params import Measurements, Pose
+    from tryon.bench.perf import PERF_BODY, fine_garment
+    from tryon.sim.run import drape
+    from tryon.sim.settings import SimSettings
+
+    body = build_body(Measurements(**PERF_BODY), Pose())
+    rows = []
+    for spacing in spacings:
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            model = fine_garment(Path(tmp), spacing=spacing)
+            prepare_s = time.perf_counter() - t0
+        row = {"spacing": spacing, "vertices": len(model.vertices), "particles": len(model.coarse_index),
+               "springs": len(model.springs), "prepare_s": prepare_s}  # the first includes compiling what it needs
+        for threads in (1, 2) if two else (1,):
+            use_threads(threads)
+            drape(body, model, SimSettings())  # warm-up: the kernels of this size's blocks
+            walls = []
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                result = drape(body, model, SimSettings())
+                walls.append(time.perf_counter() - t0)
+            row[f"wall_s_{threads}"] = float(np.median(walls))
+            row["steps"] = result.metrics["steps"]
+            row["rest_reached"] = result.metrics["rest_reached"]
+        use_threads(machine_threads())
+        rows.append(row)
+    return rows
 
 
 # the pool's throughput on a large garment: vertices of the tube, simulated steps of each try-on
@@ -128,10 +173,14 @@ def run(ctx: Context, sec: Section) -> None:
         ms = per_step_ms(b, model, steps)
         body_rows.append({"resolution": res, "body_vertices": len(b.vertices), "body_faces": len(b.faces),
                           "build_ms": build_ms, "ms_per_step": ms})
+    rest = rest_rows(REST_SPACINGS[ctx.quick], REST_REPEATS[ctx.quick], two)
+    from tryon.bench.perf import PERF_BODY
+
+    body_text = ", ".join(f"{k} {v} cm" for k, v in PERF_BODY.items())
     n_pool, pool_steps = POOL_TUBE[ctx.quick]
     pool_model = tube_model(n_pool, body)
     pool = pool_throughput(body, pool_model, pool_steps)
-    sec.data = {"garment": garment_rows, "body": body_rows, "body_garment": entry["name"],
+    sec.data = {"garment": garment_rows, "body": body_rows, "body_garment": entry["name"], "to_rest": rest,
                 "pool": {"vertices": len(pool_model.vertices), "springs": len(pool_model.springs),
                          "steps": pool_steps, "tryons_per_minute": pool}}
     sec.tables.append(Table(
@@ -150,6 +199,17 @@ def run(ctx: Context, sec: Section) -> None:
          for r in body_rows],
     ))
     sec.tables.append(Table(
+        "Time to rest against garment vertices (the perf generator's T-shirt M, prepared at B = 0.3)",
+        ["vertices", "simulated vertices", "springs", "steps", "at rest", "s to rest, 1 thread", "s to rest, 2 threads"],
+        [[r["vertices"], r["particles"], r["springs"], r["steps"], "yes" if r["rest_reached"] else "no",
+          fmt(r["wall_s_1"]), fmt(r["wall_s_2"]) if "wall_s_2" in r else "-"] for r in rest],
+        note=(f"a try-on's drape (``sim.run.drape``: start, steps to rest, relaxation, shown mesh, metrics) on the "
+              f"perf body ({body_text}), median of {REST_REPEATS[ctx.quick]} after a warm-up; the first row is "
+              "``python3 -m tryon.bench.perf``'s garment; its preparation (once per garment, cached) is not in the "
+              "time. Two threads: the garment's springs split in two blocks where there are enough "
+              f"(``sim/blocks.py``, at least {MIN_SPLIT_SPRINGS:,}), the step's other parallel kernels on both."),
+    ))
+    sec.tables.append(Table(
         f"Two try-ons through the pool ({len(pool_model.vertices)}-vertex tube, {pool_steps} steps each, "
         "2 workers)",
         ["how", "try-ons per minute"], [[k, fmt(v)] for k, v in pool.items()],
@@ -165,6 +225,13 @@ def run(ctx: Context, sec: Section) -> None:
         f"{fmt(g[-1]['ms_per_step'])} ms at {g[-1]['vertices']} (time ~ vertices^{slope:.2f})"
         + (f"; on two threads {fmt(g[-1]['ms_per_step_2_threads'])} ms at {g[-1]['vertices']}"
            if g[-1]["ms_per_step_2_threads"] else "")
+    )
+    big = rest[-1]
+    sec.headline.append(
+        f"to rest: the {rest[0]['vertices']:,}-vertex perf T-shirt {fmt(rest[0]['wall_s_1'])} s on one thread"
+        + (f", {fmt(rest[0]['wall_s_2'])} s on two" if "wall_s_2" in rest[0] else "")
+        + (f"; a {big['vertices']:,}-vertex T-shirt {fmt(big['wall_s_1'])} s"
+           + (f", {fmt(big['wall_s_2'])} s on two" if "wall_s_2" in big else "") if len(rest) > 1 else "")
     )
     sec.plots.append(plot_xy(
         ctx.out_dir, "scaling.png",

@@ -58,7 +58,7 @@ def per_step_ms(body, model, steps: int, x0=None) -> float:
 
 
 # Grid spacings (m) of the perf generator's T-shirt M (``perf.fine_garment``): ~7,300 vertices (the perf T-shirt),
-# ~19,000 and ~49,000; each prepared at B = 0.3 and draped to rest on the perf body (issue 26: the perf T-shirt
+# ~20,000 and ~49,000; each prepared at B = 0.3 and draped to rest on the perf body (issue 26: the perf T-shirt
 # under 0.15 s, a 50,000-vertex garment under 1.5 s). Drapes timed per thread count after a warm-up drape.
 REST_SPACINGS = {False: (0.0106, 0.0065, 0.0041), True: (0.0106,)}
 REST_REPEATS = {False: 3, True: 1}
@@ -147,6 +147,7 @@ def pool_throughput(body, model, steps: int) -> dict:
 def run(ctx: Context, sec: Section) -> None:
     from tryon.body.build import build_body
     from tryon.body.params import Measurements, Pose
+    from tryon.bench.perf import PERF_BODY
     from tryon.bench.scenes import BODY_M
 
     steps = STEPS_TIMED[ctx.quick]
@@ -174,8 +175,6 @@ def run(ctx: Context, sec: Section) -> None:
         body_rows.append({"resolution": res, "body_vertices": len(b.vertices), "body_faces": len(b.faces),
                           "build_ms": build_ms, "ms_per_step": ms})
     rest = rest_rows(REST_SPACINGS[ctx.quick], REST_REPEATS[ctx.quick], two)
-    from tryon.bench.perf import PERF_BODY
-
     body_text = ", ".join(f"{k} {v} cm" for k, v in PERF_BODY.items())
     n_pool, pool_steps = POOL_TUBE[ctx.quick]
     pool_model = tube_model(n_pool, body)
@@ -200,7 +199,8 @@ def run(ctx: Context, sec: Section) -> None:
     ))
     sec.tables.append(Table(
         "Time to rest against garment vertices (the perf generator's T-shirt M, prepared at B = 0.3)",
-        ["vertices", "simulated vertices", "springs", "steps", "at rest", "s to rest, 1 thread", "s to rest, 2 threads"],
+        ["vertices", "simulated vertices", "springs", "steps", "at rest", "s to rest, 1 thread",
+         "s to rest, 2 threads"],
         [[r["vertices"], r["particles"], r["springs"], r["steps"], "yes" if r["rest_reached"] else "no",
           fmt(r["wall_s_1"]), fmt(r["wall_s_2"]) if "wall_s_2" in r else "-"] for r in rest],
         note=(f"a try-on's drape (``sim.run.drape``: start, steps to rest, relaxation, shown mesh, metrics) on the "

@@ -101,7 +101,7 @@ def collapse_with_parents(faces: np.ndarray, n_vertices: int, B: float, vertices
     root = _roots(parent).astype(np.int32)
     coarse = remap[coarse_orig].astype(np.int32)
     if guard:
-        return weld_short_edges(pos, kept, coarse, root, fixed)
+        return weld_short_edges(pos, kept, coarse, root, fixed, bnext >= 0)
     return kept, coarse, root
 
 

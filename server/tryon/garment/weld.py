@@ -30,47 +30,36 @@ SHORT_EDGE = 0.03
 
 
 def weld_short_edges(pos: np.ndarray, kept: np.ndarray, coarse_faces: np.ndarray, root: np.ndarray,
-                     fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     fixed: np.ndarray, on_boundary: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(kept (k',) int32, coarse_faces (g', 3) int32 indexing it, root (n,) int32) with the short edges welded;
     ``pos`` (n, 3) m the original vertices, ``kept`` (k,) their kept ids, ``coarse_faces`` (g, 3) indexing
-    ``kept``, ``root`` (n,) the kept vertex each original went to, ``fixed`` (n,) bool never removed. Returns the
-    inputs themselves when nothing is that short."""
+    ``kept``, ``root`` (n,) the kept vertex each original went to, ``fixed`` (n,) bool never removed,
+    ``on_boundary`` (n,) bool the kept vertices on an opening. Returns the inputs themselves when nothing is that
+    short."""
     faces = kept[coarse_faces].astype(np.int64)
     a, b = faces.reshape(-1), faces[:, [1, 2, 0]].reshape(-1)
     length = np.linalg.norm(pos[a] - pos[b], axis=1)
-    short = np.flatnonzero(length < SHORT_EDGE * np.median(length))
+    min_length = SHORT_EDGE * np.median(length)
+    short = np.flatnonzero(length < min_length)
     if len(short) == 0:
         return kept, coarse_faces, root
     order = short[np.argsort(length[short], kind="stable")]
-    key = np.minimum(a, b) * len(pos) + np.maximum(a, b)
-    _, inv, count = np.unique(key, return_inverse=True, return_counts=True)
-    on_boundary = np.zeros(len(pos), dtype=np.bool_)
-    once = count[inv] == 1
-    on_boundary[a[once]] = True
-    on_boundary[b[once]] = True
-    alive, into = _weld_kernel(pos, faces, a[order], b[order], len(pos), fixed, on_boundary,
-                               SHORT_EDGE * np.median(length))
-    into_root = np.arange(len(pos))
-    into_root[into >= 0] = into[into >= 0]
-    while True:  # a point welded into one welded later: follow the chain
-        nxt = into_root[into_root]
-        if np.array_equal(nxt, into_root):
-            break
-        into_root = nxt
-    faces = into_root[faces[alive]]
-    root = into_root[root]
+    alive, into = _weld_kernel(pos, faces, a[order], b[order], len(pos), fixed, on_boundary, min_length)
+    went = np.where(into >= 0, into, np.arange(len(pos)))
+    faces = went[faces[alive]]
     new_kept = np.unique(faces).astype(np.int32)
     remap = np.full(len(pos), -1, dtype=np.int64)
     remap[new_kept] = np.arange(len(new_kept))
-    return new_kept, remap[faces].astype(np.int32), root.astype(np.int32)
+    return new_kept, remap[faces].astype(np.int32), went[root].astype(np.int32)
 
 
 @njit(cache=True)
 def _weld_kernel(pos, faces, ea, eb, n, fixed, on_boundary, min_length):
     """Weld the edges (ea[q], eb[q]) in order where allowed (module doc), on ``faces`` (g, 3) int64 of original
     ids, in place, each only if its ends (or the points they were welded into) are still closer than
-    ``min_length`` m; ``on_boundary`` (n,) bool the vertices on an edge of one face. Returns (alive (g,) bool, into (n,) int64: the vertex each welded vertex went into, -1 for
-    the others). Serial: each weld changes the faces the next one tests."""
+    ``min_length`` m. Returns (alive (g,) bool, into (n,) int64: the vertex each welded vertex ended in, -1 for
+    the others). Serial: each weld changes the
+    faces the next one tests."""
     g = faces.shape[0]
     alive = np.ones(g, dtype=np.bool_)
     into = np.full(n, -1, dtype=np.int64)
@@ -121,6 +110,9 @@ def _weld_kernel(pos, faces, ea, eb, n, fixed, on_boundary, min_length):
                         if faces[f, r] == b:
                             faces[f, r] = a
         into[b] = a
+    for v in range(n):  # a point welded into one welded later: where it ended
+        if into[v] >= 0:
+            into[v] = _welded_to(into, v)
     return alive, into
 
 

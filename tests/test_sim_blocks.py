@@ -195,6 +195,27 @@ def test_the_collision_on_two_threads_equals_one_call_over_all_points():
         assert np.array_equal(a, b)
 
 
+
+def test_the_relaxations_collision_on_two_threads_equals_one_call():
+    """The relaxation's collision (``relax.collide_all``: no planes asked, no pinch held) on two threads: the same
+    pushes and contacts as one call."""
+    from tryon.bench.ours_cloth import sphere_body
+    from tryon.sim.collision.collider import BodyCollider
+
+    collider = BodyCollider(sphere_body(0.3), 0.004)
+    rng = np.random.default_rng(12)
+    d = rng.normal(size=(1501, 3))
+    x0 = d / np.linalg.norm(d, axis=1)[:, None] * rng.uniform(0.27, 0.33, (1501, 1))
+    outs = []
+    for two in (False, True):
+        x, contact = x0.copy(), np.zeros(len(x0), dtype=np.bool_)
+        moved = collider.collide(x, x0 * 0.99, np.ones(len(x)), np.ones(len(x), dtype=np.bool_),
+                                 np.zeros(1, np.int64), 0.0005, 0.0, 0.0, contact, two=two)
+        outs.append((moved, x, contact))
+    assert outs[0][0] > 400
+    for a, b in zip(outs[0], outs[1]):
+        assert np.array_equal(a, b)
+
 def test_the_depth_on_two_threads_equals_one_call_over_all_points():
     """``depth_halves``: half the points a thread, each writing its own half of the answer: the depths of one
     ``penetration_depth`` call (an odd count, so the halves differ in size)."""

@@ -62,7 +62,7 @@ def relax(d: Drape) -> Relaxation:
         verlet_step(x, x_prev, inv_mass, d.h, 0.0, tu.relax_drag, s.max_speed)
         st.active[:] = True
         collider.collide(x, x_prev, inv_mass, st.active, d.parts, s.contact_offset, 0.0, 0.0, st.contact,
-                         near=tu.near, planes=st.planes)
+                         near=tu.near, planes=st.planes, two=bool(d.blocks[2]))
         touching = np.flatnonzero(st.has_plane)
         finish_relaxation_round(x, x_prev, inv_mass, d.h, tu.relax_drag, s.max_speed, d.n_sub, d.per_sub, d.ends,
                                 stretch_only, touching, st.plane_point, st.plane_normal, st.push, d.floor_y, d.blocks)
@@ -111,4 +111,4 @@ def collide_all(d: Drape) -> None:
     st = d.state
     st.active[:] = True
     d.collider.collide(st.x, st.x_prev, st.inv_mass, st.active, d.parts, d.settings.contact_offset, 0.0, 0.0,
-                       st.contact)
+                       st.contact, two=bool(d.blocks[2]))

@@ -179,11 +179,13 @@ class BodyCollider:
         """Push points ``x`` out of the offset body in place; returns how many moved (see collide_points).
         planes: optional (has_plane (k,), plane_point (k, 3), plane_normal (k, 3)) filled with contact planes;
         hold_pinched, held, hold_depth: see collide_points (only for a body that does not move); two: half the
-        points on each of two threads (``blocks.collide_halves``, needs ``held``; the same result)."""
+        points on each of two threads (``blocks.collide_halves``; the same result)."""
         if planes is None:
             planes = (np.zeros(len(x), dtype=np.bool_), np.empty((len(x), 3)), np.empty((len(x), 3)))
         surface = self._surface(self.offset, self.offset_normals, self.cell_rmax, self.offset_boxes)
-        if two and held is not None:
+        if two:
+            if held is None:  # the halves' kernel takes an array: one written and not read
+                held = np.zeros(len(x), dtype=np.bool_)
             return collide_halves(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, mu_kinetic, contact,
                                   near, planes[0], planes[1], planes[2], hold_pinched, held, float(hold_depth))
         return collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, mu_kinetic, contact, near,

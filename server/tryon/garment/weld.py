@@ -58,8 +58,7 @@ def _weld_kernel(pos, faces, ea, eb, n, fixed, on_boundary, min_length):
     """Weld the edges (ea[q], eb[q]) in order where allowed (module doc), on ``faces`` (g, 3) int64 of original
     ids, in place, each only if its ends (or the points they were welded into) are still closer than
     ``min_length`` m. Returns (alive (g,) bool, into (n,) int64: the vertex each welded vertex ended in, -1 for
-    the others). Serial: each weld changes the
-    faces the next one tests."""
+    the others). Serial: each weld changes the faces the next one tests."""
     g = faces.shape[0]
     alive = np.ones(g, dtype=np.bool_)
     into = np.full(n, -1, dtype=np.int64)

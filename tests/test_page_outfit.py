@@ -36,6 +36,12 @@ def outfit_shop(tmp_path_factory) -> str:
         path = root / f"{kind}-m.obj"
         path.write_text(obj_text(garment_mesh(kind, "M"), name))
         catalogue.ingest(path, name=name, category=category, size="M", units="m")
+    # a shirt in centimetres whose units are guessed (as a user's upload is): its "Size" row takes the full width
+    shirt_cm = garment_mesh("tshirt", "L")
+    shirt_cm.apply_scale(100.0)
+    path = root / "shirt-cm.obj"
+    path.write_text(obj_text(shirt_cm, "Shirt in cm"))
+    catalogue.ingest(path, name="Shirt in cm", category="top", units="auto")
     # a file that is already an outfit (a shirt and trousers in one, as MakeHuman's): worn alone
     both = trimesh.util.concatenate([garment_mesh("tshirt", "L"), garment_mesh("trousers", "L")])
     catalogue.ingest(both.export(file_type="obj").encode(), name="Shirt and trousers", category="top", units="m",
@@ -90,6 +96,44 @@ def test_a_top_and_a_bottom_worn_together(browser, outfit_shop, width, height):
         context.close()
 
 
+# Figures shown above their garment's name or below the next garment's (a two-column grid that packs its cells
+# may move one): a list of problems in words.
+FIGURES_UNDER_THEIR_NAMES = """() => {
+  const items = [...document.querySelectorAll('#metrics > div')];
+  const problems = [];
+  let head = null;
+  items.forEach((d, i) => {
+    if (d.classList.contains('garment-head')) { head = d; return; }
+    const top = d.getBoundingClientRect().top;
+    const name = d.querySelector('dt').textContent;
+    if (head && top < head.getBoundingClientRect().bottom) problems.push(`${name} of ${head.textContent} above its name`);
+    const next = items.slice(i + 1).find((e) => e.classList.contains('garment-head'));
+    if (next && top >= next.getBoundingClientRect().top) problems.push(`${name} below ${next.textContent}`);
+  });
+  return problems;
+}"""
+
+
+def test_each_garments_figures_stay_under_its_name(browser, outfit_shop):
+    """A top of guessed units (its "Size" row full-width, so its section has an odd number of half-width figures)
+    tucked into trousers: the trousers' first figure once filled the top's last hole, among the top's figures."""
+    context, page = open_page(browser, outfit_shop, 1366, 768)
+    try:
+        page.get_by_role("radio", name="Shirt in cm", exact=False).click()
+        page.select_option("#companion", label="Trousers M")
+        page.select_option("#tuck", "in")  # the shirt innermost: its figures first
+        page.click("#tryon-button")
+        page.wait_for_function(DONE, timeout=120_000)
+        assert page.evaluate("window.tryon.state") == "done", page.evaluate("window.tryon.lastError")
+        figures = page.evaluate(FIGURES)
+        assert [f["name"] for f in figures if f["head"]] == ["Shirt in cm", "Trousers M"]
+        assert any(f["name"] == "Size" and "units unknown" in f["value"] for f in figures), figures
+        assert page.evaluate(FIGURES_UNDER_THEIR_NAMES) == []
+        assert page.problems == []
+    finally:
+        context.close()
+
+
 def test_a_file_that_is_already_an_outfit_is_worn_alone(browser, outfit_shop):
     """A shirt-and-trousers file (``pieces`` in the catalogue) offers nothing to wear with it, and is not offered
     as a top to wear with the trousers: either would be refused (422) by the service."""
@@ -99,7 +143,7 @@ def test_a_file_that_is_already_an_outfit_is_worn_alone(browser, outfit_shop):
         assert not page.is_visible("#outfit") and not page.is_visible("#tuck")
         page.get_by_role("radio", name="Trousers, size M", exact=True).click()
         assert page.is_visible("#outfit")
-        assert page.locator("#companion option").all_text_contents() == ["nothing else", "T-shirt M"]
+        assert page.locator("#companion option").all_text_contents() == ["nothing else", "T-shirt M", "Shirt in cm"]
         assert page.problems == []
     finally:
         context.close()

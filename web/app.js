@@ -6,7 +6,7 @@ import { Stage } from './scene.js';
 import { ApiError, flatMesh, getJSON, liveTryOn, postJSON, saveBlob } from './api.js';
 import { MeasurementForm, normaliseRanges } from './controls.js';
 import { smoothStrain, strainScale } from './fitmap.js';
-import { DEFAULT_STRAIN_LIMIT, metricRows } from './metrics.js';
+import { DEFAULT_STRAIN_LIMIT, metricRows, packed } from './metrics.js';
 
 const $ = (id) => document.getElementById(id);
 const BODY_PREVIEW_DELAY_MS = 350;  // debounce: rebuild the body when the sliders rest this long
@@ -417,18 +417,18 @@ function showMetrics(done, strainLimit = state.init?.strain_limit ?? DEFAULT_STR
     dl.append(div);
   };
   if (!Array.isArray(m.garments)) {
-    for (const row of metricRows(m, { strainLimit, stoppedBy: done.stopped_by })) addRow(row);
+    for (const row of packed(metricRows(m, { strainLimit, stoppedBy: done.stopped_by }))) addRow(row);
     const g = done.garment || state.init?.garment || {};
     // "T-shirt L", not "T-shirt L · size L": the size is named only when the name does not end with it
     const sized = g.size && !g.name.endsWith(` ${g.size}`);
     $('result-garment').textContent = [g.name, sized ? `size ${g.size}` : null].filter(Boolean).join(' · ');
     return;
   }
-  for (const row of outfitRows(m)) addRow(row);
+  for (const row of packed(outfitRows(m))) addRow(row);
   const names = new Map((state.init?.garments || []).map((g) => [g.id, g.name]));
   for (const g of m.garments) {
     addRow({ name: names.get(g.garment_id) || g.garment_id, value: '' }, 'wide garment-head');
-    for (const row of metricRows(g, { strainLimit, stoppedBy: done.stopped_by })) addRow(row);
+    for (const row of packed(metricRows(g, { strainLimit, stoppedBy: done.stopped_by }))) addRow(row);
   }
   const worn = (state.init?.garments || []).map((g) => g.name).reverse().join(' over ');  // outermost first
   $('result-garment').textContent = `${worn} · ${m.tuck === 'in' ? 'tucked in' : 'hem over the waistband'}`;

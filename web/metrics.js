@@ -69,6 +69,27 @@ export function placeName(place) {
   return side + place.replace(/^torso /, '').replace(/_[lr]$/, '').replace(/_/g, ' ');
 }
 
+/**
+ * One section's rows (a garment's, or an outfit's own) in the order a two-column grid shows them with no hole:
+ * a half-width row left alone on its line before a full-width one gets the next half-width row of the section
+ * beside it. The grid's own dense flow did this across sections, so the first figure of an outfit's second
+ * garment could fill the last hole of the first, under the wrong name (a polo of guessed units, whose "Size"
+ * row is full-width, showed the trousers' "Too tight at" among its own figures).
+ */
+export function packed(rows) {
+  const rest = rows.slice();
+  const out = [];
+  let alone = false; // a half-width row waits for a partner on its line
+  while (rest.length) {
+    let i = 0;
+    if (alone && rest[0].wide) i = Math.max(0, rest.findIndex((r) => !r.wide));
+    const [row] = rest.splice(i, 1);
+    out.push(row);
+    alone = row.wide ? false : !alone;
+  }
+  return out;
+}
+
 const seconds = (s) => (Number.isFinite(s) ? `${s.toFixed(2)} s` : '—');
 
 /**

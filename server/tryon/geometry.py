@@ -12,6 +12,25 @@ from numba import njit
 
 
 
+@njit(cache=True, nogil=True)
+def triangle_normal(p, a, b, c):
+    """(nx, ny, nz): the cross product (p[b] - p[a]) x (p[c] - p[a]) of the triangle of rows a, b, c of ``p``
+    (n, 3) m: its normal, twice its area long."""
+    ux = p[b, 0] - p[a, 0]
+    uy = p[b, 1] - p[a, 1]
+    uz = p[b, 2] - p[a, 2]
+    wx = p[c, 0] - p[a, 0]
+    wy = p[c, 1] - p[a, 1]
+    wz = p[c, 2] - p[a, 2]
+    return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+
+
+@njit(cache=True, nogil=True, inline="always")
+def distance(p, i, j):
+    """m: the distance between rows i and j of ``p`` (n, 3) m."""
+    return math.sqrt((p[i, 0] - p[j, 0]) ** 2 + (p[i, 1] - p[j, 1]) ** 2 + (p[i, 2] - p[j, 2]) ** 2)
+
+
 @njit(cache=True)
 def face_vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit face normals (f, 3) and area-weighted unit vertex normals (n, 3) of a triangle mesh
@@ -22,15 +41,7 @@ def face_vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.nda
     vn = np.zeros((n, 3))
     for k in range(f):
         a, b, c = faces[k, 0], faces[k, 1], faces[k, 2]
-        ux = vertices[b, 0] - vertices[a, 0]
-        uy = vertices[b, 1] - vertices[a, 1]
-        uz = vertices[b, 2] - vertices[a, 2]
-        wx = vertices[c, 0] - vertices[a, 0]
-        wy = vertices[c, 1] - vertices[a, 1]
-        wz = vertices[c, 2] - vertices[a, 2]
-        nx = uy * wz - uz * wy
-        ny = uz * wx - ux * wz
-        nz = ux * wy - uy * wx
+        nx, ny, nz = triangle_normal(vertices, a, b, c)
         for v in (a, b, c):
             vn[v, 0] += nx
             vn[v, 1] += ny
@@ -68,18 +79,7 @@ def vertex_normals(pos: np.ndarray, faces: np.ndarray) -> np.ndarray:
 def face_normals(vertices, faces, out):
     """Unit face normals (f, 3) of a triangle mesh into ``out``."""
     for f in range(faces.shape[0]):
-        a = faces[f, 0]
-        b = faces[f, 1]
-        c = faces[f, 2]
-        e1x = vertices[b, 0] - vertices[a, 0]
-        e1y = vertices[b, 1] - vertices[a, 1]
-        e1z = vertices[b, 2] - vertices[a, 2]
-        e2x = vertices[c, 0] - vertices[a, 0]
-        e2y = vertices[c, 1] - vertices[a, 1]
-        e2z = vertices[c, 2] - vertices[a, 2]
-        nx = e1y * e2z - e1z * e2y
-        ny = e1z * e2x - e1x * e2z
-        nz = e1x * e2y - e1y * e2x
+        nx, ny, nz = triangle_normal(vertices, faces[f, 0], faces[f, 1], faces[f, 2])
         ln = math.sqrt(nx * nx + ny * ny + nz * nz)
         if ln > 0.0:
             ln = 1.0 / ln

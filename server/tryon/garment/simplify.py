@@ -38,7 +38,7 @@ from numba import njit
 
 from tryon.garment.topology import vertex_pieces
 from tryon.garment.weld import weld_short_edges
-from tryon.geometry import vertex_normals
+from tryon.geometry import distance, triangle_normal, vertex_normals
 
 # A collapse may turn a changed face's normal by at most this much (degrees): beyond it the coarse
 # surface folds (90 degrees would be a flip); 60 degrees keeps the sleeves and hem round.
@@ -183,17 +183,6 @@ def _roots(parent: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def _tri_normal(p, a, b, c):
-    ux = p[b, 0] - p[a, 0]
-    uy = p[b, 1] - p[a, 1]
-    uz = p[b, 2] - p[a, 2]
-    wx = p[c, 0] - p[a, 0]
-    wy = p[c, 1] - p[a, 1]
-    wz = p[c, 2] - p[a, 2]
-    return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-
-
-@njit(cache=True)
 def _quality(p, a, b, c, nx, ny, nz):
     area2 = math.sqrt(nx * nx + ny * ny + nz * nz)  # twice the area
     s = 0.0
@@ -245,16 +234,11 @@ def _boundary_ok(a, b, c, fixed, bnext, bprev, loop_id, loop_count, loop_min, lo
         if an == a or ap == a:
             return False
     longest = loop_max_edge[loop_id[a]]
-    if lengthened_next and _distance(pos, a, an) > longest:
+    if lengthened_next and distance(pos, a, an) > longest:
         return False
-    if lengthened_prev and _distance(pos, a, ap) > longest:
+    if lengthened_prev and distance(pos, a, ap) > longest:
         return False
     return loop_count[loop_id[a]] - removed >= loop_min[loop_id[a]]
-
-
-@njit(cache=True, inline="always")
-def _distance(pos, i, j):
-    return math.sqrt((pos[i, 0] - pos[j, 0]) ** 2 + (pos[i, 1] - pos[j, 1]) ** 2 + (pos[i, 2] - pos[j, 2]) ** 2)
 
 
 @njit(cache=True, nogil=True)  # nogil: an upload prepared in a worker thread does not stall the server
@@ -330,8 +314,8 @@ def _collapse_kernel(faces, n, piece, piece_kept, piece_target, pos, vnorm, guar
                         new_f[i, 0] = -1  # vanishes
                         continue
                     if guard:
-                        ox, oy, oz = _tri_normal(pos, fv[g, 0], fv[g, 1], fv[g, 2])
-                        nx_, ny_, nz_ = _tri_normal(pos, p0, p1, p2)
+                        ox, oy, oz = triangle_normal(pos, fv[g, 0], fv[g, 1], fv[g, 2])
+                        nx_, ny_, nz_ = triangle_normal(pos, p0, p1, p2)
                         lo = math.sqrt(ox * ox + oy * oy + oz * oz)
                         ln = math.sqrt(nx_ * nx_ + ny_ * ny_ + nz_ * nz_)
                         if ln == 0.0 or ox * nx_ + oy * ny_ + oz * nz_ < cos_turn * lo * ln:

@@ -16,10 +16,10 @@ collapse), a boundary point goes only along its opening, and no face may turn ov
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
+
+from tryon.geometry import distance, triangle_normal
 
 # Coarse edges shorter than this fraction of the median coarse edge are welded. At B = 0.3 the catalogue's
 # shortest is 0.084 of its median (the T-shirt XL's), the nine real garments' tried (``../shared/garments-real``)
@@ -66,7 +66,7 @@ def _weld_kernel(pos, faces, ea, eb, n, fixed, on_boundary, min_length):
     stamp = 0
     for q in range(ea.shape[0]):
         a, b = _welded_to(into, ea[q]), _welded_to(into, eb[q])  # an end welded before: the point it went into
-        if a == b or _length(pos, a, b) >= min_length:
+        if a == b or distance(pos, a, b) >= min_length:
             continue
         # b goes into a: keep an opening's point, never remove a fixed one
         if (on_boundary[b] and not on_boundary[a]) or (fixed[b] and not fixed[a]):
@@ -122,11 +122,6 @@ def _welded_to(into, v):
     return v
 
 
-@njit(cache=True)
-def _length(pos, a, b):
-    return math.sqrt((pos[a, 0] - pos[b, 0]) ** 2 + (pos[a, 1] - pos[b, 1]) ** 2 + (pos[a, 2] - pos[b, 2]) ** 2)
-
-
 @njit(cache=True, inline="always")
 def _has(faces, f, v):
     return faces[f, 0] == v or faces[f, 1] == v or faces[f, 2] == v
@@ -138,17 +133,9 @@ def _turns_over(pos, faces, alive, a, b):
     for f in range(faces.shape[0]):
         if not alive[f] or not _has(faces, f, b) or _has(faces, f, a):
             continue
-        p = np.empty((3, 3))
-        for r in range(3):
-            v = faces[f, r]
-            for c in range(3):
-                p[r, c] = pos[v, c]
-        n0 = np.cross(p[1] - p[0], p[2] - p[0])
-        for r in range(3):
-            if faces[f, r] == b:
-                for c in range(3):
-                    p[r, c] = pos[a, c]
-        n1 = np.cross(p[1] - p[0], p[2] - p[0])
-        if n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2] <= 0.0:
+        i, j, k = faces[f, 0], faces[f, 1], faces[f, 2]
+        ox, oy, oz = triangle_normal(pos, i, j, k)
+        nx, ny, nz = triangle_normal(pos, a if i == b else i, a if j == b else j, a if k == b else k)
+        if ox * nx + oy * ny + oz * nz <= 0.0:
             return True
     return False

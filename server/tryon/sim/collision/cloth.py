@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from tryon.geometry import closest_uv_on_triangle
+from tryon.geometry import closest_uv_on_triangle, triangle_normal
 
 # Cells per axis at most: a garment's box (~1 x 1.8 x 0.6 m) at 3 cm cells needs ~60; the cap keeps a grid
 # over a stray far point from allocating without bound (the cells just grow).
@@ -187,16 +187,7 @@ def signed_face_normals(vertices, faces, sides):
     """(f, 3) unit winding normals of ``faces`` (f, 3) int64 over ``vertices`` (m, 3), times ``sides`` (f,)."""
     out = np.zeros((faces.shape[0], 3))
     for f in range(faces.shape[0]):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        ux = vertices[b, 0] - vertices[a, 0]
-        uy = vertices[b, 1] - vertices[a, 1]
-        uz = vertices[b, 2] - vertices[a, 2]
-        wx = vertices[c, 0] - vertices[a, 0]
-        wy = vertices[c, 1] - vertices[a, 1]
-        wz = vertices[c, 2] - vertices[a, 2]
-        nx = uy * wz - uz * wy
-        ny = uz * wx - ux * wz
-        nz = ux * wy - uy * wx
+        nx, ny, nz = triangle_normal(vertices, faces[f, 0], faces[f, 1], faces[f, 2])
         ln = math.sqrt(nx * nx + ny * ny + nz * nz)
         if ln == 0.0:
             continue

@@ -22,7 +22,7 @@ measurements and resolution: the same mesh topology, each part's vertices in the
    settle the rest each step.
 
 ``start`` builds the new drape on the new body (the springs packed again, its collider, no alignment); then
-``run.settle`` steps it on as usual and ``relax`` and ``finish`` end it with the new pose's metrics.
+``settle.settle`` steps it on as usual and ``relax`` and ``finish`` end it with the new pose's metrics.
 """
 
 from __future__ import annotations
@@ -38,8 +38,8 @@ from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.finish import TryOnResult
 from tryon.sim.nearest import any_within, build_grids, nearest_distances
 from tryon.sim.landmarks import arm_joints
-from tryon.sim.run import settle
 from tryon.sim.settings import SimSettings
+from tryon.sim.settle import settle
 from tryon.sim.start import start
 from tryon.sim.state import Drape
 from tryon.sim.tuning import Tuning

@@ -79,17 +79,16 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
-from tryon.sim.finish import TryOnResult, finish
-from tryon.sim.metrics import deepest_inside
+from tryon.sim.finish import TryOnResult
 from tryon.sim.outfit import drape_pieces, piece_categories
-from tryon.sim.relax import relax
+from tryon.sim.repose import fresh_drape
 from tryon.sim.settings import SimSettings
+from tryon.sim.settle import settle, showing
 from tryon.sim.start import start
-from tryon.sim.state import Drape
-from tryon.sim.step import step
 from tryon.sim.tuning import TUNING, Tuning
 
-__all__ = ["FrameCallback", "TryOnResult", "drape"]
+# settle and showing live in settle.py (repose builds on them too); named here for the callers of run.settle
+__all__ = ["FrameCallback", "TryOnResult", "drape", "settle", "showing"]
 
 # (step, coarse positions (k, 3) m) after each step; returning False stops the loop (the relaxation and the
 # result still follow)
@@ -105,62 +104,6 @@ def drape(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         # a file of a top and a bottom (a MakeHuman outfit): its pieces as layers, the top over the bottom
         return drape_pieces(body, model, categories, settings, on_frame, tuning)
     if initial is None and body.hands_turned:
-        from tryon.sim.repose import fresh_drape  # repose builds on this module: imported when needed
-
         return fresh_drape(body, model, settings, tuning, on_frame)[1]
     return settle(start(body, model, settings, tuning, initial), on_frame)[0]
 
-
-def settle(d: Drape, on_frame=None, give_way=None, start_up: bool = False) -> tuple[TryOnResult | None, bool]:
-    """Step ``d`` until it is at rest (or ``settings.max_steps``, or until ``on_frame(step, x)``, called after
-    every step, returns False), then relax and finish it: (the result, False). A fresh drape (``drape``) and a
-    re-posed one (``repose.repose``) alike. ``give_way()``: asked after every step once the body's start-up
-    motion is over; True ends the settle there without a result: (None, True). A re-posed drape (``d.moving``)
-    has its coarse points' depth inside the body measured after every step (``metrics.deepest_inside``, the
-    body as it is at that step), the deepest kept in ``d.motion_depth``: the result's
-    ``motion_max_penetration_mm``.
-
-    A fresh drape's start-up (``d.startup`` steps: the body grown into the garment from half its girth, the
-    arms turned back from the sleeves) is not handed to ``on_frame``: its body is not the one a caller draws
-    beside the frames, and the garment would be shown up to 8 cm into it (the catalogue on three bodies,
-    ``tryon bench --only fit``: median 16 mm), nor are the few steps after it while cloth the start-up left
-    pinched between two parts is still inside the body (``showing``). A re-posed drape's start-up is its body's
-    motion, which a caller draws in step (``api.live``'s ``body_pose``): shown. ``start_up=True`` hands every step
-    over (a checker that watches the whole run: the stability stress)."""
-    stopped = False
-    for _ in range(d.settings.max_steps):
-        at_rest = step(d)
-        if d.moving:  # a re-pose: how deep the cloth is inside the body as it is at this step
-            d.motion_depth = max(d.motion_depth, deepest_inside(d.collider, d.state.x))
-        shown = start_up or d.moving or showing(d)
-        if on_frame is not None and shown and on_frame(d.state.step, d.state.x) is False:
-            stopped = True
-            break
-        if at_rest:
-            break
-        if give_way is not None and d.state.step > d.startup and give_way():
-            return None, True
-    return finish(d, relax(d), stopped), False
-
-
-def showing(d: Drape) -> bool:
-    """Whether a fresh drape's step just taken is one a caller is shown (``settle``'s ``on_frame``): not during the
-    start-up, nor in the ``tuning.unseen_pinch_steps`` steps after it while a point held in a pinch between two
-    parts is still more than ``tuning.frame_depth`` inside the body; from the first step shown on, every step.
-
-    The start-up's growth leaves cloth pinched between two parts (a trouser crotch between the thighs) up to
-    12.5 mm inside the body, held there (``hold_pinched``: pushed, it would flip between the parts) until its
-    springs draw it out, 1 to 6 steps later on the catalogue: 8 of the 90 drapes of ``tryon bench --only fit``
-    showed such a frame (the small body's trousers S and L; the large body's dress L and XL, trousers XL and XXL,
-    shorts L and XL). The steps are the same either way; only the stream starts later."""
-    st = d.state
-    if st.step <= d.startup:
-        return False
-    if d.shown_from:
-        return True
-    if st.step <= d.startup + d.tuning.unseen_pinch_steps and st.held.any():
-        held = np.flatnonzero(st.held)
-        if d.collider.depth(st.x[held], d.parts).max() > d.tuning.frame_depth:
-            return False
-    d.shown_from = st.step
-    return True

@@ -346,7 +346,8 @@ def _axial_inside(p, k, lz, it, iz, n_z, z0, z1, cyl_axes, cell_base, cell_start
 # inlined, the same happened per query). Those atomics were a third of the collision's time (perf
 # sampling); without them a collision of the perf T-shirt's 2,202 points costs 1.0-1.4 instead of
 # 1.4-1.7 ms, same results. (Inlined, as before, the call with ~25 array arguments is saved but not the
-# atomics.)
+# atomics.) Its steps below (``_locate`` to ``_missed_ray``) are inlined into it (``inline="always"``), so
+# they run without the runtime too and cost no call.
 @njit(cache=True, nogil=True, _nrt=False)
 def part_query(p, k, surface, target, normal, hit, q, trust, near, tbuf, fbuf):
     """Is p (inside part k's OBB: the callers test that first) inside part k of the (offset) body
@@ -362,26 +363,53 @@ def part_query(p, k, surface, target, normal, hit, q, trust, near, tbuf, fbuf):
     near: m; a point outside but closer than this to the surface along its ray gets a negative depth
     (minus its distance) and the surface point and normal, for a contact plane. Faces whose box
     (``surface.boxes``) misses the ray are not intersected.
+
+    Steps: the point's cell (``_locate``), the radial ray through it (``_radial_ray``), the ray's hits
+    among the cell's faces (``_ray_hits``), their parity (``_crossings``); then the answer: outside, maybe
+    near (``_near_plane``), inside (``_way_out``), or, when the ray hit nothing, the fallback (``_missed_ray``).
     """
-    cyl_origin, cyl_axes, cyl_zrange, cyl_shape = surface.cyl_origin, surface.cyl_axes, surface.cyl_zrange, \
-        surface.cyl_shape
-    cell_base, cell_start, cell_faces, cell_rmax = surface.cell_base, surface.cell_start, surface.cell_faces, \
-        surface.cell_rmax
-    bv, faces, fn, fbox, cover = surface.vertices, surface.faces, surface.face_normals, surface.boxes, surface.cover
-    lx, ly, lz = _to_local(p[0], p[1], p[2], cyl_origin, cyl_axes, k)
+    lz, r, theta, it, iz, c = _locate(p, k, surface, near)
+    if c < 0:
+        return 0.0
+    ray = _radial_ray(p, k, lz, r, surface.cyl_origin, surface.cyl_axes)
+    nh = _ray_hits(c, lz, theta, ray, surface, hit, tbuf, fbuf)
+    if nh == 0:
+        return _missed_ray(p, k, lz, it, iz, surface, target, normal, q)
+    count, best_t, best_f, below_t, below_f = _crossings(tbuf, fbuf, nh, r)
+    if count % 2 == 0:
+        return _near_plane(r, below_t, below_f, ray, surface.face_normals, near, target, normal)
+    return _way_out(p, k, it, iz, r, best_t, best_f, ray, surface, target, normal, q, trust)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _locate(p, k, surface, near):
+    """Where p (3,) m falls in part k's cylinder map: (lz m along the axis, r m from it, theta in [-pi, pi]
+    radians (0 on the axis: the ray then goes along local x), it and iz its cell's theta and z indices, c the
+    cell's global id). c is -1 where p is outside the part without a ray: beyond the map's ends, or farther
+    from the axis than every face of its cell by more than ``near`` m (most garment points stop there)."""
+    cyl_shape, cyl_zrange = surface.cyl_shape, surface.cyl_zrange
+    lx, ly, lz = _to_local(p[0], p[1], p[2], surface.cyl_origin, surface.cyl_axes, k)
     n_theta = cyl_shape[k, 0]
     n_z = cyl_shape[k, 1]
     z0 = cyl_zrange[k, 0]
     z1 = cyl_zrange[k, 1]
     if lz < z0 or lz > z1:
-        return 0.0
+        return lz, 0.0, 0.0, 0, 0, -1
     iz = min(int((lz - z0) / (z1 - z0) * n_z), n_z - 1)
     r = math.sqrt(lx * lx + ly * ly)
     theta = math.atan2(ly, lx) if r > 1e-9 else 0.0  # on the axis: cast along local x (theta = 0)
     it = min(int((theta + math.pi) / (2.0 * math.pi) * n_theta), n_theta - 1)
-    c = cell_base[k] + it * n_z + iz
-    if r > cell_rmax[c] + near:
-        return 0.0  # beyond every face of the cell: outside this part
+    c = surface.cell_base[k] + it * n_z + iz
+    if r > surface.cell_rmax[c] + near:
+        return lz, r, theta, it, iz, -1  # beyond every face of the cell: outside this part
+    return lz, r, theta, it, iz, c
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _radial_ray(p, k, lz, r, cyl_origin, cyl_axes):
+    """The ray of p's query, (ox, oy, oz, rx, ry, rz): its origin o, m, p's projection on part k's axis (lz m
+    along it), and its unit direction from o through p (r m away; on the axis, the part's local x). It
+    keeps p's theta and z, so it can only hit the triangles of p's cell."""
     ox = cyl_origin[k, 0] + lz * cyl_axes[k, 2, 0]
     oy = cyl_origin[k, 1] + lz * cyl_axes[k, 2, 1]
     oz = cyl_origin[k, 2] + lz * cyl_axes[k, 2, 2]
@@ -393,8 +421,18 @@ def part_query(p, k, surface, target, normal, hit, q, trust, near, tbuf, fbuf):
         rx = cyl_axes[k, 0, 0]
         ry = cyl_axes[k, 0, 1]
         rz = cyl_axes[k, 0, 2]
-    # Ray (o, dir) against the cell's triangles: plane hit, then the inside-triangle test; the hits are
-    # kept (up to len(tbuf)) to count them.
+    return ox, oy, oz, rx, ry, rz
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _ray_hits(c, lz, theta, ray, surface, hit, tbuf, fbuf):
+    """The ray ``ray`` (``_radial_ray``) against the faces of cell c: plane hit, then the inside-triangle test.
+    Returns nh, the number of hits kept (at most len(tbuf)): tbuf[:nh] their distances from the ray's origin, m,
+    fbuf[:nh] their faces. A face whose (theta, z) box misses the ray's (theta, lz) is skipped (two
+    comparisons). hit (3,): work space."""
+    ox, oy, oz, rx, ry, rz = ray
+    cell_start, cell_faces = surface.cell_start, surface.cell_faces
+    bv, faces, fn, fbox = surface.vertices, surface.faces, surface.face_normals, surface.boxes
     nh = 0
     theta_up = theta + 2.0 * math.pi
     for m in range(cell_start[c], cell_start[c + 1]):
@@ -420,10 +458,17 @@ def part_query(p, k, surface, target, normal, hit, q, trust, near, tbuf, fbuf):
             tbuf[nh] = t
             fbuf[nh] = f
             nh += 1
-    # p is inside the part iff the ray from p outward crosses its surface an odd number of times (hits
-    # through a shared edge or vertex, found in two or more triangles at the same t, count once); the
-    # way out is the first crossing beyond p. (Taking simply the farthest hit would call a point in a
-    # hollow of the surface, such as the small of the back, inside.)
+    return nh
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _crossings(tbuf, fbuf, nh, r):
+    """The hits tbuf[:nh] (m from the axis, faces fbuf[:nh]) of a point r m from the axis, counted: (count, best_t,
+    best_f, below_t, below_f). count: the crossings beyond the point, the point inside iff it is odd; best_t,
+    best_f: the first of them (the way out; inf, -1 if none); below_t, below_f: the last hit short of the point
+    (-inf, -1 if none). Hits through a shared edge or vertex, found in two or more triangles at the same t,
+    count once. (Taking simply the farthest hit would call a point in a hollow of the surface, such as the
+    small of the back, inside.)"""
     count = 0
     best_t = np.inf
     best_f = -1
@@ -446,45 +491,74 @@ def part_query(p, k, surface, target, normal, hit, q, trust, near, tbuf, fbuf):
         elif t > below_t:
             below_t = t
             below_f = fbuf[h]
-    if nh > 0:
-        if count % 2 == 0:
-            if below_f >= 0 and r - below_t < near:
-                # outside but close: hand back the surface point as a contact plane (negative depth)
-                target[0] = ox + below_t * rx
-                target[1] = oy + below_t * ry
-                target[2] = oz + below_t * rz
-                for ax in range(3):
-                    normal[ax] = fn[below_f, ax]
-                return below_t - r
-            return 0.0
-        ray_depth = best_t - r
-        target[0] = ox + best_t * rx
-        target[1] = oy + best_t * ry
-        target[2] = oz + best_t * rz
+    return count, best_t, best_f, below_t, below_f
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _near_plane(r, below_t, below_f, ray, fn, near, target, normal):
+    """A point outside (r m from the axis, the last hit short of it at below_t m, face below_f): if it is within
+    ``near`` m of that surface, the surface point into ``target`` (3,) and its face's normal (``fn`` (f, 3)) into
+    ``normal`` (3,), for a contact plane, and minus its distance (m); else 0."""
+    if below_f >= 0 and r - below_t < near:
+        ox, oy, oz, rx, ry, rz = ray
+        target[0] = ox + below_t * rx
+        target[1] = oy + below_t * ry
+        target[2] = oz + below_t * rz
         for ax in range(3):
-            normal[ax] = fn[best_f, ax]
-        cos = fn[best_f, 0] * rx + fn[best_f, 1] * ry + fn[best_f, 2] * rz
-        if ray_depth <= SMALL_DEPTH or (cos >= GRAZING_COS and ray_depth <= trust):
-            return ray_depth  # the paper's answer
-        # Second opinion when the ray is grazing or deeper than the point can have gone this step: near
-        # the end of a part (a shoulder top, the rim of a cap) the radial way out is long and sideways
-        # while the real one is short. The cell's own faces cover everything within ``cover`` of it;
-        # only when the nearest of them is farther than that are the 3 x 3 neighbouring cells searched.
-        f, d2 = _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces, bv, faces, q, 0)
-        if f < 0 or d2 > cover * cover:
-            f, d2 = _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces, bv, faces, q, 1)
-        depth = math.sqrt(d2)
-        if f >= 0 and depth < ray_depth:
-            for ax in range(3):
-                target[ax] = q[ax]
-                normal[ax] = fn[f, ax]
-            return depth
-        return ray_depth
-    # the ray missed every triangle of the cell: inside by a ray along the axis, as deep as the nearest face
+            normal[ax] = fn[below_f, ax]
+        return below_t - r
+    return 0.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _way_out(p, k, it, iz, r, best_t, best_f, ray, surface, target, normal, q, trust):
+    """A point inside part k (r m from the axis, in cell (it, iz)), its ray leaving the surface at best_t m
+    through face best_f: its depth, m, the point to move it to into ``target`` (3,) and the outward normal
+    there into ``normal`` (3,). The paper's answer (the ray's exit) where it is shallow (``SMALL_DEPTH``), or
+    not grazing (``GRAZING_COS``) and within ``trust`` m; else the nearest face if that is nearer: near the
+    end of a part (a shoulder top, the rim of a cap) the radial way out is long and sideways while the real
+    one is short. The cell's own faces cover everything within ``surface.cover`` of it; only when the nearest
+    of them is farther than that are the 3 x 3 neighbouring cells searched. q (3,): work space."""
+    ox, oy, oz, rx, ry, rz = ray
+    fn = surface.face_normals
+    ray_depth = best_t - r
+    target[0] = ox + best_t * rx
+    target[1] = oy + best_t * ry
+    target[2] = oz + best_t * rz
+    for ax in range(3):
+        normal[ax] = fn[best_f, ax]
+    cos = fn[best_f, 0] * rx + fn[best_f, 1] * ry + fn[best_f, 2] * rz
+    if ray_depth <= SMALL_DEPTH or (cos >= GRAZING_COS and ray_depth <= trust):
+        return ray_depth  # the paper's answer
+    n_theta, n_z, cover = surface.cyl_shape[k, 0], surface.cyl_shape[k, 1], surface.cover
+    f, d2 = _nearest_face(p, k, it, iz, n_theta, n_z, surface.cell_base, surface.cell_start, surface.cell_faces,
+                          surface.vertices, surface.faces, q, 0)
+    if f < 0 or d2 > cover * cover:
+        f, d2 = _nearest_face(p, k, it, iz, n_theta, n_z, surface.cell_base, surface.cell_start, surface.cell_faces,
+                              surface.vertices, surface.faces, q, 1)
+    depth = math.sqrt(d2)
+    if f >= 0 and depth < ray_depth:
+        for ax in range(3):
+            target[ax] = q[ax]
+            normal[ax] = fn[f, ax]
+        return depth
+    return ray_depth
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _missed_ray(p, k, lz, it, iz, surface, target, normal, q):
+    """A point whose ray missed every face of its cell (it, iz) of part k (the part's open end at the armpit or
+    crotch, overlaps): inside iff its nearest face of the 3 x 3 cells is within ``FALLBACK_DEPTH`` and a ray
+    along the axis says so (``_axial_inside``); then that face's closest point into ``target`` (3,), its normal
+    into ``normal`` (3,), and its distance, m; else 0. lz: m along the axis; q (3,): work space."""
+    n_theta, n_z = surface.cyl_shape[k, 0], surface.cyl_shape[k, 1]
+    cell_base, cell_start, cell_faces = surface.cell_base, surface.cell_start, surface.cell_faces
+    bv, faces, fn = surface.vertices, surface.faces, surface.face_normals
     f, d2 = _nearest_face(p, k, it, iz, n_theta, n_z, cell_base, cell_start, cell_faces, bv, faces, q)
     if f < 0 or d2 > FALLBACK_DEPTH * FALLBACK_DEPTH:
         return 0.0
-    if not _axial_inside(p, k, lz, it, iz, n_z, z0, z1, cyl_axes, cell_base, cell_start, cell_faces, bv, faces, fn):
+    if not _axial_inside(p, k, lz, it, iz, n_z, surface.cyl_zrange[k, 0], surface.cyl_zrange[k, 1],
+                         surface.cyl_axes, cell_base, cell_start, cell_faces, bv, faces, fn):
         return 0.0
     for ax in range(3):
         target[ax] = q[ax]
@@ -513,8 +587,8 @@ def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, 
     x, x_prev (k, 3) m (x_prev: positions at the start of the step; both updated in place); inv_mass (k,)
     (0 = pinned, skipped); active (k,) bool: points to test (the caller skips points at rest); parts (q,)
     int64 part ids to test; surface: the offset body (``BodySurface``);
-    lam m (eq. 4's lambda); mu_static, mu_kinetic: Coulomb friction coefficients (position-based, see
-    the code); the normal velocity is removed (inelastic contact).
+    lam m (eq. 4's lambda); mu_static, mu_kinetic: Coulomb friction coefficients (position-based,
+    ``_friction``); the normal velocity is removed (inelastic contact).
     contact (k,) bool out: whether each point was moved. Returns the number of points moved.
     near: m; has_plane (k,) bool, plane_point (k, 3), plane_normal (k, 3) out: the contact plane of each
     tested point that was pushed or lies within ``near`` of the surface (its last surface point plus
@@ -524,34 +598,34 @@ def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, 
     was at the start of the step (only while the body does not move: a growing body would grow into it);
     held (k,) bool out, if given: which tested points were held so (``run.drape`` keeps those flipping
     between two parts still for the step). hold_depth: m, given (under 1e8) a pinched point ends where the
-    rounds' pushes left it least deep, with that push's plane, instead of where the last push left it (inside
-    the other part) or, if held, where it was at the start of the step when that is deeper than hold_depth in
-    the offset body (a re-posed body: cloth squeezed between a forearm and the torso where they press into each
-    other was left 1-2 cm inside one of them). The middle of two pushes in a row counts as a push: between two
-    parts pressed together it is as deep in each, where either push leaves it as deep in the other as the
-    overlap and the offset together (``full_mesh.PINCHED_LEAST_DEEP``: the shown mesh of a long sleeve on a
-    forearm resting on the belly ended 3.2 mm inside the torso, now 0). So does, for two pushes in a row out of two
-    different parts, the first point outside both along the sum of their normals (``CREASE_STEPS``): where two
-    parts overlap, every push and middle stays as deep as half the overlap, and the way out is along it.
+    rounds' pushes left it least deep instead (``_least_deep``).
+
+    Each point: pushed out of the parts round after round (``_push_out``); if still inside, put where it is
+    least deep (``_least_deep``) or held (``_hold``); else, if pushed, its motion's friction (``_friction``).
     One point at a time, each writing only its own row: safe to split the loop across threads.
     """
-    obb_normals, obb_offsets = surface.obb_normals, surface.obb_offsets
-    target = np.empty(3)
-    normal = np.empty(3)
-    hit = np.empty(3)
-    q = np.empty(3)
-    tbuf = np.empty(MAX_HITS)
-    fbuf = np.empty(MAX_HITS, dtype=np.int64)
-    x0 = np.empty(3)
-    # where each push of a point's rounds left it, and the push's normal (for ``hold_depth``)
-    cand = np.empty((ROUNDS * parts.shape[0], 3))
-    cand_n = np.empty((ROUNDS * parts.shape[0], 3))
-    scratch = np.empty((4, 3))
-    mid = np.empty(3)
-    best_p = np.empty(3)
-    best_n = np.empty(3)
-    crease = np.empty(3)
-    cdepth = 0.0
+    # work space: part_query's (target, normal, hit, q, tbuf, fbuf), the point before its pushes (x0), where
+    # each push of its rounds left it and the push's normal (cand, cand_n), _least_deep's (best: the place
+    # found and its normal; mid, crease, scratch)
+    n_cand = ROUNDS * parts.shape[0]
+    work = (np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(MAX_HITS), np.empty(MAX_HITS, dtype=np.int64),
+            np.empty(3), np.empty((n_cand, 3)), np.empty((n_cand, 3)), np.empty((2, 3)), np.empty(3), np.empty(3),
+            np.empty((4, 3)))
+    return _collide_each(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, mu_kinetic, contact, near,
+                         has_plane, plane_point, plane_normal, hold_pinched, held, hold_depth, work)
+
+
+# collide_points' loop is compiled without the numba runtime, as part_query is (see the note above it): its
+# steps are inlined into it at no cost. Inlined into collide_points itself, which allocates and so runs with the
+# runtime, each step's ~20 array arguments took and dropped an atomic reference for every point (the perf
+# T-shirt's shown mesh, 7,342 points, one thread, best of 10: 3.6 -> 18.8 ms a collision); called instead of
+# inlined (without the runtime), the steps' calls made it 5.5 ms.
+@njit(cache=True, nogil=True, _nrt=False)
+def _collide_each(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, mu_kinetic, contact, near, has_plane,
+                  plane_point, plane_normal, hold_pinched, held, hold_depth, work):
+    """``collide_points``' loop over the points (the same arguments; ``work``: its work space, a tuple of
+    arrays). Returns the number of points moved."""
+    target, normal, hit, q, tbuf, fbuf, x0, cand, cand_n, best, mid, crease, scratch = work
     moved = 0
     for i in range(x.shape[0]):
         if inv_mass[i] == 0.0 or not active[i]:
@@ -564,122 +638,180 @@ def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, 
         x0[0] = p[0]
         x0[1] = p[1]
         x0[2] = p[2]
-        n_cand = 0
-        for _ in range(ROUNDS):
-            any_inside = False
-            for kk in range(parts.shape[0]):
-                k = parts[kk]
-                # the box test inline: a call with ~20 array arguments costs more than the test itself
-                if not _in_obb(p[0], p[1], p[2], obb_normals, obb_offsets, k):
-                    continue
-                mx = p[0] - x_prev[i, 0]
-                my = p[1] - x_prev[i, 1]
-                mz = p[2] - x_prev[i, 2]
-                trust = math.sqrt(mx * mx + my * my + mz * mz) + TRUST_SLACK
-                depth = part_query(p, k, surface, target, normal, hit, q, trust, near, tbuf, fbuf)
-                if depth < 0.0:
-                    if not has_plane[i]:
-                        has_plane[i] = True
-                        for ax in range(3):
-                            plane_point[i, ax] = target[ax] + lam * normal[ax]
-                            plane_normal[i, ax] = normal[ax]
-                    continue
-                if depth > 0.0:
-                    any_inside = True
-                    contact[i] = True
-                    has_plane[i] = True
-                    for ax in range(3):
-                        p[ax] = target[ax] + lam * normal[ax]
-                        plane_point[i, ax] = p[ax]
-                        plane_normal[i, ax] = normal[ax]
-                        cand[n_cand, ax] = p[ax]
-                        cand_n[n_cand, ax] = normal[ax]
-                    n_cand += 1
-            if not any_inside:
-                break
-        if any_inside and hold_depth < 1e8 and n_cand > 0:
-            # held: only if where it was is not too deep; not held (the body moving): the least deep push, or
-            # the middle of two pushes in a row (out of one part, then out of the other: between two parts
-            # pressed together, the middle is as deep in each, half as deep as either push leaves it)
-            found, best_depth = False, _depth_at(x_prev[i], parts, surface, scratch, tbuf, fbuf) if hold_pinched \
-                else np.inf
-            if best_depth > hold_depth:
-                for c in range(2 * n_cand - 1):
-                    a, b = c // 2, (c + 1) // 2  # a push (a == b), or the middle of two in a row
-                    for ax in range(3):
-                        mid[ax] = 0.5 * (cand[a, ax] + cand[b, ax])
-                    depth = _depth_at(mid, parts, surface, scratch, tbuf, fbuf)
-                    if depth < best_depth:
-                        found, best_depth = True, depth
-                        for ax in range(3):
-                            best_p[ax] = mid[ax]
-                            best_n[ax] = cand_n[b, ax]
-                    if a != b and depth > 0.0:
-                        # two parts pressed into each other (an arm lowered against the torso): their pushes
-                        # go opposite ways; the sum of their normals points along the overlap to the nearer
-                        # crease where the two surfaces meet, outside both
-                        sx = cand_n[a, 0] + cand_n[b, 0]
-                        sy = cand_n[a, 1] + cand_n[b, 1]
-                        sz = cand_n[a, 2] + cand_n[b, 2]
-                        sn = math.sqrt(sx * sx + sy * sy + sz * sz)
-                        if sn > 1e-6:
-                            for m in range(1, CREASE_STEPS + 1):
-                                t = m * CREASE_STEP / sn
-                                crease[0] = mid[0] + t * sx
-                                crease[1] = mid[1] + t * sy
-                                crease[2] = mid[2] + t * sz
-                                cdepth = _depth_at(crease, parts, surface, scratch, tbuf, fbuf)
-                                if cdepth == 0.0:
-                                    break
-                            if cdepth < best_depth:
-                                found, best_depth = True, cdepth
-                                for ax in range(3):
-                                    best_p[ax] = crease[ax]
-                                    best_n[ax] = (cand_n[a, ax] + cand_n[b, ax]) / sn
-            if found:
-                for ax in range(3):
-                    p[ax] = best_p[ax]
-                    x_prev[i, ax] = p[ax]  # no velocity from the move
-                    plane_point[i, ax] = p[ax]
-                    plane_normal[i, ax] = best_n[ax]
-                has_plane[i] = True
-                moved += 1
-                continue
-        if any_inside and hold_pinched:
-            # pinched: pushed out of one part into another in every round (cloth between touching
-            # thighs, in the crotch), no way out nearby. Pushed on, it flips between the parts every step
-            # (2-3 cm on a heavy-thighed body) and never comes to rest. It keeps its place at the start
-            # of the step instead, at rest (cloth squeezed between two parts is held there): outside the
-            # body if it was about to enter the pinch, where it was if it started in it.
+        any_inside, n_cand = _push_out(i, p, x_prev, parts, surface, lam, near, contact, has_plane, plane_point,
+                                       plane_normal, cand, cand_n, target, normal, hit, q, tbuf, fbuf)
+        if any_inside and hold_depth < 1e8 and n_cand > 0 and _least_deep(
+                i, x_prev, parts, surface, cand, cand_n, n_cand, hold_pinched, hold_depth, best, mid, crease, scratch,
+                tbuf, fbuf):
             for ax in range(3):
-                p[ax] = x_prev[i, ax]
-            has_plane[i] = False
+                p[ax] = best[0, ax]
+                x_prev[i, ax] = p[ax]  # no velocity from the move
+                plane_point[i, ax] = p[ax]
+                plane_normal[i, ax] = best[1, ax]
+            has_plane[i] = True
+            moved += 1
+            continue
+        if any_inside and hold_pinched:
+            _hold(i, p, x_prev, has_plane)
             if held is not None:
                 held[i] = True
             moved += 1
             continue
         if contact[i]:
             moved += 1
-            # Response of the motion (the push itself must not become velocity: pushing along a ray that
-            # is not the surface normal would otherwise feed the cloth tangential speed every step).
-            # Coulomb friction on positions (Macklin et al. 2014, "Unified particle physics"): the
-            # tangential part of this step's motion before the push (x0 - x_prev) is undone if shorter
-            # than mu_s x the push (sticking), else shortened by mu_k x the push (sliding); the next step
-            # starts with what is left of it and no normal velocity (inelastic).
-            px = p[0] - x0[0]
-            py = p[1] - x0[1]
-            pz = p[2] - x0[2]
-            press = math.sqrt(px * px + py * py + pz * pz)
-            cut, tx, ty, tz = coulomb_cut(x0[0] - x_prev[i, 0], x0[1] - x_prev[i, 1], x0[2] - x_prev[i, 2],
-                                          normal[0], normal[1], normal[2], press, mu_static, mu_kinetic)
-            p[0] -= cut * tx
-            p[1] -= cut * ty
-            p[2] -= cut * tz
-            keep = 1.0 - cut
-            x_prev[i, 0] = p[0] - keep * tx
-            x_prev[i, 1] = p[1] - keep * ty
-            x_prev[i, 2] = p[2] - keep * tz
+            _friction(i, p, x0, x_prev, normal, mu_static, mu_kinetic)
     return moved
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _push_out(i, p, x_prev, parts, surface, lam, near, contact, has_plane, plane_point, plane_normal, cand, cand_n,
+              target, normal, hit, q, tbuf, fbuf):
+    """Point i at p (3,) m (a row of x, moved in place) pushed out of every part of ``parts`` (q,) whose box it
+    is in, to the surface point plus ``lam`` m along its normal (eq. 4), repeated (up to ``ROUNDS``) while a
+    round pushed it: it leaves the union of overlapping parts. Each push is also point i's contact plane
+    (``plane_point``, ``plane_normal`` (k, 3), ``has_plane`` (k,)) and ``contact[i]`` is set; without a push,
+    the first surface within ``near`` m gives the plane. Returns (whether the last round still pushed it, the
+    number of pushes): cand, cand_n (ROUNDS * q, 3) get where each push left the point and its normal.
+    x_prev (k, 3) m: the start of the step (each query trusts a radial depth up to the move since then plus
+    ``TRUST_SLACK``); target, normal, hit, q (3,), tbuf, fbuf: ``part_query``'s work space (``normal`` keeps
+    the last normal found, which ``_friction`` reads)."""
+    n_cand = 0
+    any_inside = False
+    for _ in range(ROUNDS):
+        any_inside = False
+        for kk in range(parts.shape[0]):
+            k = parts[kk]
+            # the box test inline: a call with ~20 array arguments costs more than the test itself
+            if not _in_obb(p[0], p[1], p[2], surface.obb_normals, surface.obb_offsets, k):
+                continue
+            mx = p[0] - x_prev[i, 0]
+            my = p[1] - x_prev[i, 1]
+            mz = p[2] - x_prev[i, 2]
+            trust = math.sqrt(mx * mx + my * my + mz * mz) + TRUST_SLACK
+            depth = part_query(p, k, surface, target, normal, hit, q, trust, near, tbuf, fbuf)
+            if depth < 0.0:
+                if not has_plane[i]:
+                    has_plane[i] = True
+                    for ax in range(3):
+                        plane_point[i, ax] = target[ax] + lam * normal[ax]
+                        plane_normal[i, ax] = normal[ax]
+                continue
+            if depth > 0.0:
+                any_inside = True
+                contact[i] = True
+                has_plane[i] = True
+                for ax in range(3):
+                    p[ax] = target[ax] + lam * normal[ax]
+                    plane_point[i, ax] = p[ax]
+                    plane_normal[i, ax] = normal[ax]
+                    cand[n_cand, ax] = p[ax]
+                    cand_n[n_cand, ax] = normal[ax]
+                n_cand += 1
+        if not any_inside:
+            break
+    return any_inside, n_cand
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _least_deep(i, x_prev, parts, surface, cand, cand_n, n_cand, hold_pinched, hold_depth, best, mid, crease,
+                scratch, tbuf, fbuf):
+    """Where point i, still inside after its rounds (``_push_out``), is least deep in the body ``surface`` over
+    ``parts`` (q,): best (2, 3) gets that point, m, and the normal of its push; returns whether one was found
+    (else it is held or left as the caller decides). Held (``hold_pinched``), it is found only if where it was
+    at the start of the step (x_prev (k, 3) m) is deeper than ``hold_depth`` m, and must be less deep than that.
+
+    The places: each push (cand, cand_n (n_cand, 3): where it left the point, its normal), the middle of two
+    pushes in a row, and, for two pushes in a row out of two different parts, the crease (``_crease``). Where
+    the last push leaves it is inside the other part, and a re-posed body's cloth squeezed between a forearm
+    and the torso where they press into each other was left 1-2 cm inside one of them. Between two parts
+    pressed together the middle is as deep in each, where either push leaves it as deep in the other as the
+    overlap and the offset together (``full_mesh.PINCHED_LEAST_DEEP``: the shown mesh of a long sleeve on a
+    forearm resting on the belly ended 3.2 mm inside the torso, now 0); where two parts overlap, every push
+    and middle stays as deep as half the overlap, and the way out is along the crease.
+    mid, crease (3,), scratch (4, 3), tbuf, fbuf: work space."""
+    found, best_depth = False, _depth_at(x_prev[i], parts, surface, scratch, tbuf, fbuf) if hold_pinched \
+        else np.inf
+    if not best_depth > hold_depth:
+        return False
+    for c in range(2 * n_cand - 1):
+        a, b = c // 2, (c + 1) // 2  # a push (a == b), or the middle of two in a row
+        for ax in range(3):
+            mid[ax] = 0.5 * (cand[a, ax] + cand[b, ax])
+        depth = _depth_at(mid, parts, surface, scratch, tbuf, fbuf)
+        if depth < best_depth:
+            found, best_depth = True, depth
+            for ax in range(3):
+                best[0, ax] = mid[ax]
+                best[1, ax] = cand_n[b, ax]
+        if a != b and depth > 0.0:
+            cdepth, sn = _crease(mid, cand_n, a, b, parts, surface, crease, scratch, tbuf, fbuf)
+            if sn > 1e-6 and cdepth < best_depth:
+                found, best_depth = True, cdepth
+                for ax in range(3):
+                    best[0, ax] = crease[ax]
+                    best[1, ax] = (cand_n[a, ax] + cand_n[b, ax]) / sn
+    return found
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _crease(mid, cand_n, a, b, parts, surface, crease, scratch, tbuf, fbuf):
+    """Two parts pressed into each other (an arm lowered against the torso): their pushes a and b (normals
+    cand_n[a], cand_n[b]) go opposite ways, and the sum of their normals points along the overlap to the nearer
+    crease where the two surfaces meet, outside both. From mid (3,) m along that sum, in steps of
+    ``CREASE_STEP`` m up to ``CREASE_STEPS``, to the first point outside both (or the last step) into
+    ``crease`` (3,): (its depth, m, in the body ``surface`` over ``parts``; the sum's length, its depth not
+    looked for where that is under 1e-6)."""
+    sx = cand_n[a, 0] + cand_n[b, 0]
+    sy = cand_n[a, 1] + cand_n[b, 1]
+    sz = cand_n[a, 2] + cand_n[b, 2]
+    sn = math.sqrt(sx * sx + sy * sy + sz * sz)
+    cdepth = 0.0
+    if sn > 1e-6:
+        for m in range(1, CREASE_STEPS + 1):
+            t = m * CREASE_STEP / sn
+            crease[0] = mid[0] + t * sx
+            crease[1] = mid[1] + t * sy
+            crease[2] = mid[2] + t * sz
+            cdepth = _depth_at(crease, parts, surface, scratch, tbuf, fbuf)
+            if cdepth == 0.0:
+                break
+    return cdepth, sn
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _hold(i, p, x_prev, has_plane):
+    """Point i pinched: pushed out of one part into another in every round (cloth between touching thighs, in
+    the crotch), no way out nearby. Pushed on, it flips between the parts every step (2-3 cm on a heavy-thighed
+    body) and never comes to rest. It keeps its place at the start of the step instead, at rest (cloth squeezed
+    between two parts is held there): outside the body if it was about to enter the pinch, where it was if it
+    started in it. p (3,) m: its row of x, set to x_prev[i] ((k, 3) m); has_plane (k,) bool: its plane dropped."""
+    for ax in range(3):
+        p[ax] = x_prev[i, ax]
+    has_plane[i] = False
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _friction(i, p, x0, x_prev, normal, mu_static, mu_kinetic):
+    """The response of point i's motion to its push from x0 (3,) m to p (3,) m (a row of x, in place), x_prev
+    (k, 3) m its place at the start of the step (row i updated): the push itself must not become velocity
+    (pushing along a ray that is not the surface normal would otherwise feed the cloth tangential speed every
+    step). Coulomb friction on positions (Macklin et al. 2014, "Unified particle physics"): the tangential part
+    of this step's motion before the push (x0 - x_prev) is undone if shorter than mu_static x the push
+    (sticking), else shortened by mu_kinetic x the push (sliding), along the last normal (3,) found; the next
+    step starts with what is left of it and no normal velocity (inelastic)."""
+    px = p[0] - x0[0]
+    py = p[1] - x0[1]
+    pz = p[2] - x0[2]
+    press = math.sqrt(px * px + py * py + pz * pz)
+    cut, tx, ty, tz = coulomb_cut(x0[0] - x_prev[i, 0], x0[1] - x_prev[i, 1], x0[2] - x_prev[i, 2],
+                                  normal[0], normal[1], normal[2], press, mu_static, mu_kinetic)
+    p[0] -= cut * tx
+    p[1] -= cut * ty
+    p[2] -= cut * tz
+    keep = 1.0 - cut
+    x_prev[i, 0] = p[0] - keep * tx
+    x_prev[i, 1] = p[1] - keep * ty
+    x_prev[i, 2] = p[2] - keep * tz
 
 
 @njit(cache=True, nogil=True)

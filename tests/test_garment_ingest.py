@@ -17,13 +17,16 @@ def obj_bytes(v: np.ndarray, f: np.ndarray) -> bytes:
     return obj_text(trimesh.Trimesh(v, f, process=False), "test").encode()
 
 
-def quad_obj(nx: int, ny: int, spacing: float) -> bytes:
-    """A flat quad grid with ``f a b c d`` quad lines."""
-    lines = [f"v {i * spacing} {j * spacing} 0" for j in range(ny + 1) for i in range(nx + 1)]
-    for j in range(ny):
-        for i in range(nx):
-            a = j * (nx + 1) + i + 1
-            lines.append(f"f {a} {a + 1} {a + nx + 2} {a + nx + 1}")
+def quad_obj(around: int, rows: int, spacing: float) -> bytes:
+    """A quad tube (a plain skirt: a flat sheet has no opening for the body and is refused), ``around`` quads
+    round and ``rows`` high, ``spacing`` m tall each, with ``f a b c d`` quad lines."""
+    r = 0.2
+    lines = [f"v {r * np.cos(2 * np.pi * i / around):.6f} {j * spacing} {r * np.sin(2 * np.pi * i / around):.6f}"
+             for j in range(rows + 1) for i in range(around)]
+    for j in range(rows):
+        for i in range(around):
+            a, b = j * around + i + 1, j * around + (i + 1) % around + 1
+            lines.append(f"f {a} {b} {b + around} {a + around}")
     return ("\n".join(lines) + "\n").encode()
 
 
@@ -70,10 +73,10 @@ def test_z_up_file_is_rotated(tshirt):
 def test_quads_split_into_triangles_and_follow_the_paper_springs():
     from tryon.garment.springs import spring_model
 
-    m = load_garment(quad_obj(6, 5, 0.1), "q.obj", "m")
-    assert len(m.faces) == 2 * 6 * 5 and len(m.vertices) == 7 * 6
+    m = load_garment(quad_obj(12, 5, 0.1), "q.obj", "m")
+    assert len(m.faces) == 2 * 12 * 5 and len(m.vertices) == 12 * 6
     _, _, kind = spring_model(m.vertices, m.faces)
-    assert np.bincount(kind, minlength=3)[1] == 2 * 6 * 5  # shear: both diagonals of every quad
+    assert np.bincount(kind, minlength=3)[1] == 2 * 12 * 5  # shear: both diagonals of every quad
 
 
 def test_uv_seams_are_welded():

@@ -70,6 +70,20 @@ MAX_CONTROL_BYTE_FRACTION = 0.001
 # Fewer triangles than this cannot drape as cloth (a box has 12; the smallest real garment we have seen,
 # the MakeHuman outfits' pieces, about 2,000): the simulation needs a surface that can fold.
 MIN_FACES = 24
+# Largest coordinate a garment file may hold, in its own units: 1,000 km even in millimetres (the smallest
+# unit read). A larger one (1e30, 3.4e38: a broken export) is no garment's in any units; a whole garment
+# drawn too large is refused by its size, with the units (``_to_metres``).
+MAX_COORDINATE = 1e9
+# A vertex of the garment's surface farther out than this many times the garment's size (the span of its
+# vertices from the 1st to the 99th percentile) from the box of that span is a stray vertex (a spike).
+STRAY_FACTOR = 10.0
+# An opening for the body (a neck, hem, cuff, waist or leg opening) is an open edge loop at least this long
+# (m): a hand goes through a cuff of about 17 cm (the MakeHuman blouse's; every garment we have has two
+# openings of 37 cm or more). A smaller loop is a hole in the cloth (the DiffCloth dress's two: 3 and 6 cm).
+MIN_OPENING_M = 0.15
+# Openings each piece of a garment needs: the body goes in through one and out through another (a skirt's
+# waist and hem; a top's neck, hem and sleeves). A sheet's only open edge is its rim: it cannot be worn.
+MIN_OPENINGS = 2
 
 
 class GarmentError(ValueError):
@@ -136,8 +150,10 @@ def load_garment(data: bytes, filename: str, units: str = "auto", max_faces: int
     _refuse_sewing_pattern(vertices, faces, stitches)
     vertices, faces = _largest_components(vertices, faces, notes)
     _refuse_unwearable(faces, len(vertices))
+    _refuse_without_openings(vertices, faces, in_metres=False)
     vertices = _orient_y_up(vertices, faces, notes)
     vertices, units, guessed = _to_metres(vertices, units, notes)
+    _refuse_without_openings(vertices, faces, in_metres=True)
     return CleanMesh(vertices=vertices, faces=faces, units=units, units_guessed=guessed, notes=notes)
 
 
@@ -292,14 +308,87 @@ def _read(data: bytes, ext: str, filename: str, max_faces: int) -> tuple[np.ndar
     if len(faces) > max_faces:
         raise GarmentError(f"the mesh has {len(faces):,} faces, more than the limit of {max_faces:,}", 413)
     vertices = np.asarray(loaded.vertices, dtype=np.float64)
-    if not np.isfinite(vertices).all():
-        raise GarmentError("the file has non-finite vertex coordinates (NaN or infinity)")
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise GarmentError("the file has faces that refer to vertices that do not exist")
+    _refuse_bad_coordinates(vertices, faces, data, ext)
     mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
     # trimesh keeps vertices apart at UV and normal seams unless told: weld by position only.
     mesh.merge_vertices(merge_tex=True, merge_norm=True)
     return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def _refuse_bad_coordinates(vertices: np.ndarray, faces: np.ndarray, data: bytes, ext: str) -> None:
+    """Refuse a file with a coordinate that is not a number (NaN, infinity), beyond ``MAX_COORDINATE``, or
+    a stray vertex of the surface far out of the garment (``STRAY_FACTOR``), naming the vertex, its value and
+    the limit. ``vertices`` (n, 3) and ``faces`` (f, 3) as read (before welding). Checked before anything is
+    measured: one vertex at 1e30 made every other triangle look degenerate beside its own, and the file was
+    refused as having 3 triangles."""
+    bad = ~np.isfinite(vertices) | (np.abs(np.nan_to_num(vertices, nan=0.0)) > MAX_COORDINATE)
+    if bad.any():
+        i, axis = (int(k) for k in np.argwhere(bad)[0])
+        value = vertices[i, axis]
+        where = _vertex_named(data, ext, i, lambda rows: np.flatnonzero(
+            (~np.isfinite(rows) | (np.abs(np.nan_to_num(rows, nan=0.0)) > MAX_COORDINATE)).any(axis=1)))
+        if not np.isfinite(value):
+            raise GarmentError(f"{where} has a non-finite coordinate, {'xyz'[axis]} = {value}: every coordinate "
+                               "must be a finite number (not NaN or infinity)")
+        raise GarmentError(f"{where} has an absurd coordinate, {'xyz'[axis]} = {value:g}: a garment's coordinates "
+                           f"are at most {MAX_COORDINATE:,.0f} either way (1,000 km even in millimetres): fix or "
+                           "remove that vertex")
+    used = np.unique(faces)
+    if len(used) < 8:
+        return  # too few to tell a garment from a stray vertex (refused as too few triangles later)
+    lo, hi = np.percentile(vertices[used], [1.0, 99.0], axis=0)
+    size = float(np.max(hi - lo))
+    if size <= 0.0:
+        return
+    out = np.max(np.maximum(lo - vertices, vertices - hi), axis=1)  # (n,) how far outside the box
+    stray = np.zeros(len(vertices), dtype=np.bool_)
+    stray[used] = out[used] > STRAY_FACTOR * size
+    if not stray.any():
+        return
+    # a stray vertex of the garment's own surface (a spike), not a separate piece placed far away (a speck,
+    # dropped later with the other specks)
+    _, piece = vertex_pieces(faces, len(vertices))
+    inside = np.zeros(int(piece.max()) + 1, dtype=np.bool_)
+    inside[piece[used[~stray[used]]]] = True
+    spikes = np.flatnonzero(stray & inside[piece])
+    if not len(spikes):
+        return
+    i = int(spikes[np.argmax(out[spikes])])
+    axis = int(np.argmax(np.maximum(lo - vertices[i], vertices[i] - hi)))
+    position = vertices[i]
+    where = _vertex_named(data, ext, i, lambda rows: np.flatnonzero((rows == position).all(axis=1)))
+    raise GarmentError(
+        f"{where} is a stray vertex: its {'xyz'[axis]} = {vertices[i, axis]:g} is {out[i] / size:,.0f} times "
+        f"the garment's size ({size:.4g} file units across its other vertices) away from them, more than the "
+        f"limit of {STRAY_FACTOR:g} times: fix or remove that vertex")
+
+
+def _vertex_named(data: bytes, ext: str, index: int, find) -> str:
+    """A vertex for a message: in an OBJ, its number among the file's ``v`` lines and its line (found by
+    ``find(rows)``: the matching rows of the file's (n, 3) vertex coordinates, in file order; the reader may
+    have dropped or reordered vertices); in another format, ``index`` + 1 in the order it was read."""
+    if ext == "obj":
+        text = b"\n" + data
+        starts = [m.start() for m in re.finditer(rb"\nv[ \t]", text)]
+        rows = _obj_vertex_rows(data)
+        hits = find(rows) if rows is not None and len(rows) == len(starts) else []
+        if len(hits):
+            k = int(hits[0])
+            line = text.count(b"\n", 0, starts[k] + 1)
+            return f"vertex {k + 1:,} (line {line:,})"
+    return f"vertex {index + 1:,}"
+
+
+def _obj_vertex_rows(data: bytes) -> np.ndarray | None:
+    """(n, 3) float64: the first three numbers of every ``v`` line of an OBJ's text, in file order; None if
+    one does not read as a number."""
+    rows = re.findall(rb"(?m)^v[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)", data)
+    try:
+        return np.array(rows, dtype=np.float64).reshape(-1, 3)
+    except ValueError:
+        return None
 
 
 def _unused_fraction(data: bytes, ext: str, vertices: np.ndarray, faces: np.ndarray) -> float:
@@ -308,11 +397,10 @@ def _unused_fraction(data: bytes, ext: str, vertices: np.ndarray, faces: np.ndar
     used = len(np.unique(vertices[np.unique(faces)], axis=0))
     if ext != "obj":
         return 1.0 - used / max(len(np.unique(vertices, axis=0)), 1)
-    rows = re.findall(rb"(?m)^v[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)", data)
-    try:
-        total = len(np.unique(np.array(rows, dtype=np.float64), axis=0)) if rows else used
-    except ValueError:
+    rows = _obj_vertex_rows(data)
+    if rows is None:
         return 0.0  # unparsable numbers: trimesh read them somehow; do not guess
+    total = len(np.unique(rows, axis=0)) if len(rows) else used
     return 1.0 - used / max(total, used, 1)
 
 
@@ -538,6 +626,50 @@ def _refuse_unwearable(faces: np.ndarray, n_vertices: int) -> None:
     if not boundary_loops(faces, n_vertices):
         raise GarmentError("the mesh is a closed surface (no open edge anywhere): a garment has openings for the "
                            "body (neck, arms, waist, legs); a solid object or a body scan cannot be worn")
+
+
+def _refuse_without_openings(vertices: np.ndarray, faces: np.ndarray, in_metres: bool) -> None:
+    """Refuse, whatever the category, a garment of which a piece has fewer than ``MIN_OPENINGS`` openings for
+    the body: open edge loops, and once ``in_metres`` only those at least ``MIN_OPENING_M`` around (a smaller
+    loop is a hole in the cloth). A flat or cupped sheet has one open edge, its rim: nothing goes through it,
+    so it cannot be put on. ``vertices`` (n, 3), ``faces`` (f, 3) of the cleaned mesh (after
+    ``_largest_components``); checked before the units are known (loops counted: a sheet is refused as such,
+    not for the size its flatness gives) and again in metres (holes told from openings)."""
+    count, piece = vertex_pieces(faces, len(vertices))
+    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1).astype(np.int64)
+    n = len(vertices)
+    key, times = np.unique(e[:, 0] * n + e[:, 1], return_counts=True)
+    b = key[times == 1]
+    a, c = b // n, b % n
+    graph = scipy.sparse.coo_matrix((np.ones(len(b)), (a, c)), shape=(n, n))
+    loop = scipy.sparse.csgraph.connected_components(graph, directed=False)[1][a]  # each open edge's loop
+    loops, first = np.unique(loop, return_index=True)
+    length = np.bincount(np.searchsorted(loops, loop), weights=np.linalg.norm(vertices[a] - vertices[c], axis=1),
+                         minlength=len(loops))
+    loop_piece = piece[a[first]]
+    area = np.bincount(piece[faces[:, 0]], weights=_face_areas(vertices, faces), minlength=count)
+    least = MIN_OPENING_M if in_metres else 0.0
+    for p in np.argsort(-area):  # the largest piece first
+        own = np.sort(length[loop_piece == p])[::-1]
+        openings = int(np.count_nonzero(own >= least))
+        if openings >= MIN_OPENINGS:
+            continue
+        which = ("the mesh" if count == 1 else
+                 f"a piece of the mesh ({area[p] / area.sum():.0%} of its cloth, {count} pieces in all)")
+        if len(own) == 0:
+            has, why = "no opening", "it is a closed surface (no open edge)"
+        elif len(own) == 1:
+            rim = f", {_length(own[0])} around" if in_metres else ""
+            has, why = "no opening", f"its only open edge is its rim{rim} (a sheet, or a sack)"
+        else:
+            holes = len(own) - openings
+            has = "only one opening" if openings == 1 else "no opening"
+            why = (f"of its {len(own)} open edges, {holes} {'is a hole' if holes == 1 else 'are holes'} in the "
+                   f"cloth under {_length(MIN_OPENING_M)} around")
+        raise GarmentError(
+            f"{which} has {has} for the body: {why}. A garment has at least {MIN_OPENINGS} openings the body goes "
+            f"through, each at least {_length(MIN_OPENING_M)} around (a skirt's waist and hem; a top's neck, hem "
+            "and sleeves), whatever its category: a flat sheet or a sack cannot be worn; upload the sewn garment")
 
 
 def _refuse_sewing_pattern(vertices: np.ndarray, faces: np.ndarray, stitches: int = 0) -> None:

@@ -310,8 +310,8 @@ def test_a_file_that_is_already_an_outfit_is_not_layered_with_more(tmp_path):
         assert alone.status_code == 200, alone.text
         # the catalogue says which entry is a file of pieces (the page then offers nothing to wear with it)
         listed = {g["id"]: g["pieces"] for g in client.get("/api/garments").json()["garments"]}
-        assert listed == {outfit.id: ["dress", "bottom"], skirt.id: None}
-        assert client.get(f"/api/garments/{outfit.id}").json()["pieces"] == ["dress", "bottom"]
+        assert listed == {outfit.id: ["top", "bottom"], skirt.id: None}  # the shirt is a top (issue 50)
+        assert client.get(f"/api/garments/{outfit.id}").json()["pieces"] == ["top", "bottom"]
 
 
 def test_no_spring_of_an_outfit_ends_past_three_times_its_length(tmp_path, body):

@@ -68,7 +68,7 @@ from tryon.sim.collision.crossings import layer_depths, signed_distances
 from tryon.sim.collision.over_fixed import OverFixed
 from tryon.sim.constraints import cap_stretch
 from tryon.sim.finish import TryOnResult, full_mesh, result
-from tryon.sim.pieces import bottom_mask, piece_labels, waistband_mask
+from tryon.sim.pieces import piece_kinds, piece_labels, waistband_mask
 from tryon.sim.relax import collide_all, relax
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
@@ -410,18 +410,11 @@ def layer_metrics(shown: list[np.ndarray], faces: list[np.ndarray], sides: list[
 
 def piece_categories(model: GarmentModel) -> list[str] | None:
     """For a garment file of separate garments with a bottom among them (a MakeHuman outfit: a shirt and
-    trousers), each piece's category (``bottom`` for the pieces hanging from a waist, ``pieces.bottom_mask``,
-    else the file's); None for a garment of one piece, or of pieces that are not a top and a bottom."""
-    if model.meta.category == "bottom":
-        return None
-    piece = piece_labels(model.coarse_faces, len(model.mass))
-    count = int(piece.max()) + 1 if len(piece) else 0
-    if count < 2:
-        return None
-    bottom = bottom_mask(model.coarse_vertices, model.coarse_faces, model.meta.category, piece)
-    if not bottom.any() or bottom.all():
-        return None
-    return ["bottom" if bottom[piece == p].all() else model.meta.category for p in range(count)]
+    trousers), each piece's category (``pieces.piece_kinds``: ``bottom`` for the pieces hanging from a waist,
+    ``top`` or ``dress`` beside it by how far down it reaches); None for a garment of one piece, or of pieces
+    that are not a top and a bottom."""
+    return piece_kinds(model.coarse_vertices, model.coarse_faces, model.meta.category,
+                       piece_labels(model.coarse_faces, len(model.mass)))
 
 
 def drape_pieces(body: Body, model: GarmentModel, categories: list[str], settings: SimSettings = SimSettings(),

@@ -114,7 +114,7 @@ def test_validation_errors_echo_bad_input_cut_short(settings: Settings):
 @pytest.mark.parametrize("method, path, status, allow, words", [
     ("GET", "/api/tryon", 405, "POST", "use POST"),  # was a bare 404 from the static files
     ("PUT", "/api/garments", 405, "GET, POST", "use GET or POST"),  # was a 405 allowing GET, HEAD
-    ("PATCH", "/api/garments/abc", 405, "GET, DELETE", "use GET or DELETE"),
+    ("PUT", "/api/garments/abc", 405, "GET, PATCH, DELETE", "use GET or PATCH or DELETE"),
     ("GET", "/api/nope", 404, None, "no API route GET /api/nope"),
     ("GET", "/api/garments/abc", 404, None, "no garment with id 'abc'"),  # a route's own 404 is kept
 ])

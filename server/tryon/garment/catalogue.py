@@ -36,7 +36,7 @@ from pathlib import Path
 from tryon.garment.ingest import GarmentError, check_readable, file_extension, load_garment
 from tryon.garment.model import GarmentMeta, GarmentModel
 from tryon.garment.prepare import DEFAULT_DENSITY, DEFAULT_SIMPLIFICATION, prepare
-from tryon.garment.sizes import check_labels, size_order
+from tryon.garment.sizes import check_labels, check_size, check_style, parse_chart, size_order
 
 CATEGORIES = ("top", "bottom", "dress")
 # Words in a file name that tell its category ("auto"), matched anywhere in the name, any case. A dress,
@@ -46,6 +46,10 @@ CATEGORIES = ("top", "bottom", "dress")
 DRESS_WORDS = r"dress|gown|robe|outfit|suit|jumpsuit|overall"
 BOTTOM_WORDS = r"skirt|trouser|pant|short(?![-_ ]?sleeve)|jean|legging|bottom|chino|jogger|culotte"
 TOP_WORDS = r"shirt|tee|top|blouse|polo|sweater|jacket|hoodie|sleeve|cardigan|coat|vest|tunic|pullover|blazer"
+# An entry's own words, which ``Catalogue.update`` changes (the file and its preparation make the rest).
+WORDS = ("name", "size", "style", "chart")
+# Longest display name (the upload form's limit).
+NAME_MAX_CHARS = 200
 # Prepared models kept in memory per process (a model of 5,000 vertices is ~1 MB).
 MODEL_CACHE_SIZE = 16
 # SQLite waits this long (s) for another writer's transaction before giving up.
@@ -237,7 +241,11 @@ class Catalogue:
         with self._lock:
             if key in self._cache:
                 self._cache.move_to_end(key)
-                return self._cache[key]
+                cached = self._cache[key]
+                words = _meta(row, cached.meta)
+                if words != cached.meta:  # renamed or re-sized since (``update``, maybe by another process)
+                    cached = self._cache[key] = replace(cached, meta=words)
+                return cached
         directory = self.models / key
         reprepared = False
         if not GarmentModel.is_current(directory):
@@ -267,27 +275,30 @@ class Catalogue:
     def ingest(self, source: Path | str | bytes, name: str | None = None, category: str = "top",
                units: str = "auto", simplify: float = DEFAULT_SIMPLIFICATION, size: str | None = None,
                filename: str | None = None, density: float = DEFAULT_DENSITY,
-               max_faces: int = 400_000, style: str | None = None, chart: dict | str | None = None) -> GarmentMeta:
+               max_faces: int = 400_000, style: str | None = None, chart: dict | str | None = None,
+               *, same_words: bool = False) -> GarmentMeta:
         """Prepare and add a garment (a path, or bytes with ``filename``); returns the entry. The same
-        file with the same parameters returns the existing entry without preparing again.
+        file with the same parameters returns the existing entry without preparing again (with ``same_words``,
+        only if the words given are the entry's: see ``plan_ingest``).
         ``category``: top | bottom | dress | auto (guessed from the file name, ``resolve_category``);
         ``units``: m | cm | mm | dm | in | auto; ``simplify``: B in (0, 1]; ``density``: kg/m^2;
         ``style``, ``size``, ``chart``: the product this is one size of, the size's label and its size-chart
         row (``sizes.check_labels``).
         GarmentError (a reason for the user) if the file or a parameter is refused."""
         return self.ingest_with_status(source, name, category, units, simplify, size, filename, density, max_faces,
-                                       style, chart)[0]
+                                       style, chart, same_words=same_words)[0]
 
     def ingest_with_status(self, source: Path | str | bytes, name: str | None = None, category: str = "top",
                            units: str = "auto", simplify: float = DEFAULT_SIMPLIFICATION,
                            size: str | None = None, filename: str | None = None,
                            density: float = DEFAULT_DENSITY, max_faces: int = 400_000,
-                           style: str | None = None, chart: dict | str | None = None) -> tuple[GarmentMeta, bool]:
+                           style: str | None = None, chart: dict | str | None = None,
+                           *, same_words: bool = False) -> tuple[GarmentMeta, bool]:
         """As ``ingest``, plus whether a new entry was made (False: it was already there). An entry that was
-        already there takes the style, size and chart given (when given): a catalogue made before styles
-        existed gains them by ingesting its files again."""
+        already there takes the style, size and chart given (when a style is given): a catalogue made before
+        styles existed gains them by ingesting its files again."""
         plan = self.plan_ingest(source, name, category, units, simplify, size, filename, density, max_faces,
-                                style, chart)
+                                style, chart, same_words=same_words)
         if plan.existing is not None:
             return plan.existing, False
         model = prepare_model(plan.preparation) if plan.preparation is not None else None
@@ -296,13 +307,16 @@ class Catalogue:
     def plan_ingest(self, source: Path | str | bytes, name: str | None = None, category: str = "top",
                     units: str = "auto", simplify: float = DEFAULT_SIMPLIFICATION, size: str | None = None,
                     filename: str | None = None, density: float = DEFAULT_DENSITY, max_faces: int = 400_000,
-                    style: str | None = None, chart: dict | str | None = None) -> "IngestPlan":
+                    style: str | None = None, chart: dict | str | None = None,
+                    *, same_words: bool = False) -> "IngestPlan":
         """The first third of an ingestion (``ingest``'s arguments), on the catalogue's machine: read the
         file, check the parameters, name the entry. The plan holds the existing entry when the same file
-        with the same parameters is already in (taking the style, size and chart given), else what the
-        new entry needs: ``preparation`` for ``prepare_model`` (None when a complete model directory is
-        already in place, e.g. left by a crash: it is adopted) and the row's fields for ``add_prepared``.
-        GarmentError if the file or a parameter is refused."""
+        with the same parameters is already in (taking the style, size and chart given with a style), else
+        what the new entry needs: ``preparation`` for ``prepare_model`` (None when a complete model directory
+        is already in place, e.g. left by a crash: it is adopted) and the row's fields for ``add_prepared``.
+        GarmentError if the file or a parameter is refused; with ``same_words`` (an upload) also, 409, when
+        the file is already in under another name, or with another size or chart given without a style
+        (the entry would be taken as it is and those words dropped): ``update`` changes an entry's words."""
         if isinstance(source, (bytes, bytearray)):
             data = bytes(source)
             if filename is None:
@@ -319,7 +333,8 @@ class Catalogue:
             raise GarmentError(f"simplify must be in (0, 1], got {simplify}")
         if not density > 0.0:
             raise GarmentError(f"density must be positive (kg/m^2), got {density}")
-        name = name or Path(filename).stem
+        given_name = (name or "").strip() or None
+        name = given_name or Path(filename).stem
         sha = hashlib.sha256(data).hexdigest()
         gid = entry_id(sha, units, simplify, density)
         plan = IngestPlan(gid=gid, name=name, category=category, size=size, units=units, simplify=float(simplify),
@@ -333,6 +348,8 @@ class Catalogue:
                 raise GarmentError(f"this file is already in the catalogue as a {existing.category} (garment "
                                    f"{gid}, {existing.name!r}): delete it first to add it as a {category}",
                                    status=409, field="category")
+            if same_words:
+                _refuse_other_words(existing, given_name, size, chart, style)
             if style is not None and (existing.style, existing.size, existing.chart) != (style, size, chart):
                 self._check_size_free(style, size, gid)
                 with self._connect() as db:
@@ -369,6 +386,45 @@ class Catalogue:
         created = self._insert_row(plan.gid, plan.name, plan.category, plan.size, meta, plan.units, plan.simplify,
                                    plan.density, plan.sha256, plan.ext, plan.style, plan.chart)
         return self.get(plan.gid), created
+
+    def update(self, garment_id: str, **words) -> GarmentMeta | None:
+        """Change an entry's own words: any of ``name``, ``size``, ``style``, ``chart`` (a size-chart row, a dict
+        or its JSON text); a ``size``, ``style`` or ``chart`` of None removes it. Checked as an upload's are
+        (``sizes.check_labels`` on the entry's words as they would be, a style's size free); the prepared
+        model is the file's and stays as it is. Returns the changed entry, None if there is no such id;
+        GarmentError (nothing changed) if a word is refused. Cached models take the new words on their next
+        ``model`` call, in every process sharing the catalogue."""
+        unknown = sorted(set(words) - set(WORDS))
+        if unknown:
+            raise GarmentError(f"{unknown[0]} cannot be changed: an entry's {', '.join(WORDS)} can", field=unknown[0])
+        current = self.get(garment_id)
+        if current is None:
+            return None
+        name = current.name
+        if "name" in words:
+            name = (words["name"] or "").strip()
+            if not name:
+                raise GarmentError("must not be blank", field="name")
+            if len(name) > NAME_MAX_CHARS:
+                raise GarmentError(f"must be at most {NAME_MAX_CHARS} characters, got {len(name):,}", field="name")
+        merged = {"style": current.style, "size": current.size, "chart": current.chart,
+                  **{k: words[k] for k in ("style", "size", "chart") if k in words}}
+        for field, check in (("style", check_style), ("size", check_size), ("chart", parse_chart)):
+            try:
+                merged[field] = check(merged[field])
+            except GarmentError as exc:
+                raise GarmentError(str(exc), exc.status, field=field) from None
+        try:  # a style or a chart row without a size: the size is missing
+            style, size, chart = check_labels(merged["style"], merged["size"], merged["chart"])
+        except GarmentError as exc:
+            raise GarmentError(str(exc), exc.status, field="size") from None
+        if style is not None:
+            self._check_size_free(style, size, garment_id)
+        with self._connect() as db:
+            db.execute("BEGIN IMMEDIATE")
+            done = db.execute("UPDATE garments SET name = ?, size = ?, style = ?, chart = ? WHERE id = ?",
+                              (name, size, style, json.dumps(chart) if chart else None, garment_id)).rowcount
+        return self.get(garment_id) if done else None
 
     def delete(self, garment_id: str) -> bool:
         """Remove an entry, its prepared models and (if no other entry uses it) its source file.
@@ -499,6 +555,25 @@ def _meta(row, base: GarmentMeta | None = None) -> GarmentMeta:
     meta = base if base is not None else GarmentMeta(**json.loads(row["meta"]))
     return replace(meta, id=row["id"], name=row["name"], category=row["category"], size=row["size"],
                    style=row["style"], chart=json.loads(row["chart"]) if row["chart"] else None)
+
+
+def _refuse_other_words(existing: GarmentMeta, name: str | None, size: str | None, chart: dict | None,
+                        style: str | None) -> None:
+    """GarmentError (409) for an upload of a file already in as ``existing`` with words it would drop: another
+    ``name``, or (without a ``style``, with which the entry takes them) another ``size`` or ``chart``."""
+    other = []  # (field, how it differs)
+    if name is not None and name != existing.name:
+        other.append(("name", f"its name is {existing.name!r}, not {name!r}"))
+    if style is None and size is not None and size != existing.size:
+        other.append(("size", f"its size is {existing.size or 'none'}, not {size}"))
+    if style is None and chart is not None and chart != existing.chart:
+        other.append(("size_chart", f"its size chart is {json.dumps(existing.chart) if existing.chart else 'none'}, "
+                                    f"not {json.dumps(chart)}"))
+    if other:
+        raise GarmentError(f"this file is already in the catalogue as garment {existing.id} "
+                           f"({'; '.join(text for _, text in other)}): to change its words, PATCH "
+                           f"/api/garments/{existing.id} with them (name, size, style, chart); a file is kept once",
+                           status=409, field=other[0][0])
 
 
 def meta_dict(meta: GarmentMeta) -> dict:

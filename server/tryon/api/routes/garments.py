@@ -1,4 +1,5 @@
-"""Routes for garments: the catalogue (list, one entry, its mesh) and admin writes (upload, delete)."""
+"""Routes for garments: the catalogue (list, one entry, its mesh) and admin writes (upload, change its words,
+delete)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from tryon.api.deps import AdminDep, CatalogueDep, SettingsDep
 from tryon.api.export import MEDIA_TYPES, json_bytes, mesh_bytes, mesh_json
 from tryon.api.outfits import file_pieces
 from tryon.api.schemas.garments import (CATEGORY_CHOICE_DESCRIPTION, SIZE_CHART_DESCRIPTION, CategoryChoice,
-                                        GarmentEntry, GarmentList, MeshFormat, Units)
+                                        GarmentEntry, GarmentList, GarmentPatch, MeshFormat, Units)
 from tryon.garment.catalogue import Catalogue, resolve_category
 from tryon.garment.ingest import GarmentError, file_extension
 from tryon.garment.model import GarmentMeta
@@ -70,7 +71,9 @@ async def garment_mesh(
 
 
 @router.post("/garments", response_model=GarmentEntry, status_code=status.HTTP_201_CREATED,
-             responses={200: {"description": "the same file with the same parameters was already there"}})
+             responses={200: {"description": "the same file with the same parameters was already there"},
+                        409: {"description": "the same file is already in as another category, under another "
+                                             "name, or with another size or chart: change its words with PATCH"}})
 async def upload_garment(
     _: AdminDep,
     settings: SettingsDep,
@@ -89,8 +92,9 @@ async def upload_garment(
     = DEFAULT_SIMPLIFICATION,
 ) -> GarmentEntry:
     """Prepare an uploaded garment into the catalogue (admin). 201 with the new entry; 200 with the
-    existing one if the same file was already ingested with the same parameters. A refused file is a 4xx
-    with the reason in words; the catalogue is then as it was."""
+    existing one if the same file was already ingested with the same parameters and words; 409 if it is
+    in under another name (or size, or chart): PATCH changes those. A refused file is a 4xx with the reason
+    in words; the catalogue is then as it was."""
     name, size = name.strip(), (size or "").strip() or None
     if not name:
         raise HTTPException(422, "name: must not be blank")
@@ -116,12 +120,27 @@ async def upload_garment(
     try:
         meta, created = await run_in_threadpool(
             catalogue.ingest_with_status, bytes(data), name, category, units, simplify, size, filename,
-            max_faces=settings.max_faces, style=style, chart=chart,
+            max_faces=settings.max_faces, style=style, chart=chart, same_words=True,
         )
     except GarmentError as exc:
         raise HTTPException(exc.status, f"{exc.field}: {exc}") from None
     if not created:
         response.status_code = status.HTTP_200_OK
+    return await run_in_threadpool(_entry, catalogue, meta)
+
+
+@router.patch("/garments/{garment_id}", response_model=GarmentEntry)
+async def change_garment(_: AdminDep, garment_id: str, changes: GarmentPatch, catalogue: CatalogueDep) -> GarmentEntry:
+    """Change an entry's name, size, style or chart (admin): a JSON object of the fields to change (null
+    removes a size, style or chart). Checked as an upload's words are; 200 with the changed entry, 404 for
+    an unknown id, 409 if the style already has that size, 422 naming the field; a refusal changes nothing.
+    The file, its category and its preparation stay: to change those, delete the entry and upload again."""
+    try:
+        meta = await run_in_threadpool(catalogue.update, garment_id, **changes.words())
+    except GarmentError as exc:
+        raise HTTPException(exc.status, f"{exc.field}: {exc}") from None
+    if meta is None:
+        raise _not_found(garment_id)
     return await run_in_threadpool(_entry, catalogue, meta)
 
 

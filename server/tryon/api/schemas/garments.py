@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
+from tryon.body.params import MEASUREMENT_RANGES
+from tryon.garment.catalogue import NAME_MAX_CHARS, WORDS
+from tryon.garment.ingest import GarmentError
 from tryon.garment.model import GarmentMeta
+from tryon.garment.sizes import CHART_KEYS, SIZE_MAX_CHARS, check_size, check_style, parse_chart
 
 Category = Literal["top", "bottom", "dress"]
 # An upload's category: one of the above, or "auto" to guess it from the file name.
@@ -90,3 +95,108 @@ class StyleOut(BaseModel):
     name: str = Field(description="display name (its entries' name without the size label)")
     category: Category = Field(description="top | bottom | dress")
     sizes: list[StyleSize] = Field(description="the sizes in order")
+
+
+def _refused(exc: GarmentError) -> PydanticCustomError:
+    """A catalogue check's refusal as a validation error in its own words (no "Value error, " in front)."""
+    return PydanticCustomError("garment_words", str(exc))
+
+
+# Fields an entry has that a PATCH cannot change, and why.
+_FIXED_FIELDS = {
+    "category": "category cannot be changed: it decides how the file is put on the body; delete the entry and "
+                "upload the file again as the other category",
+    **{f: f"{f} cannot be changed: it is part of how the file was prepared (the entry's id); upload the file "
+          f"again with the {f} you want" for f in ("units", "simplify", "simplification", "density")},
+}
+
+
+class ChartRowIn(BaseModel):
+    """A size-chart row: the body girths (cm) the size is made for, each one value or [min, max]."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    chest: tuple[float, float] | None = Field(
+        None, description=f"chest girth, cm, [min, max] or one value, within {list(MEASUREMENT_RANGES['chest'])}")
+    waist: tuple[float, float] | None = Field(
+        None, description=f"waist girth, cm, [min, max] or one value, within {list(MEASUREMENT_RANGES['waist'])}")
+    hips: tuple[float, float] | None = Field(
+        None, description=f"hip girth, cm, [min, max] or one value, within {list(MEASUREMENT_RANGES['hips'])}")
+
+
+class GarmentPatch(BaseModel):
+    """``PATCH /api/garments/{id}``: an entry's own words, each optional (absent: unchanged). ``size``,
+    ``style`` and ``chart`` may be null (removed); checked as an upload's are: a style needs a size, a chart
+    row a size, a style's sizes are each once."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    name: str | None = Field(None, min_length=1, max_length=NAME_MAX_CHARS, description="display name")
+    size: str | None = Field(None, max_length=SIZE_MAX_CHARS, description="size label, e.g. M; null: none")
+    style: str | None = Field(None, max_length=40, description="style id (a short id such as tshirt: the product "
+                                                               "this entry is one size of); null: none")
+    chart: ChartRowIn | None = Field(None, description='the size\'s chart row, cm: {"chest": [92, 100], "waist": '
+                                                       f'80}} (any of {", ".join(CHART_KEYS)}); null: none')
+
+    @model_validator(mode="before")
+    @classmethod
+    def _known_fields(cls, data: Any) -> Any:
+        if isinstance(data, dict):
+            for key in data:
+                if key in _FIXED_FIELDS:
+                    raise PydanticCustomError("fixed_field", _FIXED_FIELDS[key])
+                if key not in WORDS:
+                    raise PydanticCustomError("unknown_field", "unknown field {key}: a PATCH changes "
+                                              f"{', '.join(WORDS)}", {"key": repr(key)[:60]})
+            if not data:
+                raise PydanticCustomError("nothing_to_change", f"nothing to change: give any of {', '.join(WORDS)}")
+        return data
+
+    @field_validator("name", mode="before")
+    @classmethod
+    def _name(cls, value: Any) -> Any:
+        if value is None:
+            raise PydanticCustomError("name_needed", "an entry needs a name: it cannot be removed")
+        if isinstance(value, str) and not value.strip():
+            raise PydanticCustomError("name_blank", "must not be blank")
+        return value.strip() if isinstance(value, str) else value
+
+    @field_validator("size", mode="before")
+    @classmethod
+    def _size(cls, value: Any) -> Any:
+        try:
+            return check_size(value) if isinstance(value, str) else value
+        except GarmentError as exc:
+            raise _refused(exc) from None
+
+    @field_validator("style", mode="before")
+    @classmethod
+    def _style(cls, value: Any) -> Any:
+        try:
+            return check_style(value) if isinstance(value, str) else value
+        except GarmentError as exc:
+            raise _refused(exc) from None
+
+    @field_validator("chart", mode="before")
+    @classmethod
+    def _chart(cls, value: Any) -> Any:
+        """Our words for a chart row's problems (unknown key, min over max, out of range); the row as
+        ``{girth: [min, max]}``, or None for an empty one."""
+        if value is None:
+            return value
+        if not isinstance(value, dict):
+            kind = ("true or false" if isinstance(value, bool) else "a number" if isinstance(value, (int, float))
+                    else "a string" if isinstance(value, str) else "a list")
+            raise PydanticCustomError("chart_object", 'a size chart row is a JSON object such as {"chest": [92, 100], '
+                                      f'"waist": 80}} (cm), not {kind}')
+        try:
+            return parse_chart(value)
+        except GarmentError as exc:
+            raise _refused(exc) from None
+
+    def words(self) -> dict:
+        """The words given, as ``Catalogue.update`` takes them (a chart as ``{girth: [min, max]}``)."""
+        out = {key: getattr(self, key) for key in self.model_fields_set}
+        if "chart" in out and out["chart"] is not None:
+            out["chart"] = {k: list(v) for k, v in out["chart"].model_dump(exclude_none=True).items()}
+        return out

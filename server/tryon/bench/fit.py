@@ -56,13 +56,14 @@ def run(ctx: Context, sec: Section) -> None:
                  "on_limbs": m["openings_on_limbs"],
                  "off_limbs": [o["opening"] for o in m["limb_openings"] if not o["ok"]],
                  "slid_cm": m["slid_cm"], "stays_up": m["stays_up"],
-                 "self_intersections": self_intersections(result.vertices, result.faces), **frames}
+                 "self_intersections": self_intersections(result.vertices, result.faces),
+                 "hang_stretch": hang_stretch(model, result.vertices), "fabric": model.fabric.name, **frames}
             data.append(d)
             rows.append([body_name, entry["name"], d["steps"], fmt(d["rest"]), fmt(d["wall_s"]), d["penetrating"],
                          fmt(d["max_penetration_mm"]), d["body_through"], fmt(d["max_body_through_mm"]), d["over"],
                          d["over_on_body"], fmt(d["max_strain"]),
                          fmt(d["display_max_strain"]), _limbs(d), _stays_up(d), d["self_intersections"],
-                         fmt(d["frame_depth_mm"])])
+                         fmt(d["frame_depth_mm"]), d["fabric"], fmt(100.0 * d["hang_stretch"])])
             ctx.log(f"  fit {body_name} {entry['name']}: over {d['over']}, penetrating {d['penetrating']}")
     sec.data = {"bodies": BODIES, "substeps": settings.substeps, "passes": settings.passes,
                 "projection_steps": settings.projection_steps, "drapes": data}
@@ -71,7 +72,7 @@ def run(ctx: Context, sec: Section) -> None:
         ["body", "garment", "steps", "at rest", "wall s", "penetrating", "deepest mm", "body through",
          "body through mm", "springs over",
          "over on body", "max strain", "shown mesh max strain", "sleeves / legs", "stays up", "self-crossings",
-         "deepest frame mm"],
+         "deepest frame mm", "fabric", "hang stretch %"],
         rows,
         note="body through: body vertices showing more than 2 mm through the shown mesh where it covers them "
              "(``sim/show_through.py``), and the deepest; springs over: beyond their type's limit by more than 1 % "
@@ -87,7 +88,10 @@ def run(ctx: Context, sec: Section) -> None:
              "(``collision.crossings.self_intersections``: cloth through its own folds; the solver has no "
              "self-collision yet); deepest frame: the deepest simulated point inside the body in any step a caller "
              "is shown (``run.settle``: all but the start-up, where the body is grown into the garment and the arms "
-             "turned from the sleeves; issue 26: at most 2 mm in every streamed frame, not only the answer)"))
+             "turned from the sleeves; issue 26: at most 2 mm in every streamed frame, not only the answer); "
+             "fabric: what the garment is made of (``garment/fabric.py``); hang stretch: the median stretch of the "
+             "shown mesh's edges along the hang (steeper than 30 degrees) in the garment's lower half "
+             "(``hang_stretch``: real cloth stretches ~1 % under its own weight)"))
     per_body = []
     for body_name in BODIES:
         ds = [d for d in data if d["body"] == body_name]
@@ -103,7 +107,26 @@ def run(ctx: Context, sec: Section) -> None:
         f"{len(data)}; meeting every target: " + ", ".join(per_body)
         + f"; self-crossing edges {sum(d['self_intersections'] for d in data)}; a shown frame more than 2 mm inside "
         f"{sum(d['frame_depth_mm'] > 2.0 for d in data)}/{len(data)} "
-        f"(deepest {fmt(max(d['frame_depth_mm'] for d in data))} mm)")
+        f"(deepest {fmt(max(d['frame_depth_mm'] for d in data))} mm); hang stretch median "
+        f"{fmt(100.0 * _median([d['hang_stretch'] for d in data]))} %, largest "
+        f"{fmt(100.0 * max(d['hang_stretch'] for d in data))} %")
+
+
+def hang_stretch(model, vertices) -> float:
+    """The median strain (l / l0 - 1) of the shown mesh's edges (``vertices`` (n, 3) m, ``model.faces``) that
+    run more than 30 degrees from the horizontal and have both ends below the middle of the garment's height:
+    how far hanging cloth stretches under its own weight."""
+    import numpy as np
+
+    edges = np.unique(np.sort(np.concatenate([model.faces[:, [0, 1]], model.faces[:, [1, 2]],
+                                              model.faces[:, [2, 0]]]), axis=1), axis=0)
+    rest = np.linalg.norm(model.vertices[edges[:, 0]] - model.vertices[edges[:, 1]], axis=1)
+    along = vertices[edges[:, 0]] - vertices[edges[:, 1]]
+    length = np.linalg.norm(along, axis=1)
+    middle = 0.5 * (vertices[:, 1].min() + vertices[:, 1].max())
+    lower = (vertices[edges[:, 0], 1] < middle) & (vertices[edges[:, 1], 1] < middle)
+    hanging = lower & (np.abs(along[:, 1]) >= 0.5 * length) & (rest > 0.0)
+    return float(np.median(length[hanging] / rest[hanging] - 1.0)) if hanging.any() else 0.0
 
 
 def drape_watched(body, model, settings, shown) -> tuple:
@@ -137,6 +160,13 @@ def _settings_words(ctx: Context, settings) -> str:
     if ctx.projection:
         words.append(f"{settings.projection_steps} Newton steps of the fast projection a step")
     return ", ".join(words)
+
+
+def _median(values: list) -> float:
+    """The median of a list of numbers."""
+    import numpy as np
+
+    return float(np.median(values))
 
 
 def _stays_up(d: dict) -> str:

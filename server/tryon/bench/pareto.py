@@ -46,8 +46,7 @@ def scaled(settings, time_step: float, passes: int, simplification: float):
         return max(1, int(math.ceil(n * k)))
 
     return replace(settings, time_step=time_step, passes=passes, simplification=simplification,
-                   max_steps=steps(base.max_steps), min_steps=steps(base.min_steps),
-                   grow_steps=steps(base.grow_steps) if base.grow_steps else 0, rest_steps=steps(base.rest_steps))
+                   max_steps=steps(base.max_steps))
 
 
 def drape_full(ctx: Context, body, entry, settings):

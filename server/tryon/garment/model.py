@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tryon.garment.fabric import Fabric, fabric_named, spring_stiffness
 from tryon.garment.springs import BENDING, spring_model
 
 # Version of what preparation makes of a source file; a model saved by another version is prepared again
@@ -44,6 +45,7 @@ class GarmentMeta:
     notes: list = field(default_factory=list)  # what cleaning did, in words
     style: str | None = None  # the product this entry is one size of (a short id such as tshirt), or None
     chart: dict | None = None  # its size-chart row: {"chest" | "waist" | "hips": [min, max] cm}, or None
+    fabric: str | None = None  # a name in ``fabric.FABRICS``, or None: the category's (``fabric.DEFAULT_FABRIC``)
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,16 @@ class GarmentModel:
     def coarse_vertices(self) -> np.ndarray:
         """(k, 3) rest positions of the coarse mesh."""
         return self.vertices[self.coarse_index]
+
+    @property
+    def fabric(self) -> Fabric:
+        """The cloth it is made of: the meta's fabric, or its category's (``fabric.fabric_named``)."""
+        return fabric_named(self.meta.fabric, self.meta.category)
+
+    @cached_property
+    def stiffness(self) -> np.ndarray:
+        """(s,) N/m: each spring's stiffness in this garment's fabric (``fabric.spring_stiffness``)."""
+        return spring_stiffness(self.kind, self.fabric)
 
     @cached_property
     def display_springs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -26,7 +26,8 @@ from tryon.sim.landmarks import arm_joints
 from tryon.geometry import rotation
 from tryon.sim.collision.collider import BodyCollider
 
-# Degrees per step the arms are turned back from the sleeve pose (slow enough that the arm surface
+# Degrees per 0.02 s step (settings.REFERENCE_STEP; ``step_fraction`` scales it to the time step) the arms
+# are turned back from the sleeve pose (slow enough that the arm surface
 # moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).
 ARM_DEG_PER_STEP = 1.0
 # Along the sleeve from the shoulder joint, as fractions of the upper arm's length: a point's weight on
@@ -91,7 +92,7 @@ class ArmSchedule:
     """Turns the arms from the sleeve pose (``plan``) back to the body's pose over ``steps`` steps, every
     angle scaled by the fraction of the pose left; ``carry`` moves the sleeves along (module doc)."""
 
-    def __init__(self, body: Body, collider: BodyCollider, plan: ArmPlan):
+    def __init__(self, body: Body, collider: BodyCollider, plan: ArmPlan, step_fraction: float = 1.0):
         self.collider = collider
         self.plan = plan
         self.parts = {}
@@ -107,7 +108,7 @@ class ArmSchedule:
             self.parts[side] = _Arm(joint, elbow, wrist, angle, np.asarray(axis, dtype=np.float64), bend,
                                     np.asarray(bend_axis, dtype=np.float64), k_up, k_fore)
         biggest = max((max(abs(a.angle), abs(a.bend)) for a in self.parts.values()), default=0.0)
-        self.steps = int(np.ceil(np.degrees(biggest) / ARM_DEG_PER_STEP)) if self.parts else 0
+        self.steps = int(np.ceil(np.degrees(biggest) / (ARM_DEG_PER_STEP * step_fraction))) if self.parts else 0
         self._last = {}
         self._moves = {}  # side -> (upper arm, forearm) (4, 4) motions of the last ``apply``
         self._weights = {}  # side -> (on arm, on forearm) weights of the garment points

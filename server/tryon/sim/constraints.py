@@ -169,15 +169,16 @@ def cap_stretch(x, inv_mass, springs, rest, cap, max_passes):
 
 def pack_springs(springs: np.ndarray, rest: np.ndarray, kind: np.ndarray, limit: np.ndarray,
                  compression: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(ends (s, 2) uint32, table (s, 4) float64) for the packed kernels: table rows are (l_max m, rest m,
+    """(ends (s, 2) uint32, table (s, 5) float64) for the packed kernels: table rows are (l_max m, rest m,
     compression fraction, most a pass lengthens a compressed spring by, m: 0 = no cap; a re-posed drape's,
-    ``tuning.unfold_per_pass``). One 32-byte row per spring instead of a kind lookup into two tables (and
+    ``tuning.unfold_per_pass``; the spring's elasticity k h^2 per pass, kg: 0 = none, set by the drape's
+    ``start`` from the fabric). One row per spring instead of a kind lookup into two tables (and
     squared-length tests, so a spring within its range costs no square root): the passes run ~20 %
     faster on a draped T-shirt (``python3 -m tryon.bench.perf``)."""
     # unsigned: numba then indexes without the negative-index wrap-around (the passes ~4 % faster)
     ends = np.ascontiguousarray(springs, dtype=np.uint32)
     kind = np.asarray(kind, dtype=np.int64)
-    table = np.zeros((len(ends), 4))
+    table = np.zeros((len(ends), 5))
     table[:, 0] = rest * (1.0 + np.asarray(limit)[kind])
     table[:, 1] = rest
     table[:, 2] = np.asarray(compression)[kind]
@@ -187,6 +188,12 @@ def pack_springs(springs: np.ndarray, rest: np.ndarray, kind: np.ndarray, limit:
 @njit(cache=True, nogil=True, fastmath=True, boundscheck=False, error_model="numpy")
 def _spring_pass(x, inv_mass, ends, table, backward, relax):
     """One Gauss-Seidel pass over packed springs (``pack_springs``), forward or backward, in place.
+
+    A spring longer than its natural length l0 pulls its ends together by its force over the pass's share of
+    the substep, k (l - l0) h^2 (w_i, w_j) (``table[:, 4]`` = k h^2 per pass, kg: the fabric's stiffness,
+    ``garment.fabric``), at most back to l0 (a stiff woven's springs, whose force would overshoot within the
+    substep, are projected onto l0 as in PBD), and always at least back to l_max (the strain limit, where the
+    fabric locks: eq. 3). A shorter one is pushed back by the compression fraction of its shortfall.
 
     An unsigned spring index (no negative-index wrap-around) and numpy's error model (no zero-division
     check: the division is guarded) make a step's passes ~5 % faster on the perf T-shirt, same results."""
@@ -201,9 +208,15 @@ def _spring_pass(x, inv_mass, ends, table, backward, relax):
         d2 = dx * dx + dy * dy + dz * dz
         lmax = table[s, 0]
         l0 = table[s, 1]
-        if d2 > lmax * lmax:
+        k = table[s, 4]
+        wi = inv_mass[i]
+        wj = inv_mass[j]
+        wsum = wi + wj
+        if d2 > l0 * l0:
+            if k == 0.0 and d2 <= lmax * lmax:
+                continue
             d = math.sqrt(d2)
-            excess = d - lmax
+            excess = max(d - lmax, (d - l0) * k * wsum / (k * wsum + 1.0))
         elif d2 < l0 * l0:
             d = math.sqrt(d2)
             excess = (d - l0) * table[s, 2]
@@ -212,9 +225,6 @@ def _spring_pass(x, inv_mass, ends, table, backward, relax):
                 excess = -cap
         else:
             continue
-        wi = inv_mass[i]
-        wj = inv_mass[j]
-        wsum = wi + wj
         if wsum == 0.0 or d < 1e-12:
             continue
         f = relax * excess / (d * wsum)
@@ -374,7 +384,7 @@ def contact_springs(ends, table, on_body, blocks=ONE_BLOCK):
     for s in range(ends.shape[0]):
         keep[s] = np.int64(on_body[ends[s, 0]]) & np.int64(on_body[ends[s, 1]])
     body_ends, lmax, body_blocks = _kept(ends, table[:, 0], keep, blocks)
-    body_table = np.zeros((len(lmax), 4))
+    body_table = np.zeros((len(lmax), 5))
     body_table[:, 0] = lmax
     return body_ends, body_table, body_blocks
 

@@ -314,7 +314,7 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
                 if asleep[k] and np.abs(d.state.x - before[k]).max() > tuning.rest_move:
                     asleep[k] = False
         for k, d in enumerate(drapes):
-            if n > layered_from and d.state.rest_run >= settings.rest_steps:
+            if n > layered_from and d.state.rest_run >= settings.steps_of(settings.rest_steps):
                 asleep[k] = True
         # the start-up is not shown (``run.settle``)
         if on_frame is not None and n > layered_from and on_frame(n, [d.state.x for d in drapes]) is False:

@@ -4,7 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
+
+# s: the time step the counts in steps (min_steps, grow_steps, rest_steps) are given in (``steps_of``).
+REFERENCE_STEP = 0.02
 
 
 @dataclass(frozen=True)
@@ -85,6 +90,14 @@ class SimSettings:
     projection_steps: int = 0
     max_speed: float = 10.0
     seed: int = 0
+
+    def steps_of(self, n: int) -> int:
+        """A count of ``REFERENCE_STEP`` steps (``min_steps``, ``grow_steps``, ``rest_steps``) in steps of this
+        ``time_step``: the same simulated time whatever the step, so a finer step changes how accurately the
+        drape is computed, not what happens in it (a body grown over 0.4 s, not over 20 steps). 0 stays 0."""
+        if n <= 0:
+            return 0
+        return max(1, int(math.ceil(n * REFERENCE_STEP / float(self.time_step) - 1e-9)))
 
     def limits_array(self) -> np.ndarray:
         """(3,) float64 strain limits by spring kind."""

@@ -24,7 +24,7 @@ from tryon.sim.collision.collider import BodyCollider, relevant_parts
 from tryon.sim.constraints import pack_springs
 from tryon.sim.limbs import limb_openings
 from tryon.sim.pieces import piece_labels, piece_tops, waistband_mask
-from tryon.sim.settings import SimSettings
+from tryon.sim.settings import REFERENCE_STEP, SimSettings
 from tryon.sim.state import Drape, DrapeState
 from tryon.sim.tuning import TUNING, Tuning
 
@@ -65,12 +65,19 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                           piece)
     band_springs = (kind == STRUCTURAL) & band[springs[:, 0]] & band[springs[:, 1]]
     table[band_springs, 0] = rest[band_springs] * (1.0 + settings.band_limit)
+    # substeps ("small steps", Macklin et al. 2019): the passes are spread over substeps of the time step,
+    # which converges much further per pass than repeating passes on one large step
+    n_sub = max(1, min(settings.substeps, settings.passes))
+    per_sub = max(1, settings.passes // n_sub)
+    h = float(settings.time_step) / n_sub
+    # the fabric's elasticity (``constraints._spring_pass``): k h^2 / passes per substep, h the substep
+    table[:, 4] = model.stiffness[order] * (h * h / per_sub)
 
     collider = BodyCollider(body, settings.collision_margin)
     placed_tops = piece_tops(x, piece)  # to tell at the end how far the garment slid down
     # the sleeves' and trouser legs' openings, to tell at the end whether each is around its limb
     openings = limb_openings(x, model.coarse_faces, body, model.meta.category, model.coarse_loops, piece)
-    arms = ArmSchedule(body, collider, plan) if motion is None else motion(collider)
+    arms = ArmSchedule(body, collider, plan, settings.time_step / REFERENCE_STEP) if motion is None else motion(collider)
     parts = relevant_parts(body.maps, x.min(axis=0), x.max(axis=0), tuning.part_reach)
     if arms.steps:
         arms.apply(0)
@@ -80,7 +87,7 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
 
     # a tangled start: grow the body, or (growth off) push out and pin for a few steps
     tangled = bool((collider.depth(x, parts, offset=True) > 0).any())
-    grow_steps = settings.grow_steps if tangled else 0
+    grow_steps = settings.steps_of(settings.grow_steps) if tangled else 0
     if grow_steps:
         collider.set_scale(settings.grow_from)
     state = DrapeState.at(x, inv_mass)
@@ -95,9 +102,6 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         inv_mass[state.contact] = 0.0
         pinned_until = tuning.pin_steps
 
-    # substeps ("small steps", Macklin et al. 2019): the passes are spread over substeps of the time step,
-    # which converges much further per pass than repeating passes on one large step
-    n_sub = max(1, min(settings.substeps, settings.passes))
     floor_y = tuning.floor_y
     if tuning.floor_under_sole:
         # a floor inside the offset body (the soles are on y = 0, offset down by the margin) would trap a
@@ -108,6 +112,6 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     return Drape(body=body, model=model, settings=settings, tuning=tuning, collider=collider, arms=arms, plan=plan,
                  parts=parts, piece=piece, springs=springs, rest=rest, kind=kind, mass=mass, limits=limits, ends=ends,
                  table=table, blocks=blocks, openings=openings, placed_tops=placed_tops, floor_y=floor_y, n_sub=n_sub,
-                 per_sub=max(1, settings.passes // n_sub), h=float(settings.time_step) / n_sub,
+                 per_sub=per_sub, h=h,
                  grow_steps=grow_steps, startup=max(grow_steps, arms.steps), pinned_until=pinned_until,
                  saved_inv_mass=saved_inv_mass, sized=sized, state=state, started=started, moving=motion is not None)

@@ -142,7 +142,7 @@ class Drape:
     sized: bool
     state: DrapeState
     body_ends: np.ndarray = field(default_factory=lambda: np.empty((0, 2), dtype=np.uint32))
-    body_table: np.ndarray = field(default_factory=lambda: np.empty((0, 4)))
+    body_table: np.ndarray = field(default_factory=lambda: np.empty((0, 5)))
     body_blocks: np.ndarray = field(default_factory=lambda: np.zeros(3, dtype=np.int64))
     ordered_ends: np.ndarray = field(default_factory=lambda: np.empty((0, 2), dtype=np.uint32))
     ordered_lmax: np.ndarray = field(default_factory=lambda: np.empty(0))

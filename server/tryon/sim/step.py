@@ -71,7 +71,7 @@ def step(d: Drape) -> bool:
     touching = np.flatnonzero(st.has_plane)  # the points with a contact plane this step
     # a point flipping in a pinch stays still for the whole step, springs included (``tuning.pinch_flip``)
     st.flipping &= st.held
-    if st.held.any() and n > d.startup + s.min_steps:
+    if st.held.any() and n > d.startup + s.steps_of(s.min_steps):
         st.flipping |= st.held & flipped(st.moves[0], st.moves[1], tu.pinch_flip)
     step_mass = np.where(st.flipping, 0.0, inv_mass) if st.flipping.any() else inv_mass
     # points on the body count as heavier in the springs, so hanging cloth hangs from them instead of
@@ -197,9 +197,9 @@ def _at_rest(d: Drape) -> bool:
     st.x_step[:] = st.x
     if not np.isfinite(st.energy):
         raise FloatingPointError(f"simulation diverged at step {st.step}")
-    if st.step > d.startup and st.step >= s.min_steps and st.energy < s.rest_energy:
+    if st.step > d.startup and st.step >= s.steps_of(s.min_steps) and st.energy < s.rest_energy:
         st.rest_run += 1
-        if st.rest_run >= s.rest_steps:
+        if st.rest_run >= s.steps_of(s.rest_steps):
             st.rest_reached = True
     else:
         st.rest_run = 0

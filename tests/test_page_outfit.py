@@ -147,3 +147,35 @@ def test_a_file_that_is_already_an_outfit_is_worn_alone(browser, outfit_shop):
         assert page.problems == []
     finally:
         context.close()
+
+
+def test_a_file_that_is_already_an_outfit_is_tried_on_once_and_says_so(browser, outfit_shop):
+    """Issue 50: a shirt-and-trousers file could not be tried on in the page ("live re-posing is not available for a
+    garment file of several pieces"): the page asks for it without ``live`` (it drapes once, its pieces as layers),
+    says so under the fit summary, and offers no motion; a new pose takes it off, as an outfit's."""
+    context, page = open_page(browser, outfit_shop, 1366, 768)
+    try:
+        page.get_by_role("radio", name="Shirt and trousers, size one size", exact=True).click()
+        page.click("#tryon-button")
+        page.wait_for_function(DONE, timeout=120_000)
+        assert page.evaluate("window.tryon.state") == "done", page.evaluate("window.tryon.lastError")
+        assert page.evaluate("window.tryon.live") is None  # no live session was asked for
+        assert page.evaluate("window.tryon.init.garment.name") == "Shirt and trousers"
+        assert page.evaluate("window.tryon.stage.garment.geometry.attributes.position.count") == \
+            page.evaluate("window.tryon.init.vertex_count")
+        assert page.is_visible("#result-note") and "Several garments in one file: draped once" in \
+            page.inner_text("#result-note")
+        assert not page.is_visible("#download-motion")  # a motion is of one garment, moved live
+        requests = page.evaluate("window.tryon.bodyRequests")
+        page.select_option("#pose-name", "arms_raised")
+        page.wait_for_function(f"window.tryon.bodyRequests > {requests}", timeout=30_000)
+        assert "press “Try on” to see it on this one" in page.inner_text("#notice-text")
+        # a single garment stays live, and its summary has no such note
+        page.get_by_role("radio", name="T-shirt, size M", exact=True).click()
+        page.click("#tryon-button")
+        page.wait_for_function(DONE, timeout=120_000)
+        assert page.evaluate("window.tryon.state") == "done", page.evaluate("window.tryon.lastError")
+        assert page.evaluate("window.tryon.live !== null") and not page.is_visible("#result-note")
+        assert page.problems == []
+    finally:
+        context.close()

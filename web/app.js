@@ -277,6 +277,10 @@ function describeBody(body) {
 }
 
 // ---- try-on ------------------------------------------------------------------------------------
+// Said under the fit summary of a file of several garments (its catalogue entry's `pieces`: a shirt and
+// trousers), which is draped once instead of staying live.
+const PIECES_NOTE = 'Several garments in one file: draped once, in this pose (they do not follow a pose live). '
+  + 'For another pose, choose it and press “Try on” again.';
 function setProgress(fraction, text) {
   $('progress').hidden = false;
   $('progress-bar').style.width = `${Math.round(Math.min(Math.max(fraction, 0), 1) * 100)}%`;
@@ -297,10 +301,13 @@ async function tryOn() {
   clearTimeout(bodyTimer);
   bodySeq++;
   // uint16 frames: half the bytes of float32, 0.04 mm steps (far below what a screen shows); one garment
-  // stays live for re-posing (an outfit is draped once)
+  // stays live for re-posing (an outfit, or a file that is one, is draped once: layers do not follow a pose live)
   const payload = { ...tryOnPayload(), fps: 30, encoding: 'uint16' };
   state.motionPoses = [form.poseValues()];
-  if (payload.garment_id) payload.live = true;
+  const pieces = payload.garment_id ? garmentById(payload.garment_id)?.pieces : null;
+  if (payload.garment_id && !pieces) payload.live = true;
+  $('result-note').hidden = !pieces;
+  $('result-note').textContent = pieces ? PIECES_NOTE : '';
   state.state = 'draping';
   state.framesReceived = 0;
   state.done = null;
@@ -352,7 +359,7 @@ async function tryOn() {
     showDone(done);
     finishProgress(done.cached ? 'Done (from the fitting-room memory).' : 'Done.');
     $('result').hidden = false;
-    $('download-motion').hidden = Boolean(payload.garment_ids);  // a motion is of one garment
+    $('download-motion').hidden = !payload.live;  // a motion is of one garment, moved live
     if (NARROW.matches) $('result').scrollIntoView({ block: 'start' });
     $('legend').hidden = !$('fitmap-toggle').checked;
     state.state = 'done';

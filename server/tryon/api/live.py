@@ -164,7 +164,8 @@ def run_live(catalogue: Catalogue, request: LiveTryOnRequest, session: LiveSessi
         run.result = drape_outfit(body, models, sim_settings, request.tuck, on_frame=guard)
     elif request.live:
         if piece_categories(shown) is not None:
-            raise ValueError("live re-posing is not available for a garment file of several pieces (an outfit)")
+            raise ValueError("live re-posing is not available for a garment file of several pieces (an outfit): "
+                             "ask without \"live\" to drape it once in a pose")
         d = start(body, shown, sim_settings)
         run.result, _ = settle(d, guard)
         session.reposing = LiveReposing(session, to_body_params(request.measurements)[0], d)

@@ -268,7 +268,7 @@ async def _replay(ws: WebSocket, cached: CachedTryOn, request: LiveTryOnRequest,
         return
     if piece_categories(model) is not None:
         await _send_error(ws, "cannot run this try-on: live re-posing is not available for a garment file of "
-                              "several pieces (an outfit)")
+                              "several pieces (an outfit): ask without \"live\" to drape it once in a pose")
         return
     session = LiveSession(asyncio.get_running_loop(), request.fps)
     session.frames_sent, session.bytes_sent = 1, len(frame)

@@ -116,27 +116,24 @@ def test_the_pool_shares_the_cores_between_running_try_ons():
     release = threading.Event()
     seen = []
 
+    started = [threading.Event(), threading.Event()]
+
     def job():
         seen.append(pool.thread_share())
-        release.wait(5.0)
+        started[len(seen) - 1].set()
+        release.wait(60.0)
         return True
 
     try:
         first = pool.submit(job)
-        for _ in range(100):
-            if seen:
-                break
-            threading.Event().wait(0.01)
+        assert started[0].wait(60.0)  # a guard against a hang, not a measured limit
         assert seen == [cores]  # alone: every core
         second = pool.submit(job)
-        for _ in range(100):
-            if len(seen) == 2:
-                break
-            threading.Event().wait(0.01)
+        assert started[1].wait(60.0)
         assert seen[1] == max(1, cores // 2)
         assert pool.thread_share() == max(1, cores // 2)
         release.set()
-        assert first.result(5.0) and second.result(5.0)
+        assert first.result(60.0) and second.result(60.0)
     finally:
         release.set()
         pool.shutdown()

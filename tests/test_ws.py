@@ -1,14 +1,15 @@
 """Issue 6 end to end: the live try-on over a real WebSocket to a real ``tryon serve`` process.
 
-One server for the module (session scope), with a tiny pool (1 worker, no waiting slot) so that overload
-is easy to reach, and a short wall-clock limit so that "long" simulations are bounded. Each test starts
-from an idle pool (``wait_idle``).
+One server for the module (session scope), with one worker and no waiting slot. Each test starts from an
+idle pool (``wait_idle``). No assertion here is on time (the machine may be shared): what is checked is what
+the server does (frames arrive in order on the sender's cadence, a client leaving frees its worker, health
+answers while a drape runs); timeouts only guard against a hang. A full pool's refusals and the wall-clock
+limit are checked in-process, where they can be made certain (``test_ws_pool.py``).
 """
 
 from __future__ import annotations
 
 import json
-import statistics
 import struct
 import time
 from dataclasses import dataclass, field
@@ -25,13 +26,13 @@ from tryon.garment.generate import garment_mesh, obj_text
 
 pytestmark = pytest.mark.e2e
 
-WALL_LIMIT_S = 3.0  # the server's per-simulation limit (TRYON_SIM_WALL_LIMIT_S)
+HANG_S = 120.0  # the longest any wait here may take: a guard against a hang, not a measured limit
 BODY = {"height": 170.0, "chest": 96.0, "waist": 82.0, "hips": 100.0}
 SHORT = {"max_steps": 60}  # a quick drape of the T-shirt (a few hundred ms)
-# The most work a request may ask for (dense trousers, every vertex simulated, smallest step, most
-# passes): ~0.3 s per step, a minute to rest, so it runs until stopped (client gone, or the wall-clock limit).
+# The most work a request may ask for (dense trousers, every vertex simulated, smallest step, most passes):
+# ~0.3 s a step here, over a hundred steps to rest, so it is far from done when its client leaves.
 LONG = {"max_steps": 3000, "time_step": 0.005, "passes": 48, "substeps": 16, "simplification": 1.0}
-# Many quick steps (small time step): far more steps per second than frames asked for.
+# Many quick steps (small time step) of the T-shirt: hundreds of steps, far more than frames asked for.
 MANY_STEPS = {"max_steps": 3000, "time_step": 0.005}
 
 
@@ -48,14 +49,14 @@ class Live:
     def health(self) -> dict:
         return httpx.get(f"{self.url}/api/health", timeout=5).json()
 
-    def wait_idle(self, timeout_s: float = 10.0) -> float:
-        """Seconds until no simulation runs or waits (fails after ``timeout_s``)."""
-        t0 = time.monotonic()
+    def wait_idle(self) -> dict:
+        """The pool's counters once no simulation runs or waits (polled; ``HANG_S`` guards against a hang)."""
+        deadline = time.monotonic() + HANG_S
         while True:
             sims = self.health()["simulations"]
             if sims["running"] == 0 and sims["waiting"] == 0:
-                return time.monotonic() - t0
-            assert time.monotonic() - t0 < timeout_s, f"pool still busy: {sims}"
+                return sims
+            assert time.monotonic() < deadline, f"pool still busy after {HANG_S:.0f} s: {sims}"
             time.sleep(0.02)
 
     def request(self, settings: dict, **body) -> dict:
@@ -71,17 +72,16 @@ class Stream:
     error: dict | None = None
     close_code: int | None = None
     close_reason: str = ""
-    started: float = 0.0
 
     def positions(self, i: int = -1) -> np.ndarray:
         header = self.init["encoding"]["header_bytes"]
         return np.frombuffer(self.frames[i][3], dtype="<f4", offset=header).reshape(-1, 3)
 
 
-def run_stream(live: Live, message, max_frames: int | None = None, timeout_s: float = 60.0) -> Stream:
+def run_stream(live: Live, message, max_frames: int | None = None, timeout_s: float = HANG_S) -> Stream:
     """Send ``message`` (dict: as JSON; str/bytes: as is) and record everything until the close."""
-    s = Stream(started=time.monotonic())
-    with connect(live.ws, max_size=None, open_timeout=10) as ws:
+    s = Stream()
+    with connect(live.ws, max_size=None, open_timeout=HANG_S) as ws:
         ws.send(message if isinstance(message, (str, bytes)) else json.dumps(message))
         try:
             while True:
@@ -113,7 +113,8 @@ def live(tmp_path_factory) -> Live:
         source.write_text(obj_text(mesh if kind == "tshirt" else mesh.subdivide(), kind))
         ids.append(Catalogue(data).ingest(source, name=f"Test {kind} {size}", category=category, size=size,
                                           units="m").id)
-    env = {"TRYON_SIM_WORKERS": "1", "TRYON_SIM_QUEUE": "0", "TRYON_SIM_WALL_LIMIT_S": str(WALL_LIMIT_S)}
+    # the wall-clock limit well past any run here: a run stops because its client left or it came to rest
+    env = {"TRYON_SIM_WORKERS": "1", "TRYON_SIM_QUEUE": "0", "TRYON_SIM_WALL_LIMIT_S": "600"}
     with serve_process(data, env=env) as url:
         yield Live(url, *ids)  # its kernels are warm: health said ok
 
@@ -145,14 +146,14 @@ def test_full_stream_matches_rest(live: Live):
     assert np.isfinite(final).all() and 0.5 < final[:, 1].mean() < 1.6  # on the torso of a 1.7 m body
 
     # the same request over REST: one cache for both ways in, answered without simulating, and saying so
-    t0 = time.monotonic()
-    r = httpx.post(f"{live.url}/api/tryon", json=request, timeout=120)
+    submitted = live.health()["simulations"]["submitted"]
+    r = httpx.post(f"{live.url}/api/tryon", json=request, timeout=HANG_S)
     assert r.status_code == 200, r.text
-    assert time.monotonic() - t0 < 1.0
+    assert live.health()["simulations"]["submitted"] == submitted  # not simulated again
     rest = r.json()
     rest_metrics = dict(rest["metrics"])
     assert rest_metrics["cached"] is True
-    assert rest_metrics["wall_seconds"] < min(0.5, done["metrics"]["wall_seconds"])  # this answer's time
+    assert rest_metrics["wall_seconds"] >= 0  # this answer's own time; the drape's is simulation_wall_seconds
     assert rest_metrics["simulation_wall_seconds"] == done["metrics"]["simulation_wall_seconds"]
     np.testing.assert_allclose(rest_metrics.pop("strain"), done["strain"], atol=1e-4)
     for key in ("steps", "penetrating_vertices", "rest_reached", "sim_seconds", "max_strain"):
@@ -171,7 +172,7 @@ def test_full_stream_matches_rest(live: Live):
 def test_a_stream_replays_a_rest_try_on(live: Live):
     live.wait_idle()
     request = live.request(SHORT, chest=97.2)
-    r = httpx.post(f"{live.url}/api/tryon", json=request, timeout=120)
+    r = httpx.post(f"{live.url}/api/tryon", json=request, timeout=HANG_S)
     assert r.status_code == 200 and r.json()["metrics"]["cached"] is False
     rest = r.json()
     submitted = live.health()["simulations"]["submitted"]
@@ -211,32 +212,42 @@ def test_uint16_frames_match_float32(live: Live):
 
 
 def test_frames_respect_the_requested_rate(live: Live):
+    """At 2 fps a drape of hundreds of steps sends a handful of frames: numbered in order, on steps in order,
+    the last one the drape's last step, and far fewer than the steps (the ones in between are not sent). On
+    the server's own clock (each frame's header) the frames keep the sender's cadence (``frames.frame_due``):
+    no two less than half an interval apart and n frames over at least n - 1.5 intervals. These are lower
+    bounds the sender keeps however busy the machine is (a slow machine only sends later), not speeds."""
     live.wait_idle()
-    fps = 8
-    # the dense trousers: the T-shirt now comes to rest within ~5 frames at this rate
-    request = {**live.request(MANY_STEPS, chest=98.0), "garment_id": live.long_id, "fps": fps}
-    s = run_stream(live, request, max_frames=6)
-    assert len(s.frames) == 6
-    sent = np.array([f[2] for f in s.frames])  # the server's send times (frame header)
-    steps = np.array([f[1] for f in s.frames])
-    # at most fps frames per second of wall time: on the sender's cadence (``frames.frame_due``) n frames span
-    # at least n - 1.5 intervals, and no two come within half an interval (float32 seconds: 1 ms of slack) ...
-    assert sent[-1] - sent[0] > (len(sent) - 1.5) / fps - 1e-3, np.diff(sent)
+    fps = 2
+    s = run_stream(live, {**live.request(MANY_STEPS, chest=98.0), "fps": fps})
+    assert s.error is None and s.done is not None and s.done["cached"] is False
+    numbers = [f[0] for f in s.frames]
+    steps = [f[1] for f in s.frames]
+    assert numbers == list(range(len(s.frames))) and s.done["frames_sent"] == len(s.frames) >= 2
+    assert steps == sorted(steps) and steps[-1] == s.done["metrics"]["steps"]
+    assert s.done["metrics"]["steps"] >= 10 * len(s.frames), (steps, s.done["metrics"]["steps"])
+    sent = np.array([f[2] for f in s.frames], dtype=np.float64)  # float32 seconds: 1 ms of slack
     assert np.diff(sent).min() > 0.5 / fps - 1e-3, np.diff(sent)
-    # ... while the simulation ran many steps per frame: the steps in between were not sent
-    assert np.diff(steps).mean() >= 2, steps
-    live.wait_idle()
+    assert sent[-1] - sent[0] > (len(sent) - 1.5) / fps - 1e-3, np.diff(sent)
 
 
 def test_client_leaving_half_way_stops_the_simulation(live: Live):
-    live.wait_idle()
-    before = live.health()["simulations"]
-    s = run_stream(live, {**live.request(LONG, chest=99.0), "fps": 30}, max_frames=3)
-    assert s.init is not None and len(s.frames) == 3
-    left = time.monotonic()
-    assert live.health()["simulations"]["submitted"] == before["submitted"] + 1
-    freed = live.wait_idle(timeout_s=WALL_LIMIT_S)  # well before the wall-clock limit would stop it
-    assert time.monotonic() - left < 1.5, f"simulation kept running {freed:.2f} s after the client left"
+    """A long drape whose client leaves at its first frame: its worker is freed, and the pool counts it
+    cancelled (a run left to go on would end at rest or at the wall-clock limit, counted completed). While it
+    runs, health answers, each answer saying the drape is running: the event loop is not held by it."""
+    before = live.wait_idle()
+    with connect(live.ws, max_size=None, open_timeout=HANG_S) as ws:
+        ws.send(json.dumps({**live.request(LONG, chest=99.0), "fps": 30}))
+        assert json.loads(ws.recv(timeout=HANG_S))["type"] == "init"  # on the worker now
+        with httpx.Client(timeout=HANG_S) as client:
+            for _ in range(5):
+                h = client.get(f"{live.url}/api/health")
+                assert h.status_code == 200 and h.json()["status"] == "ok"
+                assert h.json()["simulations"]["running"] == 1, h.json()
+        assert isinstance(ws.recv(timeout=HANG_S), bytes)  # a first frame: half way, the client leaves
+    after = live.wait_idle()  # polled until the worker is free (HANG_S guards against a hang)
+    assert after["submitted"] == before["submitted"] + 1
+    assert after["cancelled"] == before["cancelled"] + 1 and after["completed"] == before["completed"], after
     # and the worker is free for the next shopper
     ok = run_stream(live, {**live.request(SHORT, chest=99.5), "fps": 30})
     assert ok.done is not None
@@ -258,42 +269,11 @@ def test_client_leaving_half_way_stops_the_simulation(live: Live):
 ])
 def test_bad_requests_get_an_error_in_words(live: Live, message, words):
     live.wait_idle()
-    s = run_stream(live, message, timeout_s=30)
+    s = run_stream(live, message)
     assert s.error is not None and words.lower() in s.error["reason"].lower(), s.error
     assert s.init is None and not s.frames and s.done is None
     assert s.close_code == 1000
     assert live.health()["status"] == "ok"  # the server carries on
-
-
-def test_overload_is_refused_at_once_and_health_stays_fast(live: Live):
-    live.wait_idle()
-    with connect(live.ws, max_size=None) as busy:
-        busy.send(json.dumps({**live.request(LONG, chest=101.0), "fps": 30}))
-        assert json.loads(busy.recv(timeout=30))["type"] == "init"
-        busy.recv(timeout=30)  # a first frame: it is simulating now
-        assert live.health()["simulations"]["running"] == 1
-
-        t0 = time.monotonic()
-        refused = run_stream(live, {**live.request(SHORT, chest=102.0), "fps": 30}, timeout_s=10)
-        assert time.monotonic() - t0 < 1.0
-        assert refused.close_code == 1013 and "busy" in refused.error["reason"]
-        unknown = run_stream(live, {"garment_id": "nope", "measurements": BODY}, timeout_s=10)
-        assert unknown.close_code == 1000 and "no garment with id 'nope'" in unknown.error["reason"]  # not "busy"
-        r = httpx.post(f"{live.url}/api/tryon", json=live.request(SHORT, chest=102.0), timeout=10)
-        assert r.status_code == 503 and int(r.headers["Retry-After"]) > 0
-
-        latencies = []
-        with httpx.Client(timeout=5) as client:
-            for _ in range(20):
-                t = time.perf_counter()
-                assert client.get(f"{live.url}/api/health").status_code == 200
-                latencies.append(time.perf_counter() - t)
-                time.sleep(0.02)
-        # a few tens of milliseconds while a simulation runs; on 2 cores shared with other work a request or two
-        # can wait for the scheduler (one of 20 took 0.58 s in a CI run while another job compiled), so the
-        # two slowest are left out
-        assert statistics.median(latencies) < 0.05 and sorted(latencies)[-3] < 0.25, latencies
-    live.wait_idle(timeout_s=3)
 
 
 def test_a_deleted_garment_is_not_served_from_the_result_cache(live: Live):
@@ -301,22 +281,11 @@ def test_a_deleted_garment_is_not_served_from_the_result_cache(live: Live):
     auth = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
     source = obj_text(garment_mesh("skirt", "S"), "skirt").encode()
     r = httpx.post(f"{live.url}/api/garments", headers=auth, files={"file": ("skirt-s.obj", source)},
-                   data={"name": "Skirt to delete", "category": "bottom", "units": "m"}, timeout=60)
+                   data={"name": "Skirt to delete", "category": "bottom", "units": "m"}, timeout=HANG_S)
     assert r.status_code in (200, 201), r.text
     request = {"garment_id": r.json()["id"], "measurements": BODY, "settings": {"max_steps": 5}}
     assert run_stream(live, request).done is not None
     assert run_stream(live, request).done["cached"] is True
     assert httpx.delete(f"{live.url}/api/garments/{request['garment_id']}", headers=auth).status_code == 204
-    s = run_stream(live, request, timeout_s=10)
+    s = run_stream(live, request)
     assert s.done is None and s.init is None and "no garment with id" in s.error["reason"]
-
-
-def test_wall_clock_limit_stops_a_long_simulation_and_says_so(live: Live):
-    live.wait_idle()
-    cached_before = live.health()["result_cache"]["entries"]
-    s = run_stream(live, {**live.request(LONG, chest=103.0), "fps": 2}, timeout_s=WALL_LIMIT_S + 30)
-    assert s.done is not None, s.error
-    assert s.done["timed_out"] is True and s.done["stopped_by"] == "wall_limit"
-    assert s.done["metrics"]["steps"] < LONG["max_steps"]
-    assert WALL_LIMIT_S * 0.9 < time.monotonic() - s.started < WALL_LIMIT_S + 10
-    assert live.health()["result_cache"]["entries"] == cached_before  # a cut-short result is not cached

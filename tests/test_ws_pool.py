@@ -1,5 +1,7 @@
 """Issue 6, in-process parts: the bounded pool, the run guard (wall-clock limit, cancel), the result cache,
-the frame encoding. The end-to-end tests through a real server are in ``test_ws.py``."""
+the frame encoding; and through the app in-process, a full pool's refusals and the wall-clock limit (made
+certain here: a job that holds the worker until let go, a limit of a microsecond). The end-to-end tests
+through a real server are in ``test_ws.py``. No assertion is on time; timeouts only guard against a hang."""
 
 from __future__ import annotations
 
@@ -22,29 +24,45 @@ from tryon.api.pool import (
 from tryon.api.frames import FRAME_HEADER, FrameCodec, encode_frame, encoding, frame_due
 from tryon.api.routes.ws import MAX_CLOSE_REASON_BYTES, close_reason
 
+HANG_S = 60.0  # a guard against a hang, not a measured limit
+
+
+def settled(pool: SimPool, **counts) -> dict:
+    """The pool's stats once they show ``counts`` (a job's slot and counters are released by its future's
+    done callback, which may run just after its result is handed out); polled, ``HANG_S`` guards a hang."""
+    deadline = time.monotonic() + HANG_S
+    while any((stats := pool.stats())[k] != v for k, v in counts.items()):
+        assert time.monotonic() < deadline, stats
+        time.sleep(0.005)
+    return stats
+
 
 def test_pool_refuses_at_once_when_full_and_frees_slots():
     pool = SimPool(workers=1, queue=1, wall_limit_s=5.0)
     release = threading.Event()
     try:
-        running = pool.submit(release.wait, 5.0)
+        running = pool.submit(release.wait, HANG_S)
         waiting = pool.submit(lambda: "second")
-        t0 = time.monotonic()
-        with pytest.raises(PoolFull) as info:
-            pool.submit(lambda: "third")
-        assert time.monotonic() - t0 < 0.05  # refused at once, not after a wait
+        settled(pool, running=1, waiting=1)  # the first job has its worker
+        # refused at once, not after a wait: the running job holds its worker until ``release`` (set only after
+        # this), so a submit that waited for a slot would never return (run on a thread: a hang is a failure)
+        refused = []
+        caller = threading.Thread(target=lambda: refused.append(pytest.raises(PoolFull, pool.submit, lambda: "third")),
+                                  daemon=True)
+        caller.start()
+        caller.join(timeout=HANG_S)
+        assert refused, "submit did not refuse at once (it waited for a slot, or took the job)"
+        info = refused[0]
         assert info.value.capacity == 2
         assert busy_response_headers(info.value) == {"Retry-After": str(info.value.retry_after_s)}
         stats = pool.stats()
         assert (stats["running"], stats["waiting"], stats["refused"]) == (1, 1, 1)
         release.set()
-        assert running.result(timeout=5) is True
-        assert waiting.result(timeout=5) == "second"
-        deadline = time.monotonic() + 2
-        while pool.stats()["running"] + pool.stats()["waiting"] and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert pool.submit(lambda: 3).result(timeout=5) == 3  # slots came back
-        assert pool.stats()["completed"] == 3
+        assert running.result(timeout=HANG_S) is True
+        assert waiting.result(timeout=HANG_S) == "second"
+        settled(pool, running=0, waiting=0)
+        assert pool.submit(lambda: 3).result(timeout=HANG_S) == 3  # slots came back
+        settled(pool, completed=3)
     finally:
         release.set()
         pool.shutdown()
@@ -54,21 +72,19 @@ def test_pool_counts_failures_and_cancelled_waiters():
     pool = SimPool(workers=1, queue=1, wall_limit_s=5.0)
     release = threading.Event()
     try:
-        blocker = pool.submit(release.wait, 5.0)
+        blocker = pool.submit(release.wait, HANG_S)
         waiter = pool.submit(lambda: None)
         assert waiter.cancel()  # a waiting job can be cancelled (the client left before it started)
         assert pool.stats()["waiting"] == 0
         release.set()
-        blocker.result(timeout=5)
+        blocker.result(timeout=HANG_S)
         with pytest.raises(ZeroDivisionError):
-            pool.submit(lambda: 1 / 0).result(timeout=5)
+            pool.submit(lambda: 1 / 0).result(timeout=HANG_S)
         guard = RunGuard(5.0)
         guard.cancelled.set()
         with pytest.raises(RunCancelled):
-            pool.submit(guard, 0, None).result(timeout=5)
-        time.sleep(0.05)
-        stats = pool.stats()
-        assert stats["cancelled"] == 2 and stats["failed"] == 1
+            pool.submit(guard, 0, None).result(timeout=HANG_S)
+        settled(pool, running=0, waiting=0, cancelled=2, failed=1)
     finally:
         release.set()
         pool.shutdown()
@@ -186,3 +202,98 @@ def test_close_reason_fits_a_close_frame(reason):
         assert cut == reason
     else:
         assert cut.endswith("...") and reason.startswith(cut[:-3]) and len(cut) > 30
+
+
+# --- through the app, in-process: a full pool, the wall-clock limit --------------------------------------------
+
+BODY = {"height": 170.0, "chest": 96.0, "waist": 82.0, "hips": 100.0}
+SHORT = {"max_steps": 60}
+
+
+def _tshirt(data_dir) -> str:
+    """A generated T-shirt S ingested into ``data_dir``'s catalogue; its id."""
+    from tryon.garment.catalogue import Catalogue
+    from tryon.garment.generate import garment_mesh, obj_text
+
+    return Catalogue(data_dir).ingest(obj_text(garment_mesh("tshirt", "S"), "tshirt").encode(), name="T-shirt S",
+                                      category="top", size="S", units="m", filename="tshirt-s.obj").id
+
+
+def _stream(client, request: dict) -> tuple[list[dict], int, int | None]:
+    """(the JSON messages, the number of binary frames, the close code) of one ``/ws/tryon`` stream."""
+    import json
+
+    messages, frames = [], 0
+    with client.websocket_connect("/ws/tryon") as ws:
+        ws.send_text(json.dumps(request))
+        while (m := ws.receive())["type"] == "websocket.send":
+            if m.get("bytes") is not None:
+                frames += 1
+            else:
+                messages.append(json.loads(m["text"]))
+    return messages, frames, m.get("code")
+
+
+def test_a_full_pool_refuses_the_stream_and_the_rest_try_on_and_health_answers(tmp_path):
+    """One worker, no waiting slot, held by another job until the test lets it go: a stream is refused (1013,
+    "busy", nothing sent before), a REST try-on is a 503 with Retry-After, an unknown garment is still said as
+    such (not "busy"), and health answers throughout saying the worker is taken; let go, the worker takes the
+    next try-on."""
+    from fastapi.testclient import TestClient
+
+    from tryon.api.app import create_app
+    from tryon.config import Settings
+
+    gid = _tshirt(tmp_path / "data")
+    request = {"garment_id": gid, "measurements": BODY, "settings": SHORT}
+    app = create_app(Settings(data_dir=tmp_path / "data", sim_workers=1, sim_queue=0))
+    release = threading.Event()
+    with TestClient(app) as client:
+        from tryon.api.pool import get_pool
+
+        holder = get_pool(app).submit(release.wait, HANG_S)  # another shopper's try-on holds the only worker
+        try:
+            settled(get_pool(app), running=1)
+            messages, frames, code = _stream(client, {**request, "fps": 30})
+            assert code == 1013 and frames == 0 and [m["type"] for m in messages] == ["error"], messages
+            assert "busy" in messages[0]["reason"]
+            messages, frames, code = _stream(client, {**request, "garment_id": "nope"})
+            assert code == 1000 and "no garment with id 'nope'" in messages[0]["reason"]  # not "busy"
+            r = client.post("/api/tryon", json=request)
+            assert r.status_code == 503 and int(r.headers["Retry-After"]) > 0 and "busy" in r.json()["detail"]
+            for _ in range(5):
+                h = client.get("/api/health")
+                assert h.status_code == 200 and h.json()["simulations"]["running"] == 1
+            assert h.json()["simulations"]["refused"] == 2
+        finally:
+            release.set()
+        assert holder.result(timeout=HANG_S) is True
+        settled(get_pool(app), running=0, waiting=0)
+        messages, frames, code = _stream(client, {**request, "fps": 30})
+        assert code == 1000 and messages[-1]["type"] == "done" and frames >= 1
+
+
+def test_the_wall_clock_limit_stops_a_stream_and_says_so(tmp_path, monkeypatch):
+    """A service whose wall-clock limit per simulation (``TRYON_SIM_WALL_LIMIT_S``) is a microsecond: a drape
+    is past it at its second shown step, so the stream's done says it was stopped by the limit (not at rest,
+    short of its step limit), and the cut-short result is not cached (the same request simulates again)."""
+    from fastapi.testclient import TestClient
+
+    from tryon.api.app import create_app
+    from tryon.config import Settings
+
+    gid = _tshirt(tmp_path / "data")
+    monkeypatch.setenv("TRYON_SIM_WALL_LIMIT_S", "0.000001")
+    settings = Settings(data_dir=tmp_path / "data")
+    assert settings.sim_wall_limit_s == 1e-6
+    request = {"garment_id": gid, "measurements": BODY, "settings": SHORT, "fps": 60}
+    with TestClient(create_app(settings)) as client:
+        for _ in range(2):
+            messages, frames, code = _stream(client, request)
+            done = messages[-1]
+            assert [m["type"] for m in messages] == ["init", "done"] and code == 1000 and frames >= 1
+            assert done["cached"] is False and done["timed_out"] is True and done["stopped_by"] == "wall_limit"
+            assert done["metrics"]["rest_reached"] is False and 0 < done["metrics"]["steps"] < SHORT["max_steps"]
+        health = client.get("/api/health").json()
+        assert health["result_cache"]["entries"] == 0  # a cut-short result is not cached
+        assert health["simulations"]["wall_limit_s"] == 1e-6 and health["simulations"]["submitted"] == 2

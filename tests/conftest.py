@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import contextlib
+import time
+from dataclasses import dataclass
 from pathlib import Path
 
+import httpx
 import pytest
 
 from tryon.api.warmup import warm_up
 from tryon.bench.live import serving
 from tryon.config import Settings
+from tryon.garment.catalogue import Catalogue
 
 ROOT = Path(__file__).resolve().parents[1]
 ADMIN_TOKEN = "test-admin-token"
@@ -35,11 +39,80 @@ def serve_process(data_dir: Path, env: dict | None = None, timeout_s: float = 12
         yield url
 
 
+HANG_S = 120.0  # the longest a wait for the shared server may take: a guard against a hang, not a limit
+
+
+@dataclass
+class Shop:
+    """A catalogue stocked on the shared server for one test module: ``add`` ingests a garment into the
+    server's data directory (the served process reads the catalogue on each request)."""
+
+    catalogue: Catalogue
+    tag: str
+
+    def add(self, source: Path | str | bytes, filename: str | None = None, **ingest) -> str:
+        """Ingest ``source`` (a path, OBJ text or bytes; ``ingest``: ``Catalogue.ingest``'s keywords); its id.
+        The file starts with a comment naming the module, so that each module's entries have ids of their own
+        and the server's result cache answers a module nothing another one asked for."""
+        if isinstance(source, Path):
+            filename, source = filename or source.name, source.read_bytes()
+        data = source.encode() if isinstance(source, str) else source
+        return self.catalogue.ingest(f"# {self.tag}\n".encode() + data, filename=filename, **ingest).id
+
+
+@dataclass
+class SharedServer:
+    """The one ``tryon serve`` process of the session's end-to-end tests (browser and WebSocket): one
+    simulation worker and one waiting slot; each module stocks its own catalogue (``stocked``)."""
+
+    url: str
+    data_dir: Path
+
+    @property
+    def ws(self) -> str:
+        return "ws" + self.url[len("http"):] + "/ws/tryon"
+
+    def wait_idle(self) -> dict:
+        """The pool's counters once no simulation runs or waits (polled; ``HANG_S`` guards against a hang)."""
+        deadline = time.monotonic() + HANG_S
+        while True:
+            sims = httpx.get(f"{self.url}/api/health", timeout=HANG_S).json()["simulations"]
+            if sims["running"] == 0 and sims["waiting"] == 0:
+                return sims
+            assert time.monotonic() < deadline, f"the shared server is still busy after {HANG_S:.0f} s: {sims}"
+            time.sleep(0.05)
+
+    def _empty(self, catalogue: Catalogue) -> None:
+        self.wait_idle()
+        for meta in catalogue.list():
+            catalogue.delete(meta.id)
+
+    @contextlib.contextmanager
+    def stocked(self, tag: str):
+        """An empty catalogue on an idle server for a module to fill (yields a ``Shop``); emptied after."""
+        catalogue = Catalogue(self.data_dir)
+        self._empty(catalogue)
+        try:
+            yield Shop(catalogue, tag)
+        finally:
+            self._empty(catalogue)
+
+
 @pytest.fixture(scope="session")
-def live_server(tmp_path_factory) -> str:
-    """A real uvicorn server (``tryon serve``) shared by the session's end-to-end tests."""
-    with serve_process(tmp_path_factory.mktemp("live-data")) as url:
-        yield url
+def shared_server(tmp_path_factory) -> SharedServer:
+    """ONE real uvicorn server (``tryon serve``) for the session's browser and WebSocket tests: one
+    worker and one waiting slot (so that a busy fitting room is easy to reach: ``test_page``)."""
+    data = tmp_path_factory.mktemp("shared-server") / "data"
+    Catalogue(data)  # the index exists before the server opens it
+    with serve_process(data, env={"TRYON_SIM_WORKERS": "1", "TRYON_SIM_QUEUE": "1"}) as url:
+        yield SharedServer(url, data)
+
+
+@pytest.fixture(scope="module")
+def live_server(shared_server: SharedServer) -> str:
+    """The shared server's URL, with an empty catalogue (``test_foundation``)."""
+    with shared_server.stocked("live_server"):
+        yield shared_server.url
 
 
 CHROMIUM = "/usr/bin/chromium"

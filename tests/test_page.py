@@ -9,10 +9,9 @@ for the body names where, show a server error in words, and no console errors. T
 from __future__ import annotations
 
 import base64
-import contextlib
 import io
+import json
 import math
-import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,9 +20,8 @@ import httpx
 import numpy as np
 import pytest
 from PIL import Image
+from websockets.sync.client import connect
 
-from conftest import serve_process
-from tryon.garment.catalogue import Catalogue
 from tryon.garment.generate import garment_mesh, obj_text
 
 pytestmark = pytest.mark.e2e
@@ -41,19 +39,16 @@ class Shop:
 
 
 @pytest.fixture(scope="module")
-def shop(tmp_path_factory) -> Shop:
-    """A server whose catalogue has a T-shirt in S and M and a skirt in M (generated here), with one
-    simulation worker and no waiting slot (so that a busy fitting room is easy to show)."""
-    root = tmp_path_factory.mktemp("page")
-    catalogue = Catalogue(root / "data")
-    ids = {}
-    for kind, size, name, category in (("tshirt", "S", "T-shirt S", "top"), ("tshirt", "M", "T-shirt M", "top"),
-                                       ("skirt", "M", "A-line skirt M", "bottom")):
-        path = root / f"{kind}-{size}.obj"
-        path.write_text(obj_text(garment_mesh(kind, size), name))
-        ids[kind, size] = catalogue.ingest(path, name=name, category=category, size=size, units="m").id
-    with serve_process(root / "data", env={"TRYON_SIM_WORKERS": "1", "TRYON_SIM_QUEUE": "0"}) as url:
-        yield Shop(url, ids["tshirt", "M"])
+def shop(shared_server) -> Shop:
+    """The shared server (one simulation worker, one waiting slot: a busy fitting room is easy to show) with a
+    catalogue of a T-shirt in S and M and a skirt in M (generated here)."""
+    with shared_server.stocked("test_page") as stock:
+        ids = {}
+        for kind, size, name, category in (("tshirt", "S", "T-shirt S", "top"), ("tshirt", "M", "T-shirt M", "top"),
+                                           ("skirt", "M", "A-line skirt M", "bottom")):
+            ids[kind, size] = stock.add(obj_text(garment_mesh(kind, size), name), f"{kind}-{size}.obj", name=name,
+                                        category=category, size=size, units="m")
+        yield Shop(shared_server.url, ids["tshirt", "M"])
 
 
 def percent(ratio: float) -> str:
@@ -212,35 +207,36 @@ def test_server_errors_are_shown_in_words(page):
     assert [p for p in page.problems if "422" not in p] == []  # the refused request is the only noise
 
 
-def test_a_busy_fitting_room_is_said_in_words(page, shop):
+def test_a_busy_fitting_room_is_said_in_words(page, shop, shared_server):
     page.problems.clear()
     page.fill("#field-height", "172")
     page.fill("#field-chest", "100")
     page.fill("#field-waist", "86")
     page.wait_for_function("!document.querySelector('#tryon-button').disabled", timeout=30_000)
-    # Another shopper holds the only worker: a motion of four poses at the longest settings a request may ask
-    # for (~3 s a pose here). A single drape is no hold: the skirt comes to rest in about a second, and the
-    # page's request then found the worker free (CI saw that).
+    # Two other shoppers hold the only worker and the one waiting slot: each a stream of the T-shirt at the
+    # longest settings a request may ask for (seconds to rest here even alone; the waiting one cannot start
+    # while the first runs). They stay until their clients leave, which cancels them.
     long = {"max_steps": 3000, "time_step": 0.005, "passes": 48, "substeps": 16, "simplification": 1.0}
-    other = {"garment_id": shop.tshirt_id, "measurements": {"height": 165, "chest": 90, "waist": 75, "hips": 98},
-             "settings": long, "poses": ["arms_raised", "a_pose", "arms_raised", "a_pose"]}
-    holder = threading.Thread(target=_post_quietly, args=(shop.url + "/api/tryon", other), daemon=True)
-    holder.start()
-    deadline = time.monotonic() + 60
-    while httpx.get(shop.url + "/api/health").json()["simulations"]["running"] < 1:
-        assert time.monotonic() < deadline, "the other shopper's motion never started"
-        time.sleep(0.05)
-    page.click("#tryon-button")
-    page.wait_for_function("window.tryon.state === 'error'", timeout=30_000)
-    assert holder.is_alive()  # the refusal came while the worker was held, not after
+    others = [{"garment_id": shop.tshirt_id, "measurements": {"height": 165, "chest": 90 + i, "waist": 75, "hips": 98},
+               "settings": long, "fps": 1} for i in range(2)]
+    with connect(shared_server.ws, max_size=None, open_timeout=120) as first, \
+            connect(shared_server.ws, max_size=None, open_timeout=120) as second:
+        first.send(json.dumps(others[0]))
+        assert json.loads(first.recv(timeout=120))["type"] == "init"  # on the worker now
+        second.send(json.dumps(others[1]))
+        deadline = time.monotonic() + 120  # a guard against a hang, not a measured limit
+        while True:
+            sims = httpx.get(shop.url + "/api/health").json()["simulations"]
+            if (sims["running"], sims["waiting"]) == (1, 1):
+                break
+            assert time.monotonic() < deadline, f"the other shoppers' try-ons were never both admitted: {sims}"
+            time.sleep(0.05)
+        page.click("#tryon-button")
+        page.wait_for_function("window.tryon.state === 'error'", timeout=120_000)
+        sims = httpx.get(shop.url + "/api/health").json()["simulations"]
+        assert (sims["running"], sims["waiting"]) == (1, 1), sims  # refused while they held the room, not after
     text = page.locator("#notice-text").inner_text()
     assert "busy" in text and "try again" in text
     assert page.locator("#notice").is_visible()
     assert page.locator("#tryon-button").is_enabled()  # the shopper can try again
     assert page.problems == []
-
-
-def _post_quietly(url: str, body: dict) -> None:
-    """POST and drop the answer (the server may be stopped under it at the module's end)."""
-    with contextlib.suppress(httpx.HTTPError):
-        httpx.post(url, json=body, timeout=120)

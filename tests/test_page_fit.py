@@ -14,9 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import serve_process
 from test_page_layout import LAYOUT_PROBLEMS, open_page
-from tryon.garment.catalogue import Catalogue
 from tryon.garment.generate import chart_row, garment_mesh, obj_text
 
 pytestmark = pytest.mark.e2e
@@ -27,19 +25,15 @@ AT_M = {"height": "170", "chest": "96", "waist": "82", "hips": "100"}
 
 
 @pytest.fixture(scope="module")
-def fit_shop(tmp_path_factory) -> str:
-    root = tmp_path_factory.mktemp("fit-shop")
-    catalogue = Catalogue(root / "data")
-    for size in ("S", "M", "L", "XL", "XXL"):
-        path = root / f"tshirt-{size}.obj"
-        path.write_text(obj_text(garment_mesh("tshirt", size), f"T-shirt {size}"))
-        catalogue.ingest(path, name=f"T-shirt {size}", category="top", size=size, units="m", style="tshirt",
-                         chart=chart_row(size, "top"))
-    path = root / "skirt-m.obj"
-    path.write_text(obj_text(garment_mesh("skirt", "M"), "A-line skirt M"))
-    catalogue.ingest(path, name="A-line skirt M", category="bottom", size="M", units="m")
-    with serve_process(root / "data") as url:
-        yield url
+def fit_shop(shared_server) -> str:
+    with shared_server.stocked("test_page_fit") as stock:
+        for size in ("S", "M", "L", "XL", "XXL"):
+            stock.add(obj_text(garment_mesh("tshirt", size), f"T-shirt {size}"), f"tshirt-{size}.obj",
+                      name=f"T-shirt {size}", category="top", size=size, units="m", style="tshirt",
+                      chart=chart_row(size, "top"))
+        stock.add(obj_text(garment_mesh("skirt", "M"), "A-line skirt M"), "skirt-m.obj", name="A-line skirt M",
+                  category="bottom", size="M", units="m")
+        yield shared_server.url
 
 
 ADVICE = """() => [...document.querySelectorAll('#size-advice li')].map((li) => ({

@@ -17,8 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import CHROMIUM, CHROMIUM_ARGS, serve_process
-from tryon.garment.catalogue import Catalogue
+from conftest import CHROMIUM, CHROMIUM_ARGS
 from tryon.garment.generate import garment_mesh, obj_text
 
 pytestmark = pytest.mark.e2e
@@ -40,17 +39,14 @@ CATALOGUE = (
 
 
 @pytest.fixture(scope="module")
-def big_shop(tmp_path_factory) -> str:
-    """A server whose catalogue is CATALOGUE (the small generated meshes: ingesting all takes ~1 s)."""
-    root = tmp_path_factory.mktemp("big-shop")
-    catalogue = Catalogue(root / "data")
-    for kind, name, category, sizes in CATALOGUE:
-        for size in sizes:
-            path = root / f"{kind}-{size}.obj"
-            path.write_text(obj_text(garment_mesh(kind, size), f"{name} {size}"))
-            catalogue.ingest(path, name=f"{name} {size}", category=category, size=size, units="m")
-    with serve_process(root / "data") as url:
-        yield url
+def big_shop(shared_server) -> str:
+    """The shared server with CATALOGUE (the small generated meshes: ingesting all takes ~1 s)."""
+    with shared_server.stocked("test_page_layout") as stock:
+        for kind, name, category, sizes in CATALOGUE:
+            for size in sizes:
+                stock.add(obj_text(garment_mesh(kind, size), f"{name} {size}"), f"{kind}-{size}.obj",
+                          name=f"{name} {size}", category=category, size=size, units="m")
+        yield shared_server.url
 
 
 @pytest.fixture(scope="module")

@@ -13,9 +13,7 @@ from pathlib import Path
 import pytest
 import trimesh
 
-from conftest import serve_process
 from test_page_layout import LAYOUT_PROBLEMS, open_page
-from tryon.garment.catalogue import Catalogue
 from tryon.garment.generate import garment_mesh, obj_text
 
 pytestmark = pytest.mark.e2e
@@ -29,25 +27,22 @@ FIGURES = """() => [...document.querySelectorAll('#metrics > div')].map((d) => (
 
 
 @pytest.fixture(scope="module")
-def outfit_shop(tmp_path_factory) -> str:
-    root = tmp_path_factory.mktemp("outfit-shop")
-    catalogue = Catalogue(root / "data")
-    for kind, name, category in (("tshirt", "T-shirt M", "top"), ("trousers", "Trousers M", "bottom")):
-        path = root / f"{kind}-m.obj"
-        path.write_text(obj_text(garment_mesh(kind, "M"), name))
-        catalogue.ingest(path, name=name, category=category, size="M", units="m")
-    # a shirt in centimetres whose units are guessed (as a user's upload is): its "Size" row takes the full width
-    shirt_cm = garment_mesh("tshirt", "L")
-    shirt_cm.apply_scale(100.0)
-    path = root / "shirt-cm.obj"
-    path.write_text(obj_text(shirt_cm, "Shirt in cm"))
-    catalogue.ingest(path, name="Shirt in cm", category="top", units="auto")
-    # a file that is already an outfit (a shirt and trousers in one, as MakeHuman's): worn alone
-    both = trimesh.util.concatenate([garment_mesh("tshirt", "L"), garment_mesh("trousers", "L")])
-    catalogue.ingest(both.export(file_type="obj").encode(), name="Shirt and trousers", category="top", units="m",
-                     filename="shirt-and-trousers.obj")
-    with serve_process(root / "data") as url:
-        yield url
+def outfit_shop(shared_server) -> str:
+    with shared_server.stocked("test_page_outfit") as stock:
+        for kind, name, category in (("tshirt", "T-shirt M", "top"), ("trousers", "Trousers M", "bottom")):
+            stock.add(obj_text(garment_mesh(kind, "M"), name), f"{kind}-m.obj", name=name, category=category,
+                      size="M", units="m")
+        # a shirt in centimetres whose units are guessed (as a user's upload is): its "Size" row takes the full
+        # width
+        shirt_cm = garment_mesh("tshirt", "L")
+        shirt_cm.apply_scale(100.0)
+        stock.add(obj_text(shirt_cm, "Shirt in cm"), "shirt-cm.obj", name="Shirt in cm", category="top",
+                  units="auto")
+        # a file that is already an outfit (a shirt and trousers in one, as MakeHuman's): worn alone
+        both = trimesh.util.concatenate([garment_mesh("tshirt", "L"), garment_mesh("trousers", "L")])
+        stock.add(both.export(file_type="obj"), "shirt-and-trousers.obj", name="Shirt and trousers", category="top",
+                  units="m")
+        yield shared_server.url
 
 
 @pytest.mark.parametrize(("width", "height"), [(1366, 768), (390, 844)], ids=["1366x768", "390x844"])

@@ -14,10 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from conftest import serve_process
 from test_page_layout import LAYOUT_PROBLEMS, open_page
 from tryon.body.params import NAMED_POSES
-from tryon.garment.catalogue import Catalogue
 
 pytestmark = pytest.mark.e2e
 
@@ -27,12 +25,10 @@ DONE = "window.tryon.state === 'done' || window.tryon.state === 'error'"
 
 
 @pytest.fixture(scope="module")
-def pose_shop(tmp_path_factory) -> str:
-    root = tmp_path_factory.mktemp("pose-shop")
-    Catalogue(root / "data").ingest(ROOT / "garments" / "tshirt-m.obj", name="T-shirt M", category="top",
-                                    size="M", units="m")
-    with serve_process(root / "data") as url:
-        yield url
+def pose_shop(shared_server) -> str:
+    with shared_server.stocked("test_page_pose") as stock:
+        stock.add(ROOT / "garments" / "tshirt-m.obj", name="T-shirt M", category="top", size="M", units="m")
+        yield shared_server.url
 
 
 @pytest.mark.parametrize(("width", "height"), [(1366, 768), (390, 844)], ids=["1366x768", "390x844"])

@@ -14,9 +14,7 @@ import numpy as np
 import pytest
 from websockets.sync.client import connect
 
-from conftest import serve_process
 from tryon.body.params import NAMED_POSES, Pose
-from tryon.garment.catalogue import Catalogue
 
 pytestmark = pytest.mark.e2e
 
@@ -27,13 +25,11 @@ ASYMMETRIC = {"arm_angle_left": 20, "arm_angle_right": 60, "elbow_bend_left": 40
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    """A server whose catalogue is the repository's T-shirt M; yields (ws url, garment id)."""
-    data = tmp_path_factory.mktemp("live-pose") / "data"
-    gid = Catalogue(data).ingest(ROOT / "garments" / "tshirt-m.obj", name="T-shirt M", category="top", size="M",
-                                 units="m").id
-    with serve_process(data) as url:
-        yield "ws" + url[len("http"):] + "/ws/tryon", gid
+def server(shared_server):
+    """The shared server with the repository's T-shirt M as its catalogue; yields (ws url, garment id)."""
+    with shared_server.stocked("test_ws_live") as stock:
+        gid = stock.add(ROOT / "garments" / "tshirt-m.obj", name="T-shirt M", category="top", size="M", units="m")
+        yield shared_server.ws, gid
 
 
 @dataclass
@@ -128,17 +124,15 @@ def test_three_pose_updates_each_settle_with_nothing_inside_the_body(server):
 
 
 def test_updates_faster_than_the_settles_are_coalesced(server):
-    """Ten pose updates within 50 ms: at most two settles start (the first, and the latest of the rest once
-    the first gives way), and the last done is for the last update's pose."""
+    """Ten pose updates sent at once (not waiting for any done): at most two settles start (the first, and the
+    latest of the rest once the first gives way), and the last done is for the last update's pose."""
     url, gid = server
     poses = [{"arm_angle": 30 + 5 * i, "elbow_bend_left": 10 * i} for i in range(10)]
     settles, errors = {i: Settle(i, 0.0) for i in range(1, 11)}, []
     with connect(url, max_size=None, open_timeout=10) as ws:
         open_live(ws, gid)
-        t0 = time.monotonic()
         for pose in poses:
             ws.send(json.dumps({"type": "pose", "pose": pose}))
-        assert time.monotonic() - t0 < 0.05
         done = read_until_done(ws, settles, errors, 10)
     started = [u for u, s in settles.items() if s.body is not None]
     finished = [u for u, s in settles.items() if s.done is not None]

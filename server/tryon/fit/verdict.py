@@ -10,7 +10,7 @@ In this order (the first that applies):
   at 2.5x its length).
 - ``falls_off``: the drape's ``stays_up`` is false: it slid off the shoulders or the hips (a waistband
   wider than the hips). Every other figure of such a drape is measured where it lies, not where it is worn.
-- ``tight``: a top's cloth is shorter than the chest (``MIN_CLOTH_EASE_CM``).
+- ``tight``: a top's cloth leaves less room than a regular fit at the chest (``MIN_CLOTH_EASE_CM``).
 - ``loose``: at a covered girth the draped garment has more tape ease than ``MAX_EASE_CM``.
 - ``fits``: none of these.
 
@@ -28,17 +28,15 @@ from tryon.fit.ease import Girth
 VERDICTS = ("fits", "tight", "loose", "falls_off", "not_draped")
 
 # cm: the least room a top's or dress's cloth must leave at the chest (its ring of cloth there, unstretched,
-# minus the body's chest; ``ease.Girth.cloth_ease_cm``). A top hangs from the shoulders: nothing but the body
-# stretches its cloth around the chest, so a ring shorter than the chest is a top too small for it. Measured
-# on the catalogue's T-shirt on bodies at the centres of the chart's S, M, L and XL rows: the chart's own size
-# leaves +0.3 to +4 cm, the size below it -2 to -3 cm (the sleeveless dress, heavier, leaves -3 to -4 cm on
-# its chart's size: the drape says the dress is smaller at the chest than its chart claims).
-# The waist and hips are not judged by the cloth's length: a bottom hangs from its band, and its own weight
-# stretches its seat within the cloth's slack (the solver leaves a spring free up to its limit, 10 %), so its
-# cloth measures 2-5 cm short at the hips on the chart's own size as much as on the size below. There only
-# springs held past their limit by the body (``too_tight``) tell tight: on the catalogue's trousers and skirt
-# they do for each size below the chart's, never for the chart's own.
-MIN_CLOTH_EASE_CM = {"chest": 0.0}
+# minus the body's chest; ``ease.Girth.cloth_ease_cm``) for a regular fit. A top hangs from the shoulders:
+# nothing but the body stretches its cloth around the chest, so a ring hardly longer than the chest is a top
+# too small for it. Measured on the catalogue's T-shirt (cut with 8 cm at the chest, in jersey) on bodies at
+# the centres of the chart's S, M and L rows: the chart's own size leaves +3.8 to +4.3 cm, the size below it
+# +0.5 to +1.6 cm (a size below is body-tight, -6 cm two sizes below).
+# The waist and hips are not judged by the cloth's length: a bottom hangs from its band, and a woven's seat
+# does not stretch; there only springs held past their limit by the body (``too_tight``) tell tight: on the
+# catalogue's trousers they do for each size below the chart's, never for the chart's own.
+MIN_CLOTH_EASE_CM = {"chest": 3.0}
 # cm: more tape ease than this at a girth and the garment hangs off the body: loose. The T-shirt is cut with
 # 8 cm at the chest and grows 8 cm a size; measured on the same bodies, one size over the chart's leaves 9-14
 # cm (tape ease, 2.8 cm of it the cloth's offset from the skin), two sizes over 18-25 cm. The trousers' seat
@@ -84,8 +82,10 @@ def judge(category: str, metrics: dict, girths: dict[str, Girth | None]) -> tupl
                 # the cloth's own length round the body (unstretched), not the draped tape girth (ease_cm: the
                 # cloth stretched over the body and lying off the skin): "+6 cm of ease" and "3 cm short" at once
                 # read as a contradiction on the page
-                short.append((name, f"too tight at the {name}: its cloth, unstretched, is {_cm(g.cloth_ease_cm)} "
-                                    f"shorter than the {name}"))
+                room = (f"is {_cm(g.cloth_ease_cm)} shorter than the {name}" if g.cloth_ease_cm < 0.0 else
+                        f"is only {_cm(g.cloth_ease_cm)} longer than the {name}, short of the "
+                        f"{MIN_CLOTH_EASE_CM[name]:g} cm of a regular fit")
+                short.append((name, f"too tight at the {name}: its cloth, unstretched, {room}"))
     named = {name for name, _ in short}
     stretched = [place_name(p) for p in metrics.get("too_tight") or {}
                  if not (p.startswith("torso ") and p[len("torso "):] in named)]

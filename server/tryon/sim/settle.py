@@ -53,22 +53,23 @@ def settle(d: Drape, on_frame=None, give_way=None, start_up: bool = False) -> tu
 
 def showing(d: Drape) -> bool:
     """Whether a fresh drape's step just taken is one a caller is shown (``settle``'s ``on_frame``): not during the
-    start-up, nor in the ``tuning.unseen_pinch_steps`` steps after it while a point held in a pinch between two
-    parts is still more than ``tuning.frame_depth`` inside the body; from the first step shown on, every step.
+    start-up, nor in the ``tuning.unseen_pinch_steps`` steps after it while a point is still more than
+    ``tuning.frame_depth`` inside the body; from the first step shown on, every step.
 
     The start-up's growth leaves cloth pinched between two parts (a trouser crotch between the thighs) up to
     12.5 mm inside the body, held there (``hold_pinched``: pushed, it would flip between the parts) until its
     springs draw it out, 1 to 6 steps later on the catalogue: 8 of the 90 drapes of ``tryon bench --only fit``
     showed such a frame (the small body's trousers S and L; the large body's dress L and XL, trousers XL and XXL,
-    shorts L and XL). The steps are the same either way; only the stream starts later."""
+    shorts L and XL). Any point, not only a held one: the step the body reaches its full size may leave a
+    point just past the bound that the next step takes out (the small body's trousers L: 2.6 mm). The steps are
+    the same either way; only the stream starts later."""
     st = d.state
     if st.step <= d.startup:
         return False
     if d.shown_from:
         return True
-    if st.step <= d.startup + d.tuning.unseen_pinch_steps and st.held.any():
-        held = np.flatnonzero(st.held)
-        if d.collider.depth(st.x[held], d.parts).max() > d.tuning.frame_depth:
+    if st.step <= d.startup + d.tuning.unseen_pinch_steps:
+        if d.collider.depth(st.x, d.parts).max() > d.tuning.frame_depth:
             return False
     d.shown_from = st.step
     return True

@@ -73,8 +73,8 @@ class Tuning:
         body at the step's end is taken out (``step._out_of_the_body``). Issue 26's bound for any streamed
         frame: 2 mm.
     unseen_pinch_steps: steps after a fresh drape's start-up during which its frames are not shown while a point
-        held in a pinch is more than ``frame_depth`` inside the body (``run.showing``): the growth leaves a trouser
-        crotch pinched between the thighs up to 12.5 mm in, drawn out by its springs within 1-6 steps on the
+        is more than ``frame_depth`` inside the body (``settle.showing``): the growth leaves a trouser crotch
+        pinched between the thighs up to 12.5 mm in, drawn out by its springs within 1-6 steps on the
         catalogue. A bound, so that a pinch that stays (a garment too small there) does not hold back the stream.
     unfold_per_pass: m, in a re-posed drape the most a pass lengthens a compressed spring by (``pack_springs``'
         cap; 0 = none). Cloth crushed in a fold (the inside of a bent elbow: structural springs down to 2 % of

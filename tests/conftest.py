@@ -62,8 +62,8 @@ class Shop:
 
 @dataclass
 class SharedServer:
-    """The one ``tryon serve`` process of the session's end-to-end tests (browser and WebSocket): one
-    simulation worker and one waiting slot; each module stocks its own catalogue (``stocked``)."""
+    """The one ``tryon serve`` process of the session's end-to-end tests (browser and WebSocket); each module
+    stocks its own catalogue (``stocked``)."""
 
     url: str
     data_dir: Path
@@ -100,11 +100,11 @@ class SharedServer:
 
 @pytest.fixture(scope="session")
 def shared_server(tmp_path_factory) -> SharedServer:
-    """ONE real uvicorn server (``tryon serve``) for the session's browser and WebSocket tests: one
-    worker and one waiting slot (so that a busy fitting room is easy to reach: ``test_page``)."""
+    """ONE real uvicorn server (``tryon serve``, its default pool) for the session's browser and live
+    WebSocket tests, instead of one per module."""
     data = tmp_path_factory.mktemp("shared-server") / "data"
     Catalogue(data)  # the index exists before the server opens it
-    with serve_process(data, env={"TRYON_SIM_WORKERS": "1", "TRYON_SIM_QUEUE": "1"}) as url:
+    with serve_process(data) as url:
         yield SharedServer(url, data)
 
 

@@ -1,7 +1,7 @@
 """``tryon bench --quick``: runs once per module and writes the report files with finite numbers.
 
 No timing assertions (the machine is shared); the benchmark's numbers are checked for shape, finiteness
-and the invariants that do not depend on speed.
+and the invariants that do not depend on speed. The tests that run it are ``slow`` (left out of the fast lane).
 """
 
 from __future__ import annotations
@@ -47,6 +47,7 @@ def _section(report, name):
     return next(s for s in report["sections"] if s["name"] == name)
 
 
+@pytest.mark.slow
 def test_exit_code_and_files(bench):
     out, code, report = bench
     failed = {s["name"]: s["error"] for s in report["sections"] if s["status"] == "failed"}
@@ -56,6 +57,7 @@ def test_exit_code_and_files(bench):
     assert {s["name"] for s in report["sections"]} == SECTIONS
 
 
+@pytest.mark.slow
 def test_json_numbers_are_finite(bench):
     _, _, report = bench
     numbers = list(_numbers(report))
@@ -63,6 +65,7 @@ def test_json_numbers_are_finite(bench):
     assert all(math.isfinite(x) for x in numbers)
 
 
+@pytest.mark.slow
 def test_sections_carry_their_figures(bench):
     _, _, report = bench
     t1 = _section(report, "table1")["data"]["ours"][0]
@@ -129,6 +132,7 @@ def _png_ok(data: bytes) -> bool:
     return zlib.crc32(b"IHDR" + ihdr) == crc and width > 0 and height > 0 and data[-8:-4] == b"IEND"
 
 
+@pytest.mark.slow
 def test_plots_are_valid_pngs(bench):
     out, _, report = bench
     plots = [p for s in report["sections"] for p in s["plots"]]
@@ -154,6 +158,7 @@ def test_a_failing_section_is_reported_and_isolated(tmp_path):
     assert skipped.status == "skipped" and skipped.error == "optional input missing"
 
 
+@pytest.mark.slow
 def test_a_missing_peer_is_a_note_not_a_failure(bench, monkeypatch, tmp_path):
     """The peers section with no peer engine: the quick run's own when none is installed (as with the test extra
     alone), else one run with them hidden."""
@@ -224,6 +229,7 @@ def test_fit_with_the_fast_projection_says_so(tmp_path, capsys):
     assert all(d["rest"] and d["penetrating"] == 0 and d["on_limbs"] for d in fit["data"]["drapes"])
 
 
+@pytest.mark.slow
 def test_motion_with_more_sequences_says_so(tmp_path, capsys):
     assert main(["bench", "--quick", "--only", "motion", "--sequences", "21", "--out", str(tmp_path / "bad")]) == 2
     assert "--sequences must be 1 to 20, got 21" in capsys.readouterr().err
@@ -238,6 +244,7 @@ def test_motion_with_more_sequences_says_so(tmp_path, capsys):
     assert report["command"].endswith("--sequences 2")
 
 
+@pytest.mark.slow
 def test_the_figures_page_is_written_from_bench_json(bench, tmp_path, capsys):
     out, _, report = bench
     page = tmp_path / "docs" / "benchmarks.md"
@@ -257,6 +264,7 @@ def test_the_figures_page_is_written_from_bench_json(bench, tmp_path, capsys):
     assert "cannot read" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_outfits_section_drapes_a_top_over_a_bottom(bench):
     """Quick mode: the T-shirt over the trousers on the medium body, tucked out and in; each row has the
     outfit's figures and its time against the two single drapes."""

@@ -68,6 +68,7 @@ def test_one_row_per_person_and_style(serial):
     assert "chest" in by["p2"]["ease_cm"]
 
 
+@pytest.mark.slow
 def test_ray_gives_the_same_table(tmp_path, data_dir, bodies, serial):
     ray = pytest.importorskip("ray")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="ERROR")

@@ -17,7 +17,7 @@ import pytest
 from test_page_layout import LAYOUT_PROBLEMS, open_page
 from tryon.garment.generate import chart_row, garment_mesh, obj_text
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.slow]  # the fast lane keeps test_page.py
 
 ROOT = Path(__file__).resolve().parents[1]
 ARTIFACTS = ROOT / "test-artifacts"

@@ -20,7 +20,7 @@ import pytest
 from conftest import CHROMIUM, CHROMIUM_ARGS
 from tryon.garment.generate import garment_mesh, obj_text
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.slow]  # the fast lane keeps test_page.py
 
 ROOT = Path(__file__).resolve().parents[1]
 ARTIFACTS = ROOT / "test-artifacts"

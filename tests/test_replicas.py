@@ -13,7 +13,7 @@ from conftest import ADMIN_TOKEN, serve_process
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.generate import garment_mesh, obj_text
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 AUTH = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 MEASUREMENTS = {"height": 170, "chest": 92, "waist": 76, "hips": 98}
 

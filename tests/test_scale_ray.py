@@ -43,6 +43,7 @@ def arrays(directory: Path) -> dict:
         return {k: z[k] for k in z.files}
 
 
+@pytest.mark.slow
 def test_ray_ingestion_is_the_local_one(tmp_path, files, local_ray, capsys):
     args = [str(p) for p in files] + ["--units", "m"]
     assert main(["ingest", *args, "--data-dir", str(tmp_path / "local")]) == 1  # the broken file is refused
@@ -72,6 +73,7 @@ def _dies_once(marker: str) -> int:
     return os.getpid()
 
 
+@pytest.mark.slow
 def test_a_killed_worker_is_retried(tmp_path, local_ray):
     from tryon.scale.ray_jobs import run_tasks
 

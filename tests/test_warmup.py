@@ -9,6 +9,7 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
 from fastapi.testclient import TestClient
 
 from tryon.api.app import create_app
@@ -84,6 +85,7 @@ FIRST_REQUESTS = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_first_requests_after_warm_up_compile_nothing():
     warm_up()  # this process: the kernels are in the disk cache, so the child only loads them
     out = subprocess.run([sys.executable, "-c", FIRST_REQUESTS], capture_output=True, text=True, timeout=600)

@@ -231,6 +231,7 @@ def test_frames_respect_the_requested_rate(live: Live):
     assert sent[-1] - sent[0] > (len(sent) - 1.5) / fps - 1e-3, np.diff(sent)
 
 
+@pytest.mark.slow
 def test_client_leaving_half_way_stops_the_simulation(live: Live):
     """A long drape whose client leaves at its first frame: its worker is freed, and the pool counts it
     cancelled (a run left to go on would end at rest or at the wall-clock limit, counted completed). While it

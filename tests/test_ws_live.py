@@ -183,6 +183,7 @@ def test_live_is_one_garment(server):
     assert error["type"] == "error" and "live re-posing takes one garment" in error["reason"]
 
 
+@pytest.mark.slow
 def test_measure_pose_updates(server):
     """The figures of docs/live-tryon.md (measured, not judged): six poses in a row, three times, uint16 frames;
     from each update's send to its first frame and to its done, client side, and how many were draped afresh

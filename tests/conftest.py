@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -96,6 +97,30 @@ class SharedServer:
             yield Shop(catalogue, tag)
         finally:
             self._empty(catalogue)
+
+
+@contextlib.contextmanager
+def served_here(app):
+    """``app`` served by uvicorn on a thread of this process (its kernels warm: ``warm_kernels``); its URL. A
+    real server whose insides a test can hold (a job on its pool, a patched step) to make a state certain."""
+    import uvicorn
+
+    from tryon.bench.live import free_port
+
+    port = free_port()
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + 120  # a guard against a hang, not a measured limit
+    while not server.started or httpx.get(url + "/api/health").status_code != 200:
+        assert thread.is_alive() and time.monotonic() < deadline, "the service did not start"
+        time.sleep(0.05)
+    try:
+        yield url
+    finally:
+        server.should_exit = True
+        thread.join(timeout=120)
 
 
 @pytest.fixture(scope="session")

@@ -9,11 +9,9 @@ for the body names where, show a server error in words, and no console errors. T
 from __future__ import annotations
 
 import base64
-import contextlib
 import io
 import math
 import threading
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -206,33 +204,11 @@ def test_server_errors_are_shown_in_words(page):
     assert [p for p in page.problems if "422" not in p] == []  # the refused request is the only noise
 
 
-@contextlib.contextmanager
-def served_here(app):
-    """``app`` served by uvicorn on a thread of this process (its kernels warm: ``warm_kernels``); its URL."""
-    import uvicorn
-
-    from tryon.bench.live import free_port
-
-    port = free_port()
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-    thread = threading.Thread(target=server.run, daemon=True)
-    thread.start()
-    url = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 120  # a guard against a hang, not a measured limit
-    while not server.started or httpx.get(url + "/api/health").status_code != 200:
-        assert thread.is_alive() and time.monotonic() < deadline, "the service did not start"
-        time.sleep(0.05)
-    try:
-        yield url
-    finally:
-        server.should_exit = True
-        thread.join(timeout=120)
-
-
 def test_a_busy_fitting_room_is_said_in_words(browser, tmp_path):
     """The page's try-on refused because the service is busy: said in words, and the shopper can try again.
     Made certain: a service (served here) with one worker and no waiting slot, the worker held by another
     job until the test lets it go (a real try-on as the holder may come to rest before the page asks)."""
+    from conftest import served_here
     from test_page_layout import open_page
 
     from tryon.api.app import create_app

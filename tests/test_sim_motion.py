@@ -120,6 +120,7 @@ def test_random_pose_sequences_keep_the_cloth_out_of_the_body_and_on_the_limbs(s
     assert went_in and all(r["motion_part"] in build_body(MEDIUM).parts for r in went_in)
 
 
+@pytest.mark.slow
 def test_a_sleeve_caught_in_a_big_move_is_carried_again_through_the_midway_pose(tmp_path):
     """The long-sleeve XXL carried from the A-pose to the first pose of the motion stress's sequence 15 (right arm
     swung 81 degrees forward, its elbow bent 112): the right sleeve ends caught beside the arm, and a fresh drape

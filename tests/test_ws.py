@@ -1,8 +1,9 @@
 """Issue 6 end to end: the live try-on over a real WebSocket to a real ``tryon serve`` process.
 
-One server for the module (session scope), with one worker and no waiting slot. Each test starts from an
-idle pool (``wait_idle``). No assertion here is on time (the machine may be shared): what is checked is what
-the server does (frames arrive in order on the sender's cadence, a client leaving frees its worker, health
+The session's shared server (``conftest.shared_server``), its catalogue this module's; a client leaving half
+way, on a server served in this process (``conftest.served_here``) whose drape can be held. Each test starts
+from an idle pool (``wait_idle``). No assertion here is on time (the machine may be shared): what is checked is
+what the server does (frames arrive in order on the sender's cadence, a client leaving frees its worker, health
 answers while a drape runs); timeouts only guard against a hang. A full pool's refusals and the wall-clock
 limit are checked in-process, where they can be made certain (``test_ws_pool.py``).
 """
@@ -20,7 +21,7 @@ import pytest
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
-from conftest import ADMIN_TOKEN, serve_process
+from conftest import ADMIN_TOKEN
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.generate import garment_mesh, obj_text
 
@@ -29,9 +30,6 @@ pytestmark = pytest.mark.e2e
 HANG_S = 120.0  # the longest any wait here may take: a guard against a hang, not a measured limit
 BODY = {"height": 170.0, "chest": 96.0, "waist": 82.0, "hips": 100.0}
 SHORT = {"max_steps": 60}  # a quick drape of the T-shirt (a few hundred ms)
-# The most work a request may ask for (dense trousers, every vertex simulated, smallest step, most passes):
-# ~0.3 s a step here, over a hundred steps to rest, so it is far from done when its client leaves.
-LONG = {"max_steps": 3000, "time_step": 0.005, "passes": 48, "substeps": 16, "simplification": 1.0}
 # Many quick steps (small time step) of the T-shirt: hundreds of steps, far more than frames asked for.
 MANY_STEPS = {"max_steps": 3000, "time_step": 0.005}
 
@@ -40,7 +38,6 @@ MANY_STEPS = {"max_steps": 3000, "time_step": 0.005}
 class Live:
     url: str
     garment_id: str  # a T-shirt, ~2,900 vertices
-    long_id: str  # trousers subdivided once, ~20,000 vertices
 
     @property
     def ws(self) -> str:
@@ -60,8 +57,7 @@ class Live:
             time.sleep(0.02)
 
     def request(self, settings: dict, **body) -> dict:
-        garment = self.long_id if settings is LONG else self.garment_id
-        return {"garment_id": garment, "measurements": {**BODY, **body}, "settings": settings}
+        return {"garment_id": self.garment_id, "measurements": {**BODY, **body}, "settings": settings}
 
 
 @dataclass
@@ -101,22 +97,13 @@ def run_stream(live: Live, message, max_frames: int | None = None, timeout_s: fl
     return s
 
 
-@pytest.fixture(scope="session")
-def live(tmp_path_factory) -> Live:
-    """A served catalogue with two generated garments: a T-shirt (quick drapes) and trousers (long ones)."""
-    root = tmp_path_factory.mktemp("ws")
-    data = root / "data"
-    ids = []
-    for kind, size, category in (("tshirt", "S", "top"), ("trousers", "L", "bottom")):
-        source = root / f"{kind}-{size}.obj"
-        mesh = garment_mesh(kind, size)
-        source.write_text(obj_text(mesh if kind == "tshirt" else mesh.subdivide(), kind))
-        ids.append(Catalogue(data).ingest(source, name=f"Test {kind} {size}", category=category, size=size,
-                                          units="m").id)
-    # the wall-clock limit well past any run here: a run stops because its client left or it came to rest
-    env = {"TRYON_SIM_WORKERS": "1", "TRYON_SIM_QUEUE": "0", "TRYON_SIM_WALL_LIMIT_S": "600"}
-    with serve_process(data, env=env) as url:
-        yield Live(url, *ids)  # its kernels are warm: health said ok
+@pytest.fixture(scope="module")
+def live(shared_server) -> Live:
+    """The shared server with a generated T-shirt."""
+    with shared_server.stocked("test_ws") as stock:
+        gid = stock.add(obj_text(garment_mesh("tshirt", "S"), "tshirt"), "tshirt-S.obj", name="Test tshirt S",
+                        category="top", size="S", units="m")
+        yield Live(shared_server.url, gid)
 
 
 def test_full_stream_matches_rest(live: Live):
@@ -231,27 +218,46 @@ def test_frames_respect_the_requested_rate(live: Live):
     assert sent[-1] - sent[0] > (len(sent) - 1.5) / fps - 1e-3, np.diff(sent)
 
 
-@pytest.mark.slow
-def test_client_leaving_half_way_stops_the_simulation(live: Live):
-    """A long drape whose client leaves at its first frame: its worker is freed, and the pool counts it
-    cancelled (a run left to go on would end at rest or at the wall-clock limit, counted completed). While it
-    runs, health answers, each answer saying the drape is running: the event loop is not held by it."""
-    before = live.wait_idle()
-    with connect(live.ws, max_size=None, open_timeout=HANG_S) as ws:
-        ws.send(json.dumps({**live.request(LONG, chest=99.0), "fps": 30}))
-        assert json.loads(ws.recv(timeout=HANG_S))["type"] == "init"  # on the worker now
-        with httpx.Client(timeout=HANG_S) as client:
-            for _ in range(5):
-                h = client.get(f"{live.url}/api/health")
-                assert h.status_code == 200 and h.json()["status"] == "ok"
-                assert h.json()["simulations"]["running"] == 1, h.json()
-        assert isinstance(ws.recv(timeout=HANG_S), bytes)  # a first frame: half way, the client leaves
-    after = live.wait_idle()  # polled until the worker is free (HANG_S guards against a hang)
-    assert after["submitted"] == before["submitted"] + 1
-    assert after["cancelled"] == before["cancelled"] + 1 and after["completed"] == before["completed"], after
-    # and the worker is free for the next shopper
-    ok = run_stream(live, {**live.request(SHORT, chest=99.5), "fps": 30})
-    assert ok.done is not None
+def test_client_leaving_half_way_stops_the_simulation(tmp_path, monkeypatch):
+    """A drape whose client leaves at its first frame: its worker is freed, and the pool counts it cancelled
+    (a run that went on would end at rest or at the wall-clock limit, counted completed); the next try-on gets
+    the worker. While it runs, health answers, each answer saying the drape is running: the event loop is not
+    held by it. Made certain on a real server served here: after its first frame each step of the drape waits
+    until its run is cancelled (at most ``HANG_S``, a guard against a hang), so it cannot end by itself first."""
+    from conftest import served_here
+
+    from tryon.api import pool as pool_module
+    from tryon.api.app import create_app
+    from tryon.config import Settings
+
+    step = pool_module.RunGuard.__call__
+
+    def held_until_cancelled(guard, *args):
+        if guard.frames >= 1:
+            guard.cancelled.wait(HANG_S)
+        return step(guard, *args)
+
+    monkeypatch.setattr(pool_module.RunGuard, "__call__", held_until_cancelled)
+    data = tmp_path / "data"
+    gid = Catalogue(data).ingest(obj_text(garment_mesh("tshirt", "S"), "tshirt").encode(), name="Test tshirt S",
+                                 category="top", size="S", units="m", filename="tshirt-s.obj").id
+    with served_here(create_app(Settings(data_dir=data, sim_workers=1, sim_queue=0))) as url:
+        here = Live(url, gid)
+        with connect(here.ws, max_size=None, open_timeout=HANG_S) as ws:
+            ws.send(json.dumps({**here.request(SHORT, chest=99.0), "fps": 30}))
+            assert json.loads(ws.recv(timeout=HANG_S))["type"] == "init"
+            assert isinstance(ws.recv(timeout=HANG_S), bytes)  # a first frame: half way, the client leaves
+            with httpx.Client(timeout=HANG_S) as client:
+                for _ in range(5):
+                    h = client.get(f"{url}/api/health")
+                    assert h.status_code == 200 and h.json()["status"] == "ok"
+                    assert h.json()["simulations"]["running"] == 1, h.json()
+        after = here.wait_idle()  # polled until the worker is free (HANG_S guards against a hang)
+        assert (after["submitted"], after["cancelled"], after["completed"]) == (1, 1, 0), after
+        # and the worker is free for the next shopper
+        monkeypatch.setattr(pool_module.RunGuard, "__call__", step)
+        ok = run_stream(here, {**here.request(SHORT, chest=99.5), "fps": 30})
+        assert ok.done is not None and ok.done["metrics"]["steps"] > 0
 
 
 @pytest.mark.parametrize("message, words", [

@@ -227,3 +227,91 @@ def test_two_processes_ingesting_at_once(tmp_path, skirt_obj):
     assert [m.id for m in cat.list()] == list(ids)
     assert json.loads((data_dir / "models" / ids.pop() / "meta.json").read_text())["vertices"] > 2000
     assert list(Path(data_dir / "tmp").iterdir()) == []
+
+
+# --- fabrics (issue 51, item 1) ---------------------------------------------------------------------
+
+
+def test_catalogue_json_says_each_garments_fabric_as_the_generator_writes_it(tmp_path):
+    """garments/catalogue.json: jersey tops and dresses, cotton-twill trousers, shorts and skirts; written by
+    ``generate.write_catalogue`` (the same text as the repository's, so the file is the generator's)."""
+    from tryon.garment.generate import write_catalogue
+
+    root = Path(__file__).resolve().parents[1] / "garments"
+    entries = json.loads((root / "catalogue.json").read_text())
+    kinds = {e["style"]: e["fabric"] for e in entries}
+    assert kinds == {"tshirt": "jersey", "longsleeve": "jersey", "dress": "jersey", "skirt": "cotton-twill",
+                     "trousers": "cotton-twill", "shorts": "cotton-twill"}
+    assert len(entries) == 30 and all(e["fabric"] == kinds[e["style"]] for e in entries)
+    write_catalogue(tmp_path)
+    assert (tmp_path / "catalogue.json").read_text() == (root / "catalogue.json").read_text()
+
+
+def test_masses_are_the_fabrics_unless_a_density_is_given(tmp_path, skirt_obj, shorts_obj):
+    """No density given: the fabric's (the category's by default, or the one named); a density given wins and is
+    part of the id (the fabric is not: it is one of the entry's words)."""
+    from tryon.garment.catalogue import mass_density
+    from tryon.garment.fabric import FABRICS
+
+    cat = Catalogue(tmp_path)
+    twill = cat.ingest(skirt_obj, "Skirt", "bottom", "m", filename="skirt.obj")
+    assert (twill.fabric, twill.density) == ("cotton-twill", FABRICS["cotton-twill"].density)
+    assert mass_density(cat.model(twill.id)) == pytest.approx(0.220, rel=1e-9)
+    assert cat.model(twill.id).fabric is FABRICS["cotton-twill"]
+    given = cat.ingest(skirt_obj, "Skirt", "bottom", "m", filename="skirt.obj", density=0.3, fabric="denim")
+    assert given.id != twill.id and (given.fabric, given.density) == ("denim", 0.3)
+    assert mass_density(cat.model(given.id)) == pytest.approx(0.3, rel=1e-9)
+    knit = cat.ingest(shorts_obj, "Shorts", "bottom", "m", filename="shorts.obj", fabric="jersey")
+    assert (knit.fabric, knit.density) == ("jersey", 0.187)
+    assert mass_density(cat.model(knit.id)) == pytest.approx(0.187, rel=1e-9)
+    assert cat.ingest(shorts_obj, "Shorts", "bottom", "m", filename="shorts.obj").id == knit.id  # same entry
+    with pytest.raises(GarmentError, match="unknown fabric 'silk': choose one of jersey, cotton-twill, denim") as e:
+        cat.ingest(skirt_obj, "Skirt", "bottom", "m", filename="other-skirt.obj", fabric="silk")
+    assert e.value.field == "fabric" and len(cat.list()) == 3
+
+
+def test_a_catalogue_from_before_fabrics_keeps_its_ids_and_takes_the_fabrics_density(tmp_path, skirt_obj):
+    """An index without the fabric column (written before fabrics, every density 0.15): opened, each entry takes
+    its category's fabric and that fabric's density, its id stays, its model is prepared again with it."""
+    import sqlite3
+
+    from tryon.garment.catalogue import mass_density
+
+    meta = Catalogue(tmp_path).ingest(skirt_obj, "Skirt", "bottom", "m", filename="skirt.obj")
+    db = sqlite3.connect(tmp_path / "catalogue.sqlite")
+    db.execute("ALTER TABLE garments DROP COLUMN fabric")
+    db.execute("UPDATE garments SET density = 0.15")
+    db.commit()
+    db.close()
+    (tmp_path / "models" / meta.id / "prepared.json").write_text(json.dumps({"version": 4}))
+    cat = Catalogue(tmp_path)
+    again = cat.get(meta.id)
+    assert (again.id, again.fabric, again.density) == (meta.id, "cotton-twill", 0.22)
+    assert mass_density(cat.model(meta.id)) == pytest.approx(0.22, rel=1e-9)
+
+
+def test_another_fabric_rescales_the_stored_masses_and_keeps_the_id(tmp_path, skirt_obj):
+    """``update(fabric=)``: the masses were the old fabric's, so they become the new one's (the model on disk and
+    its variant of another simplification too, and a cached model in another Catalogue of the same directory); a
+    density given at ingestion stays."""
+    from tryon.garment.catalogue import mass_density
+
+    cat, other = Catalogue(tmp_path), Catalogue(tmp_path)
+    meta = cat.ingest(skirt_obj, "Skirt", "bottom", "m", filename="skirt.obj")
+    before = cat.model(meta.id).mass.copy()
+    fine = cat.model(meta.id, 0.5).mass.copy()
+    assert other.model(meta.id).mass.sum() == pytest.approx(before.sum())  # cached there
+    changed = cat.update(meta.id, fabric="denim")
+    assert (changed.id, changed.fabric, changed.density) == (meta.id, "denim", 0.324)
+    ratio = 0.324 / 0.22
+    for c in (cat, other, Catalogue(tmp_path)):
+        np.testing.assert_allclose(c.model(meta.id).mass, before * ratio, rtol=1e-12)
+        assert c.model(meta.id).fabric.name == "denim"
+    np.testing.assert_allclose(cat.model(meta.id, 0.5).mass, fine * ratio, rtol=1e-12)
+    on_disk = GarmentModel.load(tmp_path / "models" / meta.id)
+    assert (on_disk.meta.fabric, on_disk.meta.density) == ("denim", 0.324)
+    assert mass_density(on_disk) == pytest.approx(0.324, rel=1e-9)
+
+    given = cat.ingest(skirt_obj, "Skirt 2", "bottom", "m", filename="skirt.obj", density=0.25)
+    assert cat.update(given.id, fabric="jersey").density == 0.25
+    assert mass_density(cat.model(given.id)) == pytest.approx(0.25, rel=1e-9)

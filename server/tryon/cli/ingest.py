@@ -1,12 +1,17 @@
 """``tryon ingest``: prepare garment files into the catalogue (offline), one line per garment.
 
     tryon ingest PATH... [--name N] [--category top|bottom|dress|auto] [--units auto|m|cm|mm|dm|in]
-                 [--simplify B] [--size S] [--style ID] [--size-chart JSON] [--data-dir DIR]
+                 [--simplify B] [--size S] [--style ID] [--size-chart JSON] [--fabric NAME]
+                 [--density KG_PER_M2] [--data-dir DIR]
     tryon ingest --catalogue garments/      # every file listed in garments/catalogue.json
     tryon ingest ... --ray [ADDRESS]        # prepared on a Ray cluster's workers (a local one by default)
 
 ``--category auto`` (the default) guesses the category from words in the file name, as the upload API
-does (``tryon.garment.catalogue.guess_category``); a file whose name tells none is refused.
+does (``tryon.garment.catalogue.guess_category``); a file whose name tells none is refused. A garment is made of
+its ``--fabric`` (a catalogue.json entry's ``fabric``; default: its category's, ``garment.fabric.DEFAULT_FABRIC``)
+and its masses of that fabric's density unless ``--density`` gives one. A file already in keeps its own words:
+its fabric, and (once it has a style) its style, size and chart, whatever catalogue.json says, so that words
+changed since (``PATCH /api/garments/{id}``) survive ``scripts/serve.sh``'s ingestion at every start.
 
 With ``--ray`` the preparations (load, clean, simplify, springs: the costly part) run as Ray tasks, a
 local Ray with every core when no ADDRESS is given, ``auto`` or ``host:port`` to join a running cluster;
@@ -27,6 +32,7 @@ import time
 from pathlib import Path
 
 from tryon.cli.common import CliError, load_settings
+from tryon.garment.fabric import DEFAULT_FABRIC, FABRICS
 from tryon.garment.ingest import UNITS, GarmentError
 from tryon.garment.sizes import check_labels
 
@@ -49,7 +55,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--size-chart", metavar="JSON", dest="size_chart",
                    help='the size\'s chart row, body girths in cm: \'{"chest": [92, 100], "waist": [78, 86]}\' '
                         "(chest, waist, hips; each [min, max] or one value); needs --size")
-    p.add_argument("--density", type=float, default=None, help="fabric areal density, kg/m^2 (default 0.15)")
+    p.add_argument("--fabric", choices=list(FABRICS), default=None,
+                   help="what the garment is made of (default: its category's: "
+                        + ", ".join(f"{c} {f}" for c, f in DEFAULT_FABRIC.items()) + ")")
+    p.add_argument("--density", type=float, default=None,
+                   help="areal density of the masses, kg/m^2 (default: the fabric's: "
+                        + ", ".join(f"{f.name} {f.density:g}" for f in FABRICS.values()) + ")")
     p.add_argument("--data-dir", type=Path, help="catalogue directory (default: TRYON_DATA_DIR or ./data)")
     p.add_argument("--ray", nargs="?", const=LOCAL_RAY, default=None, metavar="ADDRESS",
                    help="prepare on a Ray cluster: no ADDRESS starts a local Ray, 'auto' or host:port joins one "
@@ -90,10 +101,10 @@ def _jobs(args: argparse.Namespace) -> list[dict]:
                 raise ValueError(f"entry {i} is not an object with a \"file\" name: {json.dumps(e)[:80]}")
             jobs.append(dict(path=args.catalogue / e["file"], name=e.get("name"), category=e.get("category", "top"),
                              units=e.get("units", "auto"), size=e.get("size"), style=e.get("style"),
-                             chart=e.get("chart")))
+                             chart=e.get("chart"), fabric=e.get("fabric")))
     for path in args.paths:
         jobs.append(dict(path=path, name=args.name, category=args.category, units=args.units, size=args.size,
-                         style=args.style, chart=args.size_chart))
+                         style=args.style, chart=args.size_chart, fabric=args.fabric))
     for job in jobs:
         if args.simplify is not None:
             job["simplify"] = args.simplify
@@ -180,7 +191,9 @@ def _print_entry(prefix: str, meta, seconds: float, created: bool) -> None:
         f"{' style ' + meta.style if meta.style else ''}{' ' + meta.size if meta.size else ''}, {meta.vertices} v / {meta.faces} f -> "
         f"{meta.coarse_vertices} v / {meta.coarse_faces} f (B {meta.simplification:g}), springs "
         f"{s.get('structural', 0)}/{s.get('shear', 0)}/{s.get('bending', 0)}, units {meta.units}"
-        f"{' (guessed)' if meta.units_guessed else ''}, {seconds * 1000:.0f} ms"
+        f"{' (guessed)' if meta.units_guessed else ''}, {meta.fabric or 'fabric unknown'} "
+        f"{(meta.density or 0) * 1000:.0f} g/m2, "
+        f"{seconds * 1000:.0f} ms"
         f"{'' if created else ' (cached)'}"
     )
     for note in meta.notes:

@@ -10,7 +10,10 @@ Layout under ``data_dir``::
     tmp/                        work directories; anything here is a leftover of a crash
 
 An entry's id is a short hash of the file's sha256 and the preprocessing parameters (units,
-simplification, density), so the same file with the same parameters is the same entry (idempotent).
+simplification, a density given), so the same file with the same parameters is the same entry (idempotent).
+Its fabric (``fabric.FABRICS``; by default its category's) is one of the entry's words, which ``update`` changes;
+its masses are made of the fabric's density unless the ingestion gave one, and follow the fabric when it
+changes (``update``; ``model`` rescales a stored model whose masses are of another density than its row's).
 Writes are atomic: the model is prepared in ``tmp/``, moved into place with ``os.replace`` (atomic on one
 file system), and only then is the row inserted in a transaction. A crash leaves no row, and at worst a
 complete model directory without a row, which the next ingestion of that file adopts. Two ingestions at
@@ -22,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import re
 import shutil
@@ -33,9 +37,10 @@ from collections import OrderedDict
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
+from tryon.garment.fabric import DEFAULT_FABRIC, FABRICS, Fabric
 from tryon.garment.ingest import GarmentError, check_readable, file_extension, load_garment
 from tryon.garment.model import GarmentMeta, GarmentModel
-from tryon.garment.prepare import DEFAULT_DENSITY, DEFAULT_SIMPLIFICATION, prepare
+from tryon.garment.prepare import DEFAULT_SIMPLIFICATION, prepare, triangle_areas
 from tryon.garment.sizes import check_labels, check_size, check_style, parse_chart, size_order
 
 CATEGORIES = ("top", "bottom", "dress")
@@ -47,7 +52,14 @@ DRESS_WORDS = r"dress|gown|robe|outfit|suit|jumpsuit|overall"
 BOTTOM_WORDS = r"skirt|trouser|pant|short(?![-_ ]?sleeve)|jean|legging|bottom|chino|jogger|culotte"
 TOP_WORDS = r"shirt|tee|top|blouse|polo|sweater|jacket|hoodie|sleeve|cardigan|coat|vest|tunic|pullover|blazer"
 # An entry's own words, which ``Catalogue.update`` changes (the file and its preparation make the rest).
-WORDS = ("name", "size", "style", "chart")
+WORDS = ("name", "size", "style", "chart", "fabric")
+# Every entry's density before fabrics, kg/m^2 (the one default then). An id whose density is the fabric's own is
+# keyed with it, so that the entries made then keep their ids; a catalogue from then takes each entry's category's
+# fabric and its density when it is opened (``Catalogue._add_columns``).
+LEGACY_DENSITY = 0.15
+# Relative difference past which a model's masses are of another density than its entry's (float sums agree to
+# ~1e-15).
+DENSITY_TOLERANCE = 1e-6
 # Longest display name (the upload form's limit).
 NAME_MAX_CHARS = 200
 # Prepared models kept in memory per process (a model of 5,000 vertices is ~1 MB).
@@ -77,7 +89,7 @@ CREATE TABLE IF NOT EXISTS garments (
 """
 # Columns added after the first catalogues were written: (name, SQL type). A catalogue.sqlite without them
 # gains them when opened (NULL: no style, no chart), so existing data directories keep working.
-_ADDED_COLUMNS = (("style", "TEXT"), ("chart", "TEXT"))
+_ADDED_COLUMNS = (("style", "TEXT"), ("chart", "TEXT"), ("fabric", "TEXT"))
 
 
 def guess_category(filename: str) -> str | None:
@@ -107,17 +119,33 @@ def resolve_category(category: str, filename: str) -> str:
     return category
 
 
-def entry_id(sha256: str, units: str, simplification: float, density: float) -> str:
-    """12 hex digits naming (file content, preprocessing parameters)."""
-    key = f"{sha256}|units={units}|B={simplification:.4f}|density={density:.5f}"
+def entry_id(sha256: str, units: str, simplification: float, density: float | None) -> str:
+    """12 hex digits naming (file content, preprocessing parameters). ``density`` None: the fabric's own (the
+    fabric is a word of the entry, not part of its id), keyed as ``LEGACY_DENSITY`` was, so that ids made before
+    fabrics stay; a density given is keyed by its value (0.15 given apart from the fabric's)."""
+    if density is None:
+        keyed = f"{LEGACY_DENSITY:.5f}"
+    else:
+        keyed = f"{density:.5f}" + (" given" if f"{density:.5f}" == f"{LEGACY_DENSITY:.5f}" else "")
+    key = f"{sha256}|units={units}|B={simplification:.4f}|density={keyed}"
     return hashlib.sha256(key.encode()).hexdigest()[:12]
+
+
+def check_fabric(name: str | None, category: str) -> Fabric:
+    """The fabric ``name`` (``fabric.FABRICS``), the category's (``fabric.DEFAULT_FABRIC``) for None or a blank.
+    GarmentError (422, field fabric) naming the fabrics for another name."""
+    name = (name or "").strip() or DEFAULT_FABRIC.get(category, "jersey")
+    if name not in FABRICS:
+        raise GarmentError(f"unknown fabric {name[:40]!r}: choose one of {', '.join(FABRICS)} (GET /api/fabrics "
+                           "gives their weight and stiffness)", field="fabric")
+    return FABRICS[name]
 
 
 @dataclass(frozen=True)
 class Preparation:
     """What preparing one new entry needs, as plain data (it may travel to another process or machine, see
-    ``tryon ingest --ray``): the file's bytes and name, its units, the entry's meta so far, the fabric's
-    density (kg/m^2) and the largest mesh taken (faces)."""
+    ``tryon ingest --ray``): the file's bytes and name, its units, the entry's meta so far (with its fabric), the
+    masses' density (kg/m^2: the fabric's, or the one given) and the largest mesh taken (faces)."""
 
     data: bytes
     filename: str
@@ -134,13 +162,15 @@ def prepare_model(job: Preparation) -> GarmentModel:
     mesh = load_garment(job.data, job.filename, job.units, job.max_faces)
     m = job.meta
     return prepare(mesh, id=m.id, name=m.name, category=m.category, size=m.size, source_sha256=m.source_sha256,
-                   source_name=m.source_name, simplification=m.simplification, density=job.density)
+                   source_name=m.source_name, simplification=m.simplification, density=job.density,
+                   fabric=m.fabric)
 
 
 @dataclass(frozen=True)
 class IngestPlan:
     """One ingestion between ``Catalogue.plan_ingest`` and ``Catalogue.add_prepared``: the entry's id and
-    row fields, the file's bytes, and either the existing entry or the preparation a new one needs."""
+    row fields, the file's bytes, and either the existing entry or the preparation a new one needs. ``density``:
+    the masses' (kg/m^2: the fabric's unless one was given); ``fabric``: its name."""
 
     gid: str
     name: str
@@ -154,6 +184,7 @@ class IngestPlan:
     style: str | None
     chart: dict | None
     data: bytes
+    fabric: str = "jersey"
     existing: GarmentMeta | None = None
     preparation: Preparation | None = None
 
@@ -190,14 +221,25 @@ class Catalogue:
         with self._connect() as db:
             _write_ahead(db)
             db.execute(_SCHEMA)
-            have = {r[1] for r in db.execute("PRAGMA table_info(garments)")}
-            for column, kind in _ADDED_COLUMNS:
-                if column not in have:
-                    try:
-                        db.execute(f"ALTER TABLE garments ADD COLUMN {column} {kind}")
-                    except sqlite3.OperationalError:  # another process added it first
-                        pass
+            self._add_columns(db)
         self._remove_stale_tmp()
+
+    @staticmethod
+    def _add_columns(db: sqlite3.Connection) -> None:
+        """Give an index made before some columns existed those columns (``_ADDED_COLUMNS``), in one transaction
+        (another process opening it at once waits, then finds them). One made before fabrics: each entry takes its
+        category's fabric, and an entry of the one density then (``LEGACY_DENSITY``) the fabric's density (its
+        model is prepared again: ``PREPARATION_VERSION``)."""
+        db.execute("BEGIN IMMEDIATE")
+        have = {r[1] for r in db.execute("PRAGMA table_info(garments)")}
+        for column, kind in _ADDED_COLUMNS:
+            if column not in have:
+                db.execute(f"ALTER TABLE garments ADD COLUMN {column} {kind}")
+        if "fabric" not in have:
+            for category, name in DEFAULT_FABRIC.items():
+                db.execute("UPDATE garments SET fabric = ? WHERE category = ?", (name, category))
+                db.execute("UPDATE garments SET density = ? WHERE category = ? AND abs(density - ?) < 1e-9",
+                           (FABRICS[name].density, category, LEGACY_DENSITY))
 
     # --- reading ----------------------------------------------------------------------------------
 
@@ -243,8 +285,9 @@ class Catalogue:
                 self._cache.move_to_end(key)
                 cached = self._cache[key]
                 words = _meta(row, cached.meta)
-                if words != cached.meta:  # renamed or re-sized since (``update``, maybe by another process)
-                    cached = self._cache[key] = replace(cached, meta=words)
+                if words != cached.meta:  # changed since (``update``, maybe by another process): its words, and
+                    # its masses if its fabric's density came with them
+                    cached = self._cache[key] = _of_density(replace(cached, meta=words), cached.meta.density)
                 return cached
         directory = self.models / key
         reprepared = False
@@ -255,14 +298,16 @@ class Catalogue:
             meta = GarmentMeta(**json.loads(row["meta"]))
             source = self.sources / f"{row['source_sha256']}.{row['source_ext']}"
             self._prepare_into(directory, source.read_bytes(), meta.source_name, row["requested_units"],
-                               replace(meta, simplification=b), row["density"])
+                               replace(meta, simplification=b, fabric=row["fabric"]), row["density"])
         model = GarmentModel.load(directory)
+        made = mass_density(model)
         if reprepared and key == garment_id:  # the listing's counts follow the model
             meta = asdict(replace(model.meta, name=row["name"], category=row["category"], size=row["size"]))
             with self._connect() as db:
                 db.execute("UPDATE garments SET meta = ? WHERE id = ?", (json.dumps(meta), garment_id))
-        # name, category, size, style and chart are the entry's (the uploader's words), not the model's
-        model = replace(model, meta=_meta(row, model.meta))
+        # name, category, size, style, chart and fabric are the entry's (the uploader's words), not the model's; its
+        # masses are of the entry's density (a fabric changed by another process while this one read the files)
+        model = _of_density(replace(model, meta=_meta(row, model.meta)), made)
         with self._lock:
             self._cache[key] = model
             self._cache.move_to_end(key)
@@ -274,31 +319,33 @@ class Catalogue:
 
     def ingest(self, source: Path | str | bytes, name: str | None = None, category: str = "top",
                units: str = "auto", simplify: float = DEFAULT_SIMPLIFICATION, size: str | None = None,
-               filename: str | None = None, density: float = DEFAULT_DENSITY,
+               filename: str | None = None, density: float | None = None,
                max_faces: int = 400_000, style: str | None = None, chart: dict | str | None = None,
-               *, same_words: bool = False) -> GarmentMeta:
+               fabric: str | None = None, *, same_words: bool = False) -> GarmentMeta:
         """Prepare and add a garment (a path, or bytes with ``filename``); returns the entry. The same
         file with the same parameters returns the existing entry without preparing again (with ``same_words``,
         only if the words given are the entry's: see ``plan_ingest``).
         ``category``: top | bottom | dress | auto (guessed from the file name, ``resolve_category``);
-        ``units``: m | cm | mm | dm | in | auto; ``simplify``: B in (0, 1]; ``density``: kg/m^2;
-        ``style``, ``size``, ``chart``: the product this is one size of, the size's label and its size-chart
-        row (``sizes.check_labels``).
+        ``units``: m | cm | mm | dm | in | auto; ``simplify``: B in (0, 1]; ``fabric``: a name in
+        ``fabric.FABRICS`` (None: the category's, ``fabric.DEFAULT_FABRIC``); ``density``: kg/m^2 of the masses
+        (None: the fabric's); ``style``, ``size``, ``chart``: the product this is one size of, the size's label and
+        its size-chart row (``sizes.check_labels``).
         GarmentError (a reason for the user) if the file or a parameter is refused."""
         return self.ingest_with_status(source, name, category, units, simplify, size, filename, density, max_faces,
-                                       style, chart, same_words=same_words)[0]
+                                       style, chart, fabric, same_words=same_words)[0]
 
     def ingest_with_status(self, source: Path | str | bytes, name: str | None = None, category: str = "top",
                            units: str = "auto", simplify: float = DEFAULT_SIMPLIFICATION,
                            size: str | None = None, filename: str | None = None,
-                           density: float = DEFAULT_DENSITY, max_faces: int = 400_000,
-                           style: str | None = None, chart: dict | str | None = None,
+                           density: float | None = None, max_faces: int = 400_000,
+                           style: str | None = None, chart: dict | str | None = None, fabric: str | None = None,
                            *, same_words: bool = False) -> tuple[GarmentMeta, bool]:
         """As ``ingest``, plus whether a new entry was made (False: it was already there). An entry that was
-        already there takes the style, size and chart given (when a style is given): a catalogue made before
-        styles existed gains them by ingesting its files again."""
+        already there with no style takes the style, size and chart given (when a style is given): a catalogue
+        made before styles existed gains them by ingesting its files again. One with a style keeps its own words
+        (changed since with ``update``: ``scripts/serve.sh`` ingests garments/ at every start)."""
         plan = self.plan_ingest(source, name, category, units, simplify, size, filename, density, max_faces,
-                                style, chart, same_words=same_words)
+                                style, chart, fabric, same_words=same_words)
         if plan.existing is not None:
             return plan.existing, False
         model = prepare_model(plan.preparation) if plan.preparation is not None else None
@@ -306,17 +353,19 @@ class Catalogue:
 
     def plan_ingest(self, source: Path | str | bytes, name: str | None = None, category: str = "top",
                     units: str = "auto", simplify: float = DEFAULT_SIMPLIFICATION, size: str | None = None,
-                    filename: str | None = None, density: float = DEFAULT_DENSITY, max_faces: int = 400_000,
-                    style: str | None = None, chart: dict | str | None = None,
+                    filename: str | None = None, density: float | None = None, max_faces: int = 400_000,
+                    style: str | None = None, chart: dict | str | None = None, fabric: str | None = None,
                     *, same_words: bool = False) -> "IngestPlan":
         """The first third of an ingestion (``ingest``'s arguments), on the catalogue's machine: read the
         file, check the parameters, name the entry. The plan holds the existing entry when the same file
-        with the same parameters is already in (taking the style, size and chart given with a style), else
+        with the same parameters is already in (one with no style taking the style, size and chart given with a
+        style; its fabric stays its own), else
         what the new entry needs: ``preparation`` for ``prepare_model`` (None when a complete model directory
         is already in place, e.g. left by a crash: it is adopted) and the row's fields for ``add_prepared``.
         GarmentError if the file or a parameter is refused; with ``same_words`` (an upload) also, 409, when
-        the file is already in under another name, or with another size or chart given without a style
-        (the entry would be taken as it is and those words dropped): ``update`` changes an entry's words."""
+        the file is already in under another name, fabric, style, size or chart (the entry would be taken as it
+        is and those words dropped; an entry with no style takes a style given, with its size and chart):
+        ``update`` changes an entry's words."""
         if isinstance(source, (bytes, bytearray)):
             data = bytes(source)
             if filename is None:
@@ -329,16 +378,20 @@ class Catalogue:
         asked_category = category
         category = resolve_category(category, filename)
         style, size, chart = check_labels(style, size, chart)
+        given_fabric = (fabric or "").strip() or None
+        material = check_fabric(given_fabric, category)
         if not 0.0 < simplify <= 1.0:
             raise GarmentError(f"simplify must be in (0, 1], got {simplify}")
-        if not density > 0.0:
-            raise GarmentError(f"density must be positive (kg/m^2), got {density}")
+        if density is not None and not (math.isfinite(density) and density > 0.0):
+            raise GarmentError(f"density must be a positive number (kg/m^2), got {density}", field="density")
         given_name = (name or "").strip() or None
         name = given_name or Path(filename).stem
         sha = hashlib.sha256(data).hexdigest()
         gid = entry_id(sha, units, simplify, density)
+        mass_density_ = material.density if density is None else float(density)
         plan = IngestPlan(gid=gid, name=name, category=category, size=size, units=units, simplify=float(simplify),
-                          density=float(density), sha256=sha, ext=ext, style=style, chart=chart, data=data)
+                          density=mass_density_, sha256=sha, ext=ext, style=style, chart=chart, data=data,
+                          fabric=material.name)
         existing = self.get(gid)
         if existing is not None:
             check_readable(data, filename)  # the same bytes under another name must still be what it says
@@ -349,8 +402,9 @@ class Catalogue:
                                    f"{gid}, {existing.name!r}): delete it first to add it as a {category}",
                                    status=409, field="category")
             if same_words:
-                _refuse_other_words(existing, given_name, size, chart, style)
-            if style is not None and (existing.style, existing.size, existing.chart) != (style, size, chart):
+                _refuse_other_words(existing, given_name, size, chart, style, given_fabric)
+            if style is not None and existing.style is None:  # a catalogue made before styles gains them; an
+                # entry with a style keeps its own (PATCHed ones too: serve.sh ingests garments/ at every start)
                 self._check_size_free(style, size, gid)
                 with self._connect() as db:
                     db.execute("UPDATE garments SET style = ?, size = ?, chart = ? WHERE id = ?",
@@ -367,9 +421,9 @@ class Catalogue:
         meta = GarmentMeta(
             id=gid, name=name, category=category, size=size, units=units, units_guessed=False,
             simplification=float(simplify), source_sha256=sha, source_name=filename, vertices=0,
-            faces=0, coarse_vertices=0, coarse_faces=0,
+            faces=0, coarse_vertices=0, coarse_faces=0, fabric=material.name, density=mass_density_,
         )
-        return replace(plan, preparation=Preparation(data, filename, units, meta, float(density), int(max_faces)))
+        return replace(plan, preparation=Preparation(data, filename, units, meta, mass_density_, int(max_faces)))
 
     def add_prepared(self, plan: "IngestPlan", model: GarmentModel | None) -> tuple[GarmentMeta, bool]:
         """The last third of an ingestion: put ``model`` (``prepare_model`` of ``plan.preparation``, made here
@@ -381,19 +435,22 @@ class Catalogue:
             self._save_into(directory, model)
         self._store_source(plan.sha256, plan.ext, plan.data)  # kept so that other simplification degrees can be made
         meta = json.loads((directory / "meta.json").read_text())
-        # name/category/size are the uploader's words for this entry, not part of the prepared model
-        meta.update(name=plan.name, category=plan.category, size=plan.size)
+        # name/category/size/fabric are the uploader's words for this entry, not part of the prepared model
+        meta.update(name=plan.name, category=plan.category, size=plan.size, fabric=plan.fabric, density=plan.density)
         created = self._insert_row(plan.gid, plan.name, plan.category, plan.size, meta, plan.units, plan.simplify,
-                                   plan.density, plan.sha256, plan.ext, plan.style, plan.chart)
+                                   plan.density, plan.sha256, plan.ext, plan.style, plan.chart, plan.fabric)
         return self.get(plan.gid), created
 
     def update(self, garment_id: str, **words) -> GarmentMeta | None:
         """Change an entry's own words: any of ``name``, ``size``, ``style``, ``chart`` (a size-chart row, a dict
-        or its JSON text); a ``size``, ``style`` or ``chart`` of None removes it. Checked as an upload's are
-        (``sizes.check_labels`` on the entry's words as they would be, a style's size free); the prepared
-        model is the file's and stays as it is. Returns the changed entry, None if there is no such id;
-        GarmentError (nothing changed) if a word is refused. Cached models take the new words on their next
-        ``model`` call, in every process sharing the catalogue."""
+        or its JSON text), ``fabric`` (a name in ``fabric.FABRICS``; None: the category's); a ``size``, ``style``
+        or ``chart`` of None removes it. Checked as an upload's are (``sizes.check_labels`` on the entry's words
+        as they would be, a style's size free, ``check_fabric``); the prepared model is the file's and stays as it
+        is, but for its masses: an entry whose density was its old fabric's takes the new fabric's, and its stored
+        models (``models/<id>`` and other simplification degrees') are rescaled by the ratio and saved again (an
+        entry given its own density at ingestion keeps it). The id stays. Returns the changed entry, None if there
+        is no such id; GarmentError (nothing changed) if a word is refused. Cached models take the new words (and
+        masses) on their next ``model`` call, in every process sharing the catalogue."""
         unknown = sorted(set(words) - set(WORDS))
         if unknown:
             raise GarmentError(f"{unknown[0]} cannot be changed: an entry's {', '.join(WORDS)} can", field=unknown[0])
@@ -420,11 +477,23 @@ class Catalogue:
             raise GarmentError(str(exc), exc.status, field="size") from None
         if style is not None:
             self._check_size_free(style, size, garment_id)
+        fabric = check_fabric(words["fabric"], current.category) if "fabric" in words else None
         with self._connect() as db:
             db.execute("BEGIN IMMEDIATE")
-            done = db.execute("UPDATE garments SET name = ?, size = ?, style = ?, chart = ? WHERE id = ?",
-                              (name, size, style, json.dumps(chart) if chart else None, garment_id)).rowcount
-        return self.get(garment_id) if done else None
+            row = db.execute("SELECT category, fabric, density FROM garments WHERE id = ?", (garment_id,)).fetchone()
+            if row is None:  # deleted meanwhile
+                return None
+            old = check_fabric(row["fabric"], row["category"])
+            new = fabric or old
+            density = row["density"]
+            if new.name != old.name and abs(density - old.density) <= DENSITY_TOLERANCE * old.density:
+                density = new.density  # the masses were the old fabric's: they become the new one's
+            db.execute("UPDATE garments SET name = ?, size = ?, style = ?, chart = ?, fabric = ?, density = ? "
+                       "WHERE id = ?", (name, size, style, json.dumps(chart) if chart else None, new.name, density,
+                                        garment_id))
+        if density != row["density"]:
+            self._rescale_models(garment_id)
+        return self.get(garment_id)
 
     def delete(self, garment_id: str) -> bool:
         """Remove an entry, its prepared models and (if no other entry uses it) its source file.
@@ -448,22 +517,48 @@ class Catalogue:
 
     # --- internals --------------------------------------------------------------------------------
 
+    def _rescale_models(self, garment_id: str) -> None:
+        """The stored models of an entry (its own and other simplification degrees') saved again with its row's
+        fabric and density, their masses rescaled to that density (``_of_density``). Each file is replaced
+        atomically (``os.replace``, masses first); a reader meanwhile gets the old or the new file of each, and
+        ``model`` rescales masses of another density than the row's, so a crash between them loses nothing."""
+        row = self._row(garment_id)
+        if row is None:
+            return
+        for directory in self.models.glob(f"{garment_id}*"):
+            if not (directory.name == garment_id or directory.name.startswith(f"{garment_id}-B")):
+                continue
+            if not GarmentModel.is_current(directory):
+                continue  # prepared again from its source, with the row's density, when it is next asked for
+            work = self._work_dir()
+            try:
+                model = GarmentModel.load(directory)
+                model = _of_density(replace(model, meta=replace(model.meta, fabric=row["fabric"],
+                                                                density=row["density"])), mass_density(model))
+                model.save(work)
+                for name in ("model.npz", "meta.json"):
+                    os.replace(work / name, directory / name)
+            except FileNotFoundError:  # deleted meanwhile
+                pass
+            finally:
+                shutil.rmtree(work, ignore_errors=True)
+
     def _connect(self) -> sqlite3.Connection:
         db = sqlite3.connect(self.db_path, timeout=SQLITE_TIMEOUT_S, isolation_level=None)
         db.row_factory = sqlite3.Row
         return _Closing(db)
 
     def _insert_row(self, gid, name, category, size, meta, units, simplify, density, sha, ext, style=None,
-                    chart=None) -> bool:
+                    chart=None, fabric=None) -> bool:
         """Add the index row in one transaction; False if another ingestion added it first."""
         with self._connect() as db:
             db.execute("BEGIN IMMEDIATE")
             cur = db.execute(
-                "INSERT OR IGNORE INTO garments (id, name, category, size, style, chart, units, requested_units, "
-                "simplification, density, source_sha256, source_ext, meta, created) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                (gid, name, category, size, style, json.dumps(chart) if chart else None, meta["units"], units,
-                 float(simplify), float(density), sha, ext, json.dumps(meta), time.time()),
+                "INSERT OR IGNORE INTO garments (id, name, category, size, style, chart, fabric, units, "
+                "requested_units, simplification, density, source_sha256, source_ext, meta, created) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (gid, name, category, size, style, json.dumps(chart) if chart else None, fabric, meta["units"],
+                 units, float(simplify), float(density), sha, ext, json.dumps(meta), time.time()),
             )
             return cur.rowcount == 1
 
@@ -554,25 +649,49 @@ def _meta(row, base: GarmentMeta | None = None) -> GarmentMeta:
     words from the row's columns (name, category, size, style, chart)."""
     meta = base if base is not None else GarmentMeta(**json.loads(row["meta"]))
     return replace(meta, id=row["id"], name=row["name"], category=row["category"], size=row["size"],
-                   style=row["style"], chart=json.loads(row["chart"]) if row["chart"] else None)
+                   style=row["style"], chart=json.loads(row["chart"]) if row["chart"] else None,
+                   fabric=row["fabric"], density=row["density"])
+
+
+def mass_density(model: GarmentModel) -> float | None:
+    """kg/m^2 a model's masses are made of: their sum over the full mesh's area (``prepare.lumped_masses`` makes
+    it so); None for a mesh of no area."""
+    area = float(triangle_areas(model.vertices, model.faces).sum())
+    return float(model.mass.sum()) / area if area > 0.0 else None
+
+
+def _of_density(model: GarmentModel, made: float | None) -> GarmentModel:
+    """``model`` with masses of its meta's density (kg/m^2), from masses of ``made`` kg/m^2: scaled by the
+    ratio, the same if they agree (``DENSITY_TOLERANCE``) or either is unknown."""
+    want = model.meta.density
+    if want is None or made is None or abs(want - made) <= DENSITY_TOLERANCE * want:
+        return model
+    return replace(model, mass=model.mass * (want / made))
 
 
 def _refuse_other_words(existing: GarmentMeta, name: str | None, size: str | None, chart: dict | None,
-                        style: str | None) -> None:
+                        style: str | None, fabric: str | None = None) -> None:
     """GarmentError (409) for an upload of a file already in as ``existing`` with words it would drop: another
-    ``name``, or (without a ``style``, with which the entry takes them) another ``size`` or ``chart``."""
+    ``name`` or ``fabric``, or another ``style``, ``size`` or ``chart`` (unless the entry has no style and one is
+    given: it then takes them)."""
     other = []  # (field, how it differs)
+    takes_labels = style is not None and existing.style is None
     if name is not None and name != existing.name:
         other.append(("name", f"its name is {existing.name!r}, not {name!r}"))
-    if style is None and size is not None and size != existing.size:
+    had = check_fabric(existing.fabric, existing.category).name
+    if fabric is not None and fabric != had:
+        other.append(("fabric", f"its fabric is {had}, not {fabric}"))
+    if not takes_labels and style is not None and style != existing.style:
+        other.append(("style", f"its style is {existing.style}, not {style}"))
+    if not takes_labels and size is not None and size != existing.size:
         other.append(("size", f"its size is {existing.size or 'none'}, not {size}"))
-    if style is None and chart is not None and chart != existing.chart:
+    if not takes_labels and chart is not None and chart != existing.chart:
         other.append(("size_chart", f"its size chart is {json.dumps(existing.chart) if existing.chart else 'none'}, "
                                     f"not {json.dumps(chart)}"))
     if other:
         raise GarmentError(f"this file is already in the catalogue as garment {existing.id} "
                            f"({'; '.join(text for _, text in other)}): to change its words, PATCH "
-                           f"/api/garments/{existing.id} with them (name, size, style, chart); a file is kept once",
+                           f"/api/garments/{existing.id} with them ({', '.join(WORDS)}); a file is kept once",
                            status=409, field=other[0][0])
 
 

@@ -25,6 +25,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from tryon.garment.fabric import DEFAULT_FABRIC
+
 # Body girths in cm (standard unisex chart: chest, waist, hips, upper arm, wrist, thigh, knee, neck).
 SIZE_CHART = {
     "S": dict(chest=88, waist=74, hips=94, upper_arm=28, wrist=16, thigh=54, knee=36, neck=36),
@@ -505,7 +507,8 @@ def obj_text(mesh: trimesh.Trimesh, title: str) -> str:
 
 def write_catalogue(out_dir: Path) -> list[dict]:
     """Write every garment in every size as OBJ plus ``catalogue.json``; returns the entries. Each entry's
-    ``style`` is its kind (``GARMENTS``), its ``chart`` the size-chart row it was built for (``chart_row``)."""
+    ``style`` is its kind (``GARMENTS``), its ``chart`` the size-chart row it was built for (``chart_row``), its
+    ``fabric`` its category's (``fabric.DEFAULT_FABRIC``: jersey tops and dresses, cotton twill bottoms)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     entries = []
     for kind, (name, category) in GARMENTS.items():
@@ -514,7 +517,7 @@ def write_catalogue(out_dir: Path) -> list[dict]:
             file = f"{kind}-{size.lower()}.obj"
             (out_dir / file).write_text(obj_text(mesh, f"{name}, size {size}"))
             entries.append(dict(file=file, name=f"{name} {size}", category=category, style=kind, size=size,
-                                chart=chart_row(size, category), units="m"))
+                                chart=chart_row(size, category), fabric=DEFAULT_FABRIC[category], units="m"))
     # one entry a line: 30 entries stay readable and a change shows as one line in a diff
     (out_dir / "catalogue.json").write_text("[\n" + ",\n".join(" " + json.dumps(e) for e in entries) + "\n]\n")
     return entries

@@ -21,7 +21,9 @@ from tryon.garment.springs import BENDING, spring_model
 # from its kept source (``is_current``). Raise it whenever ingest, simplification or springs change their
 # output. 2: a file's connected pieces are simplified each by its own share. 3: no coarse edge of an opening longer
 # than 1/8 of its loop (``simplify.MIN_LOOP_SPANS``). 4: no coarse edge under 3 % of the median (``weld.py``).
-PREPARATION_VERSION = 4
+# 5: masses from the fabric's density when none is given (jersey 0.187, cotton twill 0.220 kg/m^2; was 0.15 for
+# every garment), the fabric and the density recorded in the meta.
+PREPARATION_VERSION = 5
 
 
 @dataclass(frozen=True)
@@ -46,6 +48,7 @@ class GarmentMeta:
     style: str | None = None  # the product this entry is one size of (a short id such as tshirt), or None
     chart: dict | None = None  # its size-chart row: {"chest" | "waist" | "hips": [min, max] cm}, or None
     fabric: str | None = None  # a name in ``fabric.FABRICS``, or None: the category's (``fabric.DEFAULT_FABRIC``)
+    density: float | None = None  # kg/m^2 the masses are made of: the fabric's unless one was given; None: unknown
 
 
 @dataclass(frozen=True)

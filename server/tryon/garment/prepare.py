@@ -13,7 +13,9 @@ from tryon.garment.model import GarmentMeta, GarmentModel
 from tryon.garment.simplify import attach, collapse_with_parents
 from tryon.garment.springs import SPRING_KINDS, spring_model
 
-# Areal density of cotton jersey (T-shirt fabric, 150 g/m^2): the default fabric, kg/m^2.
+# Areal density, kg/m^2, of a bare ``prepare`` given none (the benchmarks' scenes and the tests' models). The
+# catalogue passes each entry's own: its fabric's (``fabric.FABRICS``: jersey 0.187, cotton twill 0.220) unless
+# an ingestion gives one.
 DEFAULT_DENSITY = 0.15
 # The paper finds 20-30% of the vertices keep the drape: default simplification degree B.
 DEFAULT_SIMPLIFICATION = 0.3
@@ -34,9 +36,10 @@ def lumped_masses(coarse_vertices: np.ndarray, coarse_faces: np.ndarray, total_m
 
 def prepare(mesh: CleanMesh, *, id: str, name: str, category: str, size: str | None, source_sha256: str,
             source_name: str, simplification: float = DEFAULT_SIMPLIFICATION,
-            density: float = DEFAULT_DENSITY) -> GarmentModel:
+            density: float = DEFAULT_DENSITY, fabric: str | None = None) -> GarmentModel:
     """Simplify (B = ``simplification``), build springs on the coarse mesh, lump masses (``density``
-    kg/m^2 times the full mesh's area), re-attach the full mesh."""
+    kg/m^2 times the full mesh's area), re-attach the full mesh. ``fabric`` (a name in ``fabric.FABRICS``, or None:
+    the category's) and ``density`` are recorded in the meta."""
     v, f = mesh.vertices, mesh.faces
     kept, coarse_faces, root = collapse_with_parents(f, len(v), simplification, v)
     if len(coarse_faces) == 0:
@@ -55,7 +58,8 @@ def prepare(mesh: CleanMesh, *, id: str, name: str, category: str, size: str | N
         id=id, name=name, category=category, size=size, units=mesh.units, units_guessed=mesh.units_guessed,
         simplification=float(simplification), source_sha256=source_sha256, source_name=source_name,
         vertices=len(v), faces=len(f), coarse_vertices=len(kept), coarse_faces=len(coarse_faces),
-        springs={name_: int(c) for name_, c in zip(SPRING_KINDS, counts)}, notes=notes,
+        springs={name_: int(c) for name_, c in zip(SPRING_KINDS, counts)}, notes=notes, fabric=fabric,
+        density=float(density),
     )
     return GarmentModel(
         meta=meta, vertices=v, faces=f.astype(np.int32), coarse_index=kept.astype(np.int32),

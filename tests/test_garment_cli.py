@@ -109,3 +109,73 @@ def test_category_guessed_from_the_file_name():
     assert guess_category("short-sleeve-shirt.obj") == "top"  # not shorts and a shirt
     assert guess_category("shorts-m.obj") == "bottom"
     assert guess_category("garment.obj") is None  # no hint: refused, not taken for a top
+
+
+def _listing(tmp_path, kinds=(("shorts", "bottom"), ("tshirt", "top")), styled=True):
+    """A garments/ directory like the repository's: its OBJ files and a catalogue.json with fabrics."""
+    from tryon.garment.fabric import DEFAULT_FABRIC
+
+    src = tmp_path / "garments"
+    src.mkdir(parents=True, exist_ok=True)
+    entries = []
+    for kind, category in kinds:
+        (src / f"{kind}-s.obj").write_text(obj_text(garment_mesh(kind, "S"), kind))
+        entry = dict(file=f"{kind}-s.obj", name=f"{kind} S", category=category, size="S", units="m",
+                     fabric=DEFAULT_FABRIC[category])
+        if styled:
+            entry.update(style=kind, chart={"waist": [70.0, 78.0]})
+        entries.append(entry)
+    (src / "catalogue.json").write_text(json.dumps(entries))
+    return src
+
+
+def test_ingest_says_each_garments_fabric_and_takes_a_density_given(tmp_path, capsys):
+    """The catalogue's fabric reaches the entry (and the line printed); --fabric names one for files; --density
+    wins over the fabric's."""
+    src, data = _listing(tmp_path), tmp_path / "data"
+    assert main(["ingest", "--catalogue", str(src), "--data-dir", str(data)]) == 0
+    out = capsys.readouterr().out
+    assert "cotton-twill 220 g/m2" in out and "jersey 187 g/m2" in out
+    assert [(e.fabric, e.density) for e in Catalogue(data).list()] == [("cotton-twill", 0.22), ("jersey", 0.187)]
+    assert main(["ingest", str(src / "shorts-s.obj"), "--units", "m", "--fabric", "denim", "--density", "0.4",
+                 "--data-dir", str(data)]) == 0
+    assert "denim 400 g/m2" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exit_:
+        main(["ingest", str(src / "shorts-s.obj"), "--fabric", "silk", "--data-dir", str(data)])
+    assert exit_.value.code == 2 and "jersey" in capsys.readouterr().err
+
+
+def test_patched_words_survive_the_catalogue_ingest_at_the_next_start(tmp_path, capsys):
+    """scripts/serve.sh runs ``tryon ingest --catalogue garments/`` at every start: a shipped garment whose size,
+    style, chart and fabric were PATCHed through the API keeps them (it took catalogue.json's back); an entry with
+    no style (a catalogue from before styles) still gains catalogue.json's style, size and chart."""
+    from fastapi.testclient import TestClient
+
+    from tryon.api.app import create_app
+    from tryon.config import Settings
+
+    src, data = _listing(tmp_path), tmp_path / "data"
+    assert main(["ingest", "--catalogue", str(src), "--data-dir", str(data)]) == 0
+    auth = {"Authorization": "Bearer t"}
+    with TestClient(create_app(Settings(data_dir=data, admin_token="t"))) as client:
+        shorts = next(g for g in client.get("/api/garments").json()["garments"] if g["style"] == "shorts")
+        r = client.patch(f"/api/garments/{shorts['id']}", headers=auth,
+                         json={"size": "M", "style": "cutoffs", "chart": {"waist": [78, 86]}, "fabric": "denim"})
+        assert r.status_code == 200, r.text
+        patched = r.json()
+    assert (patched["size"], patched["style"], patched["fabric"]) == ("M", "cutoffs", "denim")
+    assert main(["ingest", "--catalogue", str(src), "--data-dir", str(data)]) == 0  # the next start
+    capsys.readouterr()
+    with TestClient(create_app(Settings(data_dir=data, admin_token="t"))) as client:
+        assert client.get(f"/api/garments/{shorts['id']}").json() == patched
+        assert len(client.get("/api/garments").json()["garments"]) == 2
+
+    bare = tmp_path / "before-styles"
+    _listing(bare, kinds=(("skirt", "bottom"),), styled=False)
+    old = tmp_path / "old-data"
+    assert main(["ingest", "--catalogue", str(bare / "garments"), "--data-dir", str(old)]) == 0
+    assert Catalogue(old).list()[0].style is None
+    _listing(bare, kinds=(("skirt", "bottom"),))
+    assert main(["ingest", "--catalogue", str(bare / "garments"), "--data-dir", str(old)]) == 0
+    gained = Catalogue(old).list()[0]
+    assert (gained.style, gained.size, gained.chart) == ("skirt", "S", {"waist": [70.0, 78.0]})

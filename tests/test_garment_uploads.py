@@ -1,8 +1,10 @@
 """Uploads an admin can trust (issue 50, item 4), through the real API: a surface with no opening for the body is
 refused whatever its category; a refusal names the real reason (a non-finite, absurd or stray coordinate, with the
 vertex, its value and the limit, not the triangle count cleaning left); a file of several pieces lists a shirt as a
-top; ``PATCH /api/garments/{id}`` changes an entry's name, size, style and chart with an upload's checks; the same
-file uploaded again under another name is a 409 pointing to PATCH. Every refusal leaves the catalogue as it was.
+top; ``PATCH /api/garments/{id}`` changes an entry's name, size, style, chart and fabric with an upload's checks
+(another fabric rescales its masses); the same file uploaded again under another name is a 409 pointing to PATCH;
+an upload's fabric (issue 51: its category's, or one named), and GET /api/fabrics. Every refusal leaves the
+catalogue as it was.
 Meshes are made here (a tube, a sheet, the generator's garments)."""
 
 from __future__ import annotations
@@ -234,6 +236,11 @@ def test_patch_changes_name_size_style_and_chart(client, tube):
     ({"category": "top"}, 422, "category cannot be changed"),
     ({"units": "cm"}, 422, "units cannot be changed: it is part of how the file was prepared"),
     ({"colour": "red"}, 422, "unknown field 'colour'"),
+    ({"fabric": "silk"}, 422, "fabric: unknown fabric 'silk': choose one of jersey, cotton-twill, denim"),
+    ({"fabric": " "}, 422, "fabric: must not be blank: give one of jersey, cotton-twill, denim"),
+    ({"fabric": "x" * 41}, 422, "fabric"),
+    ({"fabric": "denim", "size": "x" * 21}, 422, "size must be a label"),  # one refusal: the fabric stays too
+    ({"density": 0.3}, 422, "density cannot be changed on its own: an entry's masses are made of its fabric's"),
 ])
 def test_patch_refusals_change_nothing(client, tube, body, status, words):
     before = listing(client)
@@ -289,3 +296,116 @@ def test_the_same_file_under_another_name_is_a_409_pointing_to_patch(client, tub
     styled = upload(client, TUBE, name="Tube skirt", style="tube", size="S")
     assert styled.status_code == 200 and (styled.json()["style"], styled.json()["size"]) == ("tube", "S")
     assert len(listing(client)["garments"]) == 1
+    # once it has one, its own words stay: another style or size is a 409 pointing to PATCH, as another fabric is
+    before = listing(client)
+    refused(upload(client, TUBE, name="Tube skirt", style="tube", size="M"), 409, "size: this file is already in",
+            "its size is S, not M", f"PATCH /api/garments/{gid}")
+    refused(upload(client, TUBE, name="Tube skirt", style="pencil", size="S"), 409, "its style is tube, not pencil")
+    refused(upload(client, TUBE, name="Tube skirt", fabric="denim"), 409, "fabric: this file is already in",
+            "its fabric is cotton-twill, not denim")
+    assert listing(client) == before
+    assert upload(client, TUBE, name="Tube skirt", style="tube", size="S", fabric="cotton-twill").status_code == 200
+
+
+# --- fabrics (issue 51, item 1) ---------------------------------------------------------------------
+
+FIGURES = {  # garment/fabric.py: Wang, O'Brien, Ramamoorthi 2011
+    "jersey": {"density": 0.187, "stretch": 51.07, "shear": 73.72},
+    "cotton-twill": {"density": 0.22, "stretch": 4051.5, "shear": 209.5},
+    "denim": {"density": 0.324, "stretch": 1219.25, "shear": 106.8},
+}
+
+
+def stored(client, tmp_path) -> tuple:
+    """What the catalogue holds: its listing, and the files in its sources and models."""
+    files = sorted(str(p.relative_to(tmp_path)) for d in ("sources", "models") for p in (tmp_path / d).rglob("*"))
+    return listing(client), files
+
+
+def assert_made_of(client, entry: dict, fabric: str, density: float | None = None) -> None:
+    """The answer names ``fabric`` with its figures, and the stored model's masses are of ``density`` kg/m^2
+    (the fabric's unless given)."""
+    from tryon.garment.catalogue import mass_density
+
+    density = FIGURES[fabric]["density"] if density is None else density
+    assert entry["fabric"] == fabric and entry["density"] == pytest.approx(density)
+    figures = entry["fabric_figures"]
+    assert figures["name"] == fabric and "Wang, O'Brien, Ramamoorthi 2011" in figures["source"]
+    assert {k: pytest.approx(figures[k], rel=1e-3) for k in FIGURES[fabric]} == FIGURES[fabric]
+    model = client.app.state.catalogue.model(entry["id"])
+    assert model.fabric.name == fabric and mass_density(model) == pytest.approx(density, rel=1e-9)
+
+
+def test_an_upload_is_made_of_its_categorys_fabric_unless_it_names_one(client, tube):
+    assert_made_of(client, tube, "cotton-twill")  # a bottom: a woven
+    top = upload(client, tube_obj(around=26).encode(), filename="tube-top.obj", name="Tube top", category="top")
+    assert top.status_code == 201, top.text
+    assert_made_of(client, top.json(), "jersey")  # a top: a knit
+    dress = upload(client, tube_obj(around=28).encode(), filename="tube-dress.obj", name="Tube dress",
+                   category="dress", fabric=" denim ")
+    assert dress.status_code == 201, dress.text
+    assert_made_of(client, dress.json(), "denim")
+    assert client.get(f"/api/garments/{dress.json()['id']}").json() == dress.json()
+    assert [g["fabric"] for g in listing(client)["garments"]] == ["cotton-twill", "jersey", "denim"]
+
+
+def test_the_fabrics_are_listed_with_their_figures(client):
+    r = client.get("/api/fabrics")
+    assert r.status_code == 200
+    body = r.json()
+    assert [f["name"] for f in body["fabrics"]] == list(FIGURES)
+    for f in body["fabrics"]:
+        assert {k: pytest.approx(f[k], rel=1e-3) for k in FIGURES[f["name"]]} == FIGURES[f["name"]]
+        assert f["bending"] > 0 and "ARCSim materials" in f["source"]
+    assert body["defaults"] == {"top": "jersey", "dress": "jersey", "bottom": "cotton-twill"}
+
+
+@pytest.mark.parametrize("fabric, words", [
+    ("silk", "fabric: unknown fabric 'silk': choose one of jersey, cotton-twill, denim (GET /api/fabrics"),
+    ("Jersey", "unknown fabric 'Jersey'"),
+    ("x" * 41, "fabric"),
+])
+def test_an_unknown_fabric_is_refused_with_nothing_stored(client, tube, tmp_path, fabric, words):
+    before = stored(client, tmp_path)
+    r = upload(client, tube_obj(around=30).encode(), filename="other-skirt.obj", name="Other", fabric=fabric)
+    refused(r, 422, words)
+    assert stored(client, tmp_path) == before
+
+
+def test_patch_changes_the_fabric_and_rescales_the_masses(client, tube):
+    """The masses were the old fabric's density: they become the new one's (times 0.187 / 0.220 from cotton twill
+    to jersey), in the answer and the stored model; the id stays; null is the category's again; a try-on asked
+    again after the change is draped again, not answered from the result cache."""
+    gid = tube["id"]
+    before = client.app.state.catalogue.model(gid).mass.copy()
+    request = {"garment_id": gid, "measurements": {"height": 170, "chest": 92, "waist": 76, "hips": 98},
+               "settings": {"max_steps": 3}}
+    first = client.post("/api/tryon", json=request)
+    assert first.status_code == 200 and not first.json()["metrics"]["cached"], first.text[:300]
+    assert client.post("/api/tryon", json=request).json()["metrics"]["cached"]
+
+    r = client.patch(f"/api/garments/{gid}", headers=AUTH, json={"fabric": "jersey"})
+    assert r.status_code == 200, r.text
+    entry = r.json()
+    assert entry["id"] == gid and entry["name"] == "Tube"
+    assert_made_of(client, entry, "jersey")
+    np.testing.assert_allclose(client.app.state.catalogue.model(gid).mass, before * (0.187 / 0.220), rtol=1e-12)
+    assert client.get(f"/api/garments/{gid}").json() == entry and listing(client) == {"garments": [entry]}
+    assert {k: v for k, v in entry.items() if k not in ("fabric", "fabric_figures", "density")} == \
+        {k: v for k, v in tube.items() if k not in ("fabric", "fabric_figures", "density")}
+    again = client.post("/api/tryon", json=request)
+    assert again.status_code == 200 and not again.json()["metrics"]["cached"], again.text[:300]
+
+    back = client.patch(f"/api/garments/{gid}", headers=AUTH, json={"fabric": None})
+    assert back.status_code == 200 and back.json() == tube
+    np.testing.assert_allclose(client.app.state.catalogue.model(gid).mass, before, rtol=1e-12)
+
+
+def test_patching_a_fabric_needs_the_admin_token(client, tube, tmp_path):
+    before = stored(client, tmp_path)
+    url = f"/api/garments/{tube['id']}"
+    refused(client.patch(url, json={"fabric": "denim"}), 401, "missing admin token")
+    refused(client.patch(url, json={"fabric": "denim"}, headers={"Authorization": "Bearer nope"}), 401,
+            "wrong admin token")
+    assert stored(client, tmp_path) == before
+    assert client.app.state.catalogue.model(tube["id"]).fabric.name == "cotton-twill"

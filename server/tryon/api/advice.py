@@ -33,7 +33,7 @@ def style_advice(pool: SimPool, cache: ResultCache, catalogue: Catalogue, entrie
         pending = []
         for i in indices:
             tryon = TryOnRequest(garment_id=entries[i].id, measurements=request.measurements, pose=request.pose)
-            key = tryon_key(tryon)
+            key = tryon_key(tryon, catalogue)
             hit = cache.get(key)
             if hit is not None:
                 out[i] = Drape(hit.result.vertices, hit.result.faces, hit.result.metrics)

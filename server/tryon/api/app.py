@@ -9,7 +9,7 @@ from fastapi.staticfiles import StaticFiles
 
 from tryon import __version__
 from tryon.api import errors
-from tryon.api.routes import bodies, fit, garments, health, styles, tryon, ws
+from tryon.api.routes import bodies, fabrics, fit, garments, health, styles, tryon, ws
 from tryon.api.warmup import WarmUp
 from tryon.config import Settings, get_settings
 
@@ -31,7 +31,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.warmup = WarmUp()
     errors.install(app)
 
-    for module in (health, bodies, garments, styles, tryon, fit):
+    for module in (health, bodies, garments, fabrics, styles, tryon, fit):
         app.include_router(module.router, prefix="/api")
     app.include_router(ws.router)
 

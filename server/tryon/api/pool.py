@@ -224,12 +224,16 @@ def request_key(garment_id: str, measurements: dict, pose: dict, settings: dict)
 DISPLAY_FIELDS = frozenset({"fps", "encoding", "live"})
 
 
-def tryon_key(request: Any) -> str:
+def tryon_key(request: Any, catalogue: Any = None) -> str:
     """:func:`request_key` of a validated try-on request (pydantic; display-only fields excluded):
-    garment id, measurements, pose, and the settings with every other field."""
+    garment id, measurements, pose, and the settings with every other field. With ``catalogue``, also each
+    garment's cloth (fabric and density, which a PATCH may change under the same id: another drape)."""
     data = request.model_dump(mode="json", exclude=set(DISPLAY_FIELDS))
     settings = {**(data.pop("settings", None) or {}), **{k: v for k, v in data.items()
                                                         if k not in ("garment_id", "measurements", "pose")}}
+    if catalogue is not None:
+        metas = [catalogue.get(gid) for gid in request.ids]
+        settings["cloth"] = [None if m is None else f"{m.fabric}:{m.density!r}" for m in metas]
     return request_key(data["garment_id"], data.get("measurements") or {}, data.get("pose") or {}, settings)
 
 

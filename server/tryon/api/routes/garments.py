@@ -11,9 +11,10 @@ from fastapi.concurrency import run_in_threadpool
 from tryon.api.deps import AdminDep, CatalogueDep, SettingsDep
 from tryon.api.export import MEDIA_TYPES, json_bytes, mesh_bytes, mesh_json
 from tryon.api.outfits import file_pieces
-from tryon.api.schemas.garments import (CATEGORY_CHOICE_DESCRIPTION, SIZE_CHART_DESCRIPTION, CategoryChoice,
-                                        GarmentEntry, GarmentList, GarmentPatch, MeshFormat, Units)
-from tryon.garment.catalogue import Catalogue, resolve_category
+from tryon.api.schemas.garments import (CATEGORY_CHOICE_DESCRIPTION, FABRIC_DESCRIPTION, FABRIC_MAX_CHARS,
+                                        SIZE_CHART_DESCRIPTION, CategoryChoice, GarmentEntry, GarmentList,
+                                        GarmentPatch, MeshFormat, Units)
+from tryon.garment.catalogue import Catalogue, check_fabric, resolve_category
 from tryon.garment.ingest import GarmentError, file_extension
 from tryon.garment.model import GarmentMeta
 from tryon.garment.prepare import DEFAULT_SIMPLIFICATION
@@ -73,7 +74,8 @@ async def garment_mesh(
 @router.post("/garments", response_model=GarmentEntry, status_code=status.HTTP_201_CREATED,
              responses={200: {"description": "the same file with the same parameters was already there"},
                         409: {"description": "the same file is already in as another category, under another "
-                                             "name, or with another size or chart: change its words with PATCH"}})
+                                             "name, or with another fabric, style, size or chart: change its words "
+                                             "with PATCH"}})
 async def upload_garment(
     _: AdminDep,
     settings: SettingsDep,
@@ -87,14 +89,15 @@ async def upload_garment(
     style: Annotated[str | None, Form(max_length=40, description="style id: the product this file is one size "
                                                                  "of, e.g. tshirt (needs a size)")] = None,
     size_chart: Annotated[str | None, Form(max_length=2000, description=SIZE_CHART_DESCRIPTION)] = None,
+    fabric: Annotated[str | None, Form(max_length=FABRIC_MAX_CHARS, description=FABRIC_DESCRIPTION)] = None,
     simplify: Annotated[float, Form(ge=0.05, le=1.0, allow_inf_nan=False,
                                     description="simplification degree B (kept / original vertices)")]
     = DEFAULT_SIMPLIFICATION,
 ) -> GarmentEntry:
     """Prepare an uploaded garment into the catalogue (admin). 201 with the new entry; 200 with the
     existing one if the same file was already ingested with the same parameters and words; 409 if it is
-    in under another name (or size, or chart): PATCH changes those. A refused file is a 4xx with the reason
-    in words; the catalogue is then as it was."""
+    in under another name (or fabric, style, size, chart): PATCH changes those. A refused file is a 4xx with the
+    reason in words; the catalogue is then as it was."""
     name, size = name.strip(), (size or "").strip() or None
     if not name:
         raise HTTPException(422, "name: must not be blank")
@@ -111,6 +114,11 @@ async def upload_garment(
         style, size, chart = check_labels(style, size, size_chart)
     except GarmentError as exc:
         raise HTTPException(exc.status, str(exc)) from None
+    fabric = (fabric or "").strip() or None
+    try:
+        check_fabric(fabric, category)
+    except GarmentError as exc:
+        raise HTTPException(exc.status, f"fabric: {exc}") from None
     data = bytearray()
     while chunk := await file.read(UPLOAD_CHUNK):
         data += chunk
@@ -120,7 +128,7 @@ async def upload_garment(
     try:
         meta, created = await run_in_threadpool(
             catalogue.ingest_with_status, bytes(data), name, category, units, simplify, size, filename,
-            max_faces=settings.max_faces, style=style, chart=chart, same_words=True,
+            max_faces=settings.max_faces, style=style, chart=chart, fabric=fabric, same_words=True,
         )
     except GarmentError as exc:
         raise HTTPException(exc.status, f"{exc.field}: {exc}") from None
@@ -131,10 +139,12 @@ async def upload_garment(
 
 @router.patch("/garments/{garment_id}", response_model=GarmentEntry)
 async def change_garment(_: AdminDep, garment_id: str, changes: GarmentPatch, catalogue: CatalogueDep) -> GarmentEntry:
-    """Change an entry's name, size, style or chart (admin): a JSON object of the fields to change (null
-    removes a size, style or chart). Checked as an upload's words are; 200 with the changed entry, 404 for
-    an unknown id, 409 if the style already has that size, 422 naming the field; a refusal changes nothing.
-    The file, its category and its preparation stay: to change those, delete the entry and upload again."""
+    """Change an entry's name, size, style, chart or fabric (admin): a JSON object of the fields to change (null
+    removes a size, style or chart; a fabric of null is the category's). Checked as an upload's words are; 200
+    with the changed entry, 404 for an unknown id, 409 if the style already has that size, 422 naming the field;
+    a refusal changes nothing. Another fabric: an entry whose masses were its old fabric's density takes the new
+    one's, its stored models' masses rescaled by the ratio; the id stays. The file, its category and the rest of
+    its preparation stay: to change those, delete the entry and upload again."""
     try:
         meta = await run_in_threadpool(catalogue.update, garment_id, **changes.words())
     except GarmentError as exc:

@@ -47,7 +47,7 @@ async def tryon(
     check_garments(catalogue, body)
     pool = get_pool(request.app)
     guard = pool.guard()
-    cache, key = get_result_cache(request.app), tryon_key(body)
+    cache, key = get_result_cache(request.app), tryon_key(body, catalogue)
     hit = cache.get(key)  # the same request again: the stored final state (shared with WS /ws/tryon)
     try:
         run = hit if hit is not None else await pool.run(simulate, catalogue, body, guard)

@@ -336,7 +336,7 @@ async def _serve(ws: WebSocket) -> None:
         return
 
     cache = get_result_cache(app)
-    key = tryon_key(request)
+    key = tryon_key(request, get_catalogue(ws))
     cached = cache.get(key)
     if cached is not None:
         try:

@@ -8,7 +8,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from pydantic_core import PydanticCustomError
 
 from tryon.body.params import MEASUREMENT_RANGES
-from tryon.garment.catalogue import NAME_MAX_CHARS, WORDS
+from tryon.garment.catalogue import NAME_MAX_CHARS, WORDS, check_fabric
+from tryon.garment.fabric import DEFAULT_FABRIC, FABRICS, Fabric
 from tryon.garment.ingest import GarmentError
 from tryon.garment.model import GarmentMeta
 from tryon.garment.sizes import CHART_KEYS, SIZE_MAX_CHARS, check_size, check_style, parse_chart
@@ -24,6 +25,38 @@ CATEGORY_CHOICE_DESCRIPTION = (
 )
 Units = Literal["auto", "m", "cm", "mm", "dm", "in"]
 MeshFormat = Literal["json", "glb", "obj"]
+# Longest fabric name taken (the names are short ids such as cotton-twill).
+FABRIC_MAX_CHARS = 40
+FABRIC_DESCRIPTION = (
+    f"what the garment is made of: {', '.join(FABRICS)} (GET /api/fabrics: each one's weight and stiffness); "
+    "default: its category's (" + ", ".join(f"{c} {f}" for c, f in DEFAULT_FABRIC.items()) + "). Its masses are "
+    "made of the fabric's density"
+)
+
+
+class FabricOut(BaseModel):
+    """A fabric: its measured weight and stiffness (``garment/fabric.py``), SI units."""
+
+    name: str = Field(description="the fabric's name, as an upload or a PATCH gives it")
+    density: float = Field(gt=0, description="areal density, kg/m^2 (x 1000: g/m^2)")
+    stretch: float = Field(gt=0, description="stretch stiffness, N/m (force per unit width per unit strain; the "
+                                             "mean of warp and weft)")
+    shear: float = Field(gt=0, description="shear stiffness, N/m")
+    bending: float = Field(ge=0, description="bending stiffness, N m (recorded with the measurement; the springs' "
+                                             "bending does not read it)")
+    source: str = Field(description="where the figures come from")
+
+    @classmethod
+    def of(cls, fabric: Fabric) -> "FabricOut":
+        return cls(name=fabric.name, density=fabric.density, stretch=fabric.stretch, shear=fabric.shear,
+                   bending=fabric.bending, source=fabric.source)
+
+
+class FabricList(BaseModel):
+    """``GET /api/fabrics``: every fabric a garment may be made of, and each category's default."""
+
+    fabrics: list[FabricOut] = Field(description="every fabric, with its figures")
+    defaults: dict[Category, str] = Field(description="the fabric of a garment that names none, by category")
 
 
 class SpringCounts(BaseModel):
@@ -44,6 +77,11 @@ class GarmentEntry(BaseModel):
     chart: dict[str, list[float]] | None = Field(
         default=None, description="the size's chart row: the body girths it is made for, {chest | waist | hips: "
                                   "[min, max]} cm; null for none")
+    fabric: str = Field(description="what it is made of (a name of GET /api/fabrics): the one given at upload, or "
+                                    "its category's; PATCH changes it")
+    fabric_figures: FabricOut = Field(description="that fabric's weight (kg/m^2) and stiffness (N/m)")
+    density: float = Field(gt=0, description="areal density of its masses, kg/m^2: its fabric's, unless the "
+                                             "ingestion gave one (tryon ingest --density)")
     units: str = Field(description="units the source file was read in (m, cm, mm, dm, in)")
     units_guessed: bool = Field(description="true if the units were guessed from the garment's size")
     simplification: float = Field(gt=0, le=1, description="simplification degree B = kept / original vertices")
@@ -62,9 +100,11 @@ class GarmentEntry(BaseModel):
 
     @classmethod
     def from_meta(cls, meta: GarmentMeta, pieces: list[str] | None = None) -> "GarmentEntry":
+        fabric = check_fabric(meta.fabric, meta.category)
         return cls(
             id=meta.id, name=meta.name, category=meta.category, size=meta.size, style=meta.style,
-            chart=meta.chart, units=meta.units,
+            chart=meta.chart, fabric=fabric.name, fabric_figures=FabricOut.of(fabric),
+            density=meta.density or fabric.density, units=meta.units,
             units_guessed=meta.units_guessed, simplification=meta.simplification, vertices=meta.vertices,
             faces=meta.faces, coarse_vertices=meta.coarse_vertices, coarse_faces=meta.coarse_faces,
             springs=SpringCounts(**{k: meta.springs.get(k, 0) for k in ("structural", "shear", "bending")}),
@@ -107,7 +147,9 @@ _FIXED_FIELDS = {
     "category": "category cannot be changed: it decides how the file is put on the body; delete the entry and "
                 "upload the file again as the other category",
     **{f: f"{f} cannot be changed: it is part of how the file was prepared (the entry's id); upload the file "
-          f"again with the {f} you want" for f in ("units", "simplify", "simplification", "density")},
+          f"again with the {f} you want" for f in ("units", "simplify", "simplification")},
+    "density": "density cannot be changed on its own: an entry's masses are made of its fabric's density; PATCH "
+               "its fabric (GET /api/fabrics lists them)",
 }
 
 
@@ -137,6 +179,9 @@ class GarmentPatch(BaseModel):
                                                                "this entry is one size of); null: none")
     chart: ChartRowIn | None = Field(None, description='the size\'s chart row, cm: {"chest": [92, 100], "waist": '
                                                        f'80}} (any of {", ".join(CHART_KEYS)}); null: none')
+    fabric: str | None = Field(None, max_length=FABRIC_MAX_CHARS,
+                               description=f"{FABRIC_DESCRIPTION}; null: the category's. An entry whose masses "
+                                           "were its old fabric's density takes the new one's (the masses rescaled)")
 
     @model_validator(mode="before")
     @classmethod
@@ -176,6 +221,19 @@ class GarmentPatch(BaseModel):
             return check_style(value) if isinstance(value, str) else value
         except GarmentError as exc:
             raise _refused(exc) from None
+
+    @field_validator("fabric", mode="before")
+    @classmethod
+    def _fabric(cls, value: Any) -> Any:
+        if isinstance(value, str):
+            if not value.strip():
+                raise PydanticCustomError("fabric_blank", f"must not be blank: give one of {', '.join(FABRICS)}, or "
+                                          "null for the category's")
+            try:
+                return check_fabric(value, "top").name  # a name given: the same whatever the category
+            except GarmentError as exc:
+                raise _refused(exc) from None
+        return value
 
     @field_validator("chart", mode="before")
     @classmethod

@@ -4,7 +4,7 @@ per second delivered, bytes per frame, concurrent try-ons held before refusing, 
 Written to ``test-artifacts/live-figures.json`` (and printed with ``-s``). The figures are measured, not
 judged (the machine may be shared); the assertions are on behaviour: frames arrive, at most ``fps`` of them a
 second on the server's own clock (a lower bound on their spacing the sender keeps at any load), the pool
-holds its capacity and refuses the next ones, health answers while it is full.
+admits at most its capacity and refuses as busy, health answers while it holds heavy try-ons.
 """
 
 from __future__ import annotations
@@ -122,12 +122,13 @@ def test_live_figures(tmp_path):
         latencies = []
         with httpx.Client(timeout=120) as client:
             # until every worker runs and the queue is full (on a loaded machine the last admissions can come
-            # later than the requests' spacing); the deadline only guards against a hang
+            # later than the requests' spacing), or every holder has its answer (a heavy drape that came to rest
+            # early let a later one in); the deadline only guards against a hang
             deadline = time.monotonic() + 120.0
             while True:
                 busy = client.get(f"{url}/api/health").json()["simulations"]
                 full = busy["running"] == busy["workers"] and busy["waiting"] == busy["queue"]
-                if full or time.monotonic() > deadline:
+                if full or len(results) == len(threads) or time.monotonic() > deadline:
                     break
                 time.sleep(0.05)
             for _ in range(30):
@@ -143,7 +144,11 @@ def test_live_figures(tmp_path):
                                "waiting": busy["waiting"], "refused": len(refused)}
         figures["health_ms_while_busy"] = {"median": round(statistics.median(latencies) * 1e3, 1),
                                            "max": round(max(latencies) * 1e3, 1)}
-        assert len(refused) == 2 and busy["running"] == busy["workers"] and busy["waiting"] == busy["queue"]
+        # each holder admitted or refused as busy (1013), never more admitted than the pool holds; how many were
+        # refused is a figure (two, unless a heavy drape came to rest before the last ones came): the refusals
+        # themselves are made certain in test_ws_pool
+        assert len(results) == len(threads) and all(r in (None, 1013) for r in results), results
+        assert busy["running"] <= busy["workers"] and busy["waiting"] <= busy["queue"], busy
     ARTIFACTS.mkdir(exist_ok=True)
     (ARTIFACTS / "live-figures.json").write_text(json.dumps(figures, indent=1))
     print(json.dumps(figures, indent=1))

@@ -90,6 +90,15 @@ function groupGarments(list) {
   return [...groups.values()];
 }
 
+/** What a garment is made of, in a few words ("jersey, 187 g/m²"): its entry's fabric and the areal density
+ * of its masses; '' for an entry that says none. */
+function fabricWords(g) {
+  if (!g?.fabric) return '';
+  const density = Number(g.density ?? g.fabric_figures?.density);
+  const name = g.fabric.replace(/-/g, ' ');
+  return Number.isFinite(density) ? `${name}, ${Math.round(density * 1000)} g/m²` : name;
+}
+
 function renderGarments(list) {
   const box = $('garments');
   box.replaceChildren();
@@ -117,7 +126,10 @@ function renderGarments(list) {
     name.textContent = group.name.replace(/-/g, '\u2011');
     const sub = document.createElement('span');
     sub.className = 'sub';
-    sub.textContent = group.category;
+    // "top · jersey": the fabric beside the category when the garment's sizes share one
+    const fabrics = [...new Set(group.entries.map((g) => g.fabric).filter(Boolean))];
+    sub.textContent = [group.category, fabrics.length === 1 ? fabrics[0].replace(/-/g, ' ') : null]
+      .filter(Boolean).join(' · ');
     text.append(name, ' ', sub);
     const sizes = document.createElement('span');
     sizes.className = 'sizes';
@@ -129,7 +141,7 @@ function renderGarments(list) {
       chip.setAttribute('aria-checked', 'false');
       chip.dataset.id = g.id;
       chip.textContent = g.size || 'one size';
-      chip.title = `${g.name}: ${Number(g.vertices).toLocaleString()} vertices, ${Number(g.coarse_vertices).toLocaleString()} simulated`;
+      chip.title = `${g.name}: ${[fabricWords(g), `${Number(g.vertices).toLocaleString()} vertices, ${Number(g.coarse_vertices).toLocaleString()} simulated`].filter(Boolean).join('; ')}`;
       chip.setAttribute('aria-label', `${group.name}, size ${g.size || 'one size'}`);
       chip.addEventListener('click', (e) => { e.stopPropagation(); selectGarment(g.id); });
       sizes.append(chip);
@@ -428,7 +440,8 @@ function showMetrics(done, strainLimit = state.init?.strain_limit ?? DEFAULT_STR
     const g = done.garment || state.init?.garment || {};
     // "T-shirt L", not "T-shirt L · size L": the size is named only when the name does not end with it
     const sized = g.size && !g.name.endsWith(` ${g.size}`);
-    $('result-garment').textContent = [g.name, sized ? `size ${g.size}` : null].filter(Boolean).join(' · ');
+    const fabric = fabricWords(garmentById(g.id));  // "T-shirt L · jersey, 187 g/m²"
+    $('result-garment').textContent = [g.name, sized ? `size ${g.size}` : null, fabric || null].filter(Boolean).join(' · ');
     return;
   }
   for (const row of packed(outfitRows(m))) addRow(row);

@@ -120,6 +120,7 @@ def test_committed_files_match_the_generator(tmp_path):
     assert len(entries) == len(SIZE_CHART) * len(GARMENTS)
     assert {e["category"] for e in entries} == {"top", "bottom", "dress"}
     for e in entries:
-        assert set(e) == {"file", "name", "category", "style", "size", "chart", "units"}
+        assert set(e) == {"file", "name", "category", "style", "size", "chart", "fabric", "units"}
+        assert e["fabric"] == {"top": "jersey", "dress": "jersey", "bottom": "cotton-twill"}[e["category"]]
         assert (REPO_GARMENTS / e["file"]).read_bytes() == (tmp_path / e["file"]).read_bytes(), e["file"]
     assert sum((REPO_GARMENTS / e["file"]).stat().st_size for e in entries) < 10_000_000

@@ -27,11 +27,14 @@ def names(url: str) -> list[str]:
     return sorted(g["name"] for g in httpx.get(f"{url}/api/garments", timeout=10).json()["garments"])
 
 
-def test_two_replicas_share_one_catalogue(tmp_path):
-    data = tmp_path / "data"
+def test_two_replicas_share_one_catalogue(shared_server):
+    """Replica A is the session's shared server (its catalogue emptied for this test), B a second process on
+    the same data directory."""
+    data = shared_server.data_dir
     files = {kind: obj_text(garment_mesh(kind, size), kind).encode()
              for kind, size in (("skirt", "S"), ("shorts", "S"), ("tshirt", "S"), ("trousers", "S"))}
-    with serve_process(data) as a, serve_process(data) as b:
+    with shared_server.stocked("test_replicas"), serve_process(data) as b:
+        a = shared_server.url
         # one ingestion through A, seen by B at once, and B drapes it
         r = upload(a, "skirt", files["skirt"], "bottom")
         assert r.status_code == 201, r.text
@@ -54,7 +57,8 @@ def test_two_replicas_share_one_catalogue(tmp_path):
         assert httpx.get(f"{a}/api/garments/{gid}", timeout=10).status_code == 404
         assert names(a) == ["shorts", "trousers", "tshirt"]
 
-    # the catalogue on disk is sound: every entry's model loads
-    catalogue = Catalogue(data)
-    for meta in catalogue.list():
-        assert len(catalogue.model(meta.id).springs) > 0
+        # the catalogue on disk is sound: every entry's model loads
+        catalogue = Catalogue(data)
+        assert sorted(meta.name for meta in catalogue.list()) == ["shorts", "trousers", "tshirt"]
+        for meta in catalogue.list():
+            assert len(catalogue.model(meta.id).springs) > 0

@@ -20,8 +20,6 @@ import httpx
 import pytest
 from websockets.sync.client import connect
 
-from conftest import serve_process
-from tryon.garment.catalogue import Catalogue
 from tryon.garment.generate import garment_mesh, obj_text
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
@@ -76,15 +74,13 @@ def hold(ws_url: str, request: dict, stop: threading.Event, out: list) -> None:
         stop.wait(60)
 
 
-def test_live_figures(tmp_path):
-    data = tmp_path / "data"
-    ids = {}
-    for kind, size, category in (("tshirt", "M", "top"), ("dress", "M", "dress"), ("trousers", "L", "bottom")):
-        path = tmp_path / f"{kind}.obj"
-        path.write_text(obj_text(garment_mesh(kind, size), kind))
-        ids[kind] = Catalogue(data).ingest(path, name=kind, category=category, size=size, units="m").id
-    with serve_process(data) as url:  # the default pool: 2 workers, 2 waiting
-        ws_url = "ws" + url[4:] + "/ws/tryon"
+def test_live_figures(shared_server):
+    with shared_server.stocked("test_ws_measure") as stock:  # the default pool: 2 workers, 2 waiting
+        ids = {kind: stock.add(obj_text(garment_mesh(kind, size), kind), f"{kind}.obj", name=kind, category=category,
+                               size=size, units="m")
+               for kind, size, category in (("tshirt", "M", "top"), ("dress", "M", "dress"),
+                                            ("trousers", "L", "bottom"))}
+        url, ws_url = shared_server.url, shared_server.ws
         stream(ws_url, {"garment_id": ids["tshirt"], "measurements": {**BODY, "height": 150.0},
                         "settings": {"max_steps": 2}})  # warm-up (numba loads its cache)
         figures = {"garments": {}}

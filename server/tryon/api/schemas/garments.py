@@ -48,8 +48,10 @@ class FabricOut(BaseModel):
 
     @classmethod
     def of(cls, fabric: Fabric) -> "FabricOut":
-        return cls(name=fabric.name, density=fabric.density, stretch=fabric.stretch, shear=fabric.shear,
-                   bending=fabric.bending, source=fabric.source)
+        """``fabric``'s figures to 6 significant digits (a mean of warp and weft reads 51.07, not 51.06999999999999)."""
+        figure = lambda x: float(f"{x:.6g}")  # noqa: E731
+        return cls(name=fabric.name, density=figure(fabric.density), stretch=figure(fabric.stretch),
+                   shear=figure(fabric.shear), bending=figure(fabric.bending), source=fabric.source)
 
 
 class FabricList(BaseModel):

@@ -230,6 +230,8 @@ class Catalogue:
         (another process opening it at once waits, then finds them). One made before fabrics: each entry takes its
         category's fabric, and an entry of the one density then (``LEGACY_DENSITY``) the fabric's density (its
         model is prepared again: ``PREPARATION_VERSION``)."""
+        if {c for c, _ in _ADDED_COLUMNS} <= {r[1] for r in db.execute("PRAGMA table_info(garments)")}:
+            return  # nothing to add: no write lock taken
         db.execute("BEGIN IMMEDIATE")
         have = {r[1] for r in db.execute("PRAGMA table_info(garments)")}
         for column, kind in _ADDED_COLUMNS:

@@ -64,7 +64,9 @@ def load_clean(entry: dict):
 
 def prepared(ctx: Context, entry: dict, simplification: float | None = None):
     """(GarmentModel, {load_s, prepare_s}) for a catalogue entry at simplification B (default: the
-    catalogue's), prepared in memory (the cache-free cost a first ingest pays) and cached in the run."""
+    catalogue's), prepared in memory (the cache-free cost a first ingest pays) and cached in the run. In the
+    entry's fabric at its density, as the catalogue ingests it."""
+    from tryon.garment.fabric import fabric_named
     from tryon.garment.prepare import DEFAULT_SIMPLIFICATION, prepare
 
     b = DEFAULT_SIMPLIFICATION if simplification is None else simplification
@@ -72,8 +74,10 @@ def prepared(ctx: Context, entry: dict, simplification: float | None = None):
     def make():
         mesh, load_s, sha = load_clean(entry)
         t = time.perf_counter()
+        fabric = fabric_named(entry.get("fabric"), entry["category"])
         model = prepare(mesh, id=entry["file"], name=entry["name"], category=entry["category"],
-                        size=entry.get("size"), source_sha256=sha, source_name=entry["file"], simplification=b)
+                        size=entry.get("size"), source_sha256=sha, source_name=entry["file"], simplification=b,
+                        density=fabric.density, fabric=fabric.name)
         return model, {"load_s": load_s, "prepare_s": time.perf_counter() - t}
 
     return ctx.cached(("garment", entry["file"], round(b, 4)), make)

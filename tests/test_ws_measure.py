@@ -26,7 +26,9 @@ pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 ARTIFACTS = Path(__file__).resolve().parents[1] / "test-artifacts"
 BODY = {"height": 172.0, "chest": 98.0, "waist": 84.0, "hips": 100.0}
-HEAVY = {"max_steps": 3000, "time_step": 0.005, "passes": 48, "substeps": 16, "simplification": 1.0}
+# the most passes and substeps at the smallest step (the catalogue's simplification: every vertex simulated, a
+# running holder's start-up, which a leaving client cannot cut short, took up to 40 s here)
+HEAVY = {"max_steps": 3000, "time_step": 0.005, "passes": 48, "substeps": 16}
 
 
 def stream(ws_url: str, request: dict, fps: int = 30) -> dict:
@@ -60,18 +62,27 @@ def stream(ws_url: str, request: dict, fps: int = 30) -> dict:
 
 
 def hold(ws_url: str, request: dict, stop: threading.Event, out: list) -> None:
-    """Start a try-on and keep it running until ``stop``; append the close code (None while admitted)."""
+    """Start a try-on and hold it until ``stop``: append 1013 once refused as busy, None once running (its
+    init came); one still waiting for a worker at ``stop`` appends None and leaves, so it never runs."""
     with connect(ws_url, max_size=None) as ws:
         ws.send(json.dumps({**request, "fps": 2}))
-        try:
-            first = json.loads(ws.recv(timeout=60))
+        while not stop.is_set():
+            try:
+                first = json.loads(ws.recv(timeout=0.1))
+            except TimeoutError:
+                continue
+            except Exception:
+                break
             if first["type"] == "error":
-                ws.recv(timeout=10)
-        except Exception:
-            out.append(ws.close_code)
-            return
+                try:
+                    ws.recv(timeout=120)
+                except Exception:
+                    pass
+                out.append(ws.close_code)
+                return
+            break
         out.append(None)
-        stop.wait(60)
+        stop.wait(120)
 
 
 def test_live_figures(shared_server):
@@ -118,13 +129,13 @@ def test_live_figures(shared_server):
         latencies = []
         with httpx.Client(timeout=120) as client:
             # until every worker runs and the queue is full (on a loaded machine the last admissions can come
-            # later than the requests' spacing), or every holder has its answer (a heavy drape that came to rest
-            # early let a later one in); the deadline only guards against a hang
+            # later than the requests' spacing), or every holder is answered or known to wait (a heavy drape
+            # that came to rest early let a later one in); the deadline only guards against a hang
             deadline = time.monotonic() + 120.0
             while True:
                 busy = client.get(f"{url}/api/health").json()["simulations"]
                 full = busy["running"] == busy["workers"] and busy["waiting"] == busy["queue"]
-                if full or len(results) == len(threads) or time.monotonic() > deadline:
+                if full or len(results) + busy["waiting"] == len(threads) or time.monotonic() > deadline:
                     break
                 time.sleep(0.05)
             for _ in range(30):
@@ -132,9 +143,9 @@ def test_live_figures(shared_server):
                 assert client.get(f"{url}/api/health").status_code == 200  # answered while the pool is full
                 latencies.append(time.perf_counter() - t)
                 time.sleep(0.03)
-        stop.set()  # the heavy ones' clients leave: the pool frees at once
+        stop.set()  # the heavy ones' clients leave: the waiting ones never run, the running ones stop
         for t in threads:
-            t.join(timeout=30)
+            t.join(timeout=120)
         refused = [r for r in results if r == 1013]
         figures["capacity"] = {"workers": busy["workers"], "queue": busy["queue"], "running": busy["running"],
                                "waiting": busy["waiting"], "refused": len(refused)}

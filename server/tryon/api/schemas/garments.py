@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 from tryon.body.params import MEASUREMENT_RANGES
@@ -208,19 +208,13 @@ class GarmentPatch(BaseModel):
             raise PydanticCustomError("name_blank", "must not be blank")
         return value.strip() if isinstance(value, str) else value
 
-    @field_validator("size", mode="before")
+    @field_validator("size", "style", mode="before")
     @classmethod
-    def _size(cls, value: Any) -> Any:
+    def _label(cls, value: Any, info: ValidationInfo) -> Any:
+        """A size or style label, checked as an upload checks it."""
+        check = check_size if info.field_name == "size" else check_style
         try:
-            return check_size(value) if isinstance(value, str) else value
-        except GarmentError as exc:
-            raise _refused(exc) from None
-
-    @field_validator("style", mode="before")
-    @classmethod
-    def _style(cls, value: Any) -> Any:
-        try:
-            return check_style(value) if isinstance(value, str) else value
+            return check(value) if isinstance(value, str) else value
         except GarmentError as exc:
             raise _refused(exc) from None
 

@@ -26,9 +26,9 @@ from tryon.sim.landmarks import arm_joints
 from tryon.geometry import rotation
 from tryon.sim.collision.collider import BodyCollider
 
-# Degrees per 0.02 s step (settings.REFERENCE_STEP; ``step_fraction`` scales it to the time step) the arms
-# are turned back from the sleeve pose (slow enough that the arm surface
-# moves ~1 cm per step at the wrist, well under an arm's radius: no tunnelling through the sleeve).
+# Degrees per 0.02 s step (``settings.REFERENCE_STEP``; ``step_fraction`` scales it to the time step) the arms
+# are turned back from the sleeve pose (slow enough that the arm surface moves ~1 cm per step at the wrist,
+# well under an arm's radius: no tunnelling through the sleeve).
 ARM_DEG_PER_STEP = 1.0
 # Along the sleeve from the shoulder joint, as fractions of the upper arm's length: a point's weight on
 # the arm ramps from 0 to 1 between these (the sleeve cap and armhole stay with the bodice).
@@ -90,7 +90,8 @@ class _Arm(NamedTuple):
 
 class ArmSchedule:
     """Turns the arms from the sleeve pose (``plan``) back to the body's pose over ``steps`` steps, every
-    angle scaled by the fraction of the pose left; ``carry`` moves the sleeves along (module doc)."""
+    angle scaled by the fraction of the pose left; ``carry`` moves the sleeves along (module doc).
+    ``step_fraction``: the time step over ``settings.REFERENCE_STEP`` (a finer step turns them less a step)."""
 
     def __init__(self, body: Body, collider: BodyCollider, plan: ArmPlan, step_fraction: float = 1.0):
         self.collider = collider

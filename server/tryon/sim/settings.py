@@ -41,15 +41,18 @@ class SimSettings:
         sum(m v^2 / 2) / sum(m) with v the displacement over the last two steps / (2 time_step) (a point
         flipping between two places every step goes nowhere), stays under this for
         ``rest_steps`` steps; 1e-3 J/kg = an rms speed of 4.5 cm/s (under 1 mm per 0.02 s step): the
-        garment no longer visibly moves, the strain-limit solver's small jitter aside.
+        garment no longer visibly moves, the solver's small jitter aside.
     rest_steps: consecutive steps under ``rest_energy`` needed to call the garment at rest.
     min_steps: steps always simulated (the growth phase plus a settling margin).
     grow_steps: steps over which the body grows from ``grow_from`` of its radius to full size when the
         aligned garment starts tangled with it (0 disables growing).
+        These three count steps of ``REFERENCE_STEP`` (0.02 s): at another time step the drape takes as many
+        of its own as make the same simulated time (``steps_of``).
     grow_from: initial radial scale of every body part during growth (0..1).
     strain_limit: maximum strain (l / l0 - 1) per spring type (structural, shear, bending), after Provot:
-        woven cloth stretches ~10 % along the threads, more on the bias (shear), bending springs span two
-        edges and only keep a fold from collapsing.
+        where the fabric locks (a knit is stretched this far by a body, never by its own weight: below the
+        limit each spring pulls back with its fabric's stiffness, ``garment/fabric.py``), more on the bias
+        (shear); bending springs span two edges and only keep a fold from collapsing.
     band_limit: maximum strain of a bottom's waistband (``pieces.waistband_mask``): a sewn band is
         interfaced and stretches ~2 %. With the structural 10 % a band 4 cm over its waist stretched
         freely over hips 10 % wider and the skirt slid down to the thighs.

@@ -173,8 +173,7 @@ def pack_springs(springs: np.ndarray, rest: np.ndarray, kind: np.ndarray, limit:
     compression fraction, most a pass lengthens a compressed spring by, m: 0 = no cap; a re-posed drape's,
     ``tuning.unfold_per_pass``; the spring's elasticity k h^2 per pass, kg: 0 = none, set by the drape's
     ``start`` from the fabric). One row per spring instead of a kind lookup into two tables (and
-    squared-length tests, so a spring within its range costs no square root): the passes run ~20 %
-    faster on a draped T-shirt (``python3 -m tryon.bench.perf``)."""
+    squared-length tests): the passes ran ~20 % faster on a draped T-shirt (``python3 -m tryon.bench.perf``)."""
     # unsigned: numba then indexes without the negative-index wrap-around (the passes ~4 % faster)
     ends = np.ascontiguousarray(springs, dtype=np.uint32)
     kind = np.asarray(kind, dtype=np.int64)
@@ -189,11 +188,12 @@ def pack_springs(springs: np.ndarray, rest: np.ndarray, kind: np.ndarray, limit:
 def _spring_pass(x, inv_mass, ends, table, backward, relax):
     """One Gauss-Seidel pass over packed springs (``pack_springs``), forward or backward, in place.
 
-    A spring longer than its natural length l0 pulls its ends together by its force over the pass's share of
-    the substep, k (l - l0) h^2 (w_i, w_j) (``table[:, 4]`` = k h^2 per pass, kg: the fabric's stiffness,
-    ``garment.fabric``), at most back to l0 (a stiff woven's springs, whose force would overshoot within the
-    substep, are projected onto l0 as in PBD), and always at least back to l_max (the strain limit, where the
-    fabric locks: eq. 3). A shorter one is pushed back by the compression fraction of its shortfall.
+    A spring longer than its natural length l0 is shortened by k h^2 w / (1 + k h^2 w) of its stretch l - l0,
+    w = w_i + w_j split by inverse mass (XPBD with compliance 1 / (k h^2), one pass from a zero multiplier;
+    ``table[:, 4]`` = k h^2 per pass, kg, from the fabric's stiffness, ``garment.fabric``): a soft knit's a
+    part, a stiff woven's (k h^2 w >> 1) nearly all of it, as PBD; and always at least back to l_max (the
+    strain limit, where the fabric locks: eq. 3). A shorter one is pushed back by the compression fraction of
+    its shortfall. A spring without stiffness within its range costs no square root.
 
     An unsigned spring index (no negative-index wrap-around) and numpy's error model (no zero-division
     check: the division is guarded) make a step's passes ~5 % faster on the perf T-shirt, same results."""

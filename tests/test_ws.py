@@ -201,22 +201,16 @@ def test_uint16_frames_match_float32(live: Live):
 def test_frames_respect_the_requested_rate(live: Live):
     """At 2 fps a drape of over a hundred steps sends a few frames: the first at once, the final one at the end,
     numbered in order, on steps in order, the last one the drape's last step, fewer than the steps (the ones in
-    between are not sent). On the server's own clock (each frame's header) the frames keep the sender's
-    cadence (``frames.frame_due``): no two less than half an interval apart and n frames over at least
-    n - 1.5 intervals. These are lower bounds the sender keeps however busy the machine is (a slow machine
-    only sends later), not speeds."""
+    between are not sent). The cadence itself (``frames.frame_due``) is checked on given times, without a
+    clock, in ``test_ws_pool``."""
     live.wait_idle()
-    fps = 2
-    s = run_stream(live, {**live.request(MANY_STEPS, chest=98.0), "fps": fps})
+    s = run_stream(live, {**live.request(MANY_STEPS, chest=98.0), "fps": 2})
     assert s.error is None and s.done is not None and s.done["cached"] is False
     numbers = [f[0] for f in s.frames]
     steps = [f[1] for f in s.frames]
     assert numbers == list(range(len(s.frames))) and s.done["frames_sent"] == len(s.frames) >= 2
     assert steps == sorted(steps) and steps[-1] == s.done["metrics"]["steps"]
     assert len(s.frames) < s.done["metrics"]["steps"], (steps, s.done["metrics"]["steps"])
-    sent = np.array([f[2] for f in s.frames], dtype=np.float64)  # float32 seconds: 1 ms of slack
-    assert np.diff(sent).min() > 0.5 / fps - 1e-3, np.diff(sent)
-    assert sent[-1] - sent[0] > (len(sent) - 1.5) / fps - 1e-3, np.diff(sent)
 
 
 def test_client_leaving_half_way_stops_the_simulation(tmp_path, monkeypatch):

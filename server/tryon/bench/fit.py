@@ -118,8 +118,9 @@ def hang_stretch(model, vertices) -> float:
     how far hanging cloth stretches under its own weight."""
     import numpy as np
 
-    edges = np.unique(np.sort(np.concatenate([model.faces[:, [0, 1]], model.faces[:, [1, 2]],
-                                              model.faces[:, [2, 0]]]), axis=1), axis=0)
+    from tryon.body.measure import mesh_edges
+
+    edges = mesh_edges(model.faces)
     rest = np.linalg.norm(model.vertices[edges[:, 0]] - model.vertices[edges[:, 1]], axis=1)
     along = vertices[edges[:, 0]] - vertices[edges[:, 1]]
     length = np.linalg.norm(along, axis=1)

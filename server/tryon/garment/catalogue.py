@@ -37,7 +37,7 @@ from collections import OrderedDict
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
-from tryon.garment.fabric import DEFAULT_FABRIC, FABRICS, Fabric
+from tryon.garment.fabric import DEFAULT_FABRIC, FABRICS, Fabric, fabric_named
 from tryon.garment.ingest import GarmentError, check_readable, file_extension, load_garment
 from tryon.garment.model import GarmentMeta, GarmentModel
 from tryon.garment.prepare import DEFAULT_SIMPLIFICATION, prepare, triangle_areas
@@ -134,11 +134,12 @@ def entry_id(sha256: str, units: str, simplification: float, density: float | No
 def check_fabric(name: str | None, category: str) -> Fabric:
     """The fabric ``name`` (``fabric.FABRICS``), the category's (``fabric.DEFAULT_FABRIC``) for None or a blank.
     GarmentError (422, field fabric) naming the fabrics for another name."""
-    name = (name or "").strip() or DEFAULT_FABRIC.get(category, "jersey")
-    if name not in FABRICS:
+    name = (name or "").strip() or None
+    try:
+        return fabric_named(name, category)
+    except ValueError:
         raise GarmentError(f"unknown fabric {name[:40]!r}: choose one of {', '.join(FABRICS)} (GET /api/fabrics "
-                           "gives their weight and stiffness)", field="fabric")
-    return FABRICS[name]
+                           "gives their weight and stiffness)", field="fabric") from None
 
 
 @dataclass(frozen=True)

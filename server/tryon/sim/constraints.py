@@ -303,7 +303,7 @@ def solve_listed(x, x_prev, inv_mass, ends, table, passes, listed, plane_point, 
 def satisfy_springs(x, inv_mass, ends, table, passes):
     """Project every spring onto its allowed length range, ``passes`` times, in place.
 
-    x (k, 3) m; inv_mass (k,) 1/kg (0 = pinned, never moved); ends (s, 2) uint32 and table (s, 4) from
+    x (k, 3) m; inv_mass (k,) 1/kg (0 = pinned, never moved); ends (s, 2) uint32 and table (s, 5) from
     ``pack_springs`` (l_max = rest (1 + limit of its kind); compression: the fraction of the shortfall
     below the natural length corrected per pass).
 
@@ -374,7 +374,7 @@ def _kept(ends, lmax, keep, blocks):
 
 @njit(cache=True, nogil=True)
 def contact_springs(ends, table, on_body, blocks=ONE_BLOCK):
-    """(ends (b, 2) uint32, table (b, 4), blocks (3,) int64) of the springs with both ends on the body
+    """(ends (b, 2) uint32, table (b, 5), blocks (3,) int64) of the springs with both ends on the body
     (``on_body`` (k,) bool), in spring order, stretch only (l0 = 0 and no compression: cloth pressed on the
     body must stay free to buckle, and a compressed spring is not even visited for a zero correction): the
     contact passes' springs, and their blocks (``blocks``: those of ``ends``; the selection keeps the block

@@ -144,7 +144,7 @@ def project_stretch(x, w, ends, table, free_along, plane_normal, newton_steps):
     springs that can move are still past the tolerance.
 
     x (k, 3) m; w (k,) 1/kg the inverse masses of the split (0: the point does not move); ends (s, 2) uint32
-    and table (s, 4) the packed springs (``constraints.pack_springs``: l_max m in column 0); free_along (k,)
+    and table (s, 5) the packed springs (``constraints.pack_springs``: l_max m in column 0); free_along (k,)
     bool: the points that move along their contact plane only (unit normals plane_normal (k, 3))."""
     n_s = ends.shape[0]
     act = np.empty(n_s, dtype=np.int64)

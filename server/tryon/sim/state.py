@@ -94,7 +94,7 @@ class Drape:
     collider: the body as this drape sees it (grows, arms turn); arms: the arms' turn back from the sleeves'
     pose (``plan``); parts (q,) int64: the body parts tested. piece (k,) int64: which separate piece of the
     file each point belongs to (an outfit's garments). springs (s, 2) int64, rest (s,) m, kind (s,) int64,
-    mass (k,) kg, limits (3,) strain limits by kind; ends (s, 2) uint32 and table (s, 4): the springs packed
+    mass (k,) kg, limits (3,) strain limits by kind; ends (s, 2) uint32 and table (s, 5): the springs packed
     for the passes (a waistband's at the band limit), the springs in block order and blocks (3,) int64 their
     blocks (``blocks.split_springs``: a large garment's passes run on two threads). openings: sleeves' and
     trouser legs' openings; placed_tops: each piece's top at placement (how far it slid). floor_y m; n_sub

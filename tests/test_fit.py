@@ -222,21 +222,21 @@ def test_a_band_too_small_that_slid_down_is_tight_not_falling_off():
 @pytest.mark.parametrize("verdicts,slid,expected,words", [
     # trousers on a 90 cm waist, 99 cm hips: L's band a little wider than the waist rests on the hips
     (["tight", "tight", "falls_off", "fits", "not_draped"], [1, 1, 11, 2, None], "L",
-     "L is the smallest size that is not too tight anywhere (S, M too tight); it sits 11 cm lower than it was put on"),
+     "L is the smallest size with the room of a regular fit (S, M too tight); it sits 11 cm lower than it was put on"),
     # the chart's S measured a little looser than M: S, not the larger M
     (["loose", "fits", "not_draped", "not_draped", "not_draped"], [1, 1, None, None, None], "S",
-     "S is the smallest size that is not too tight anywhere; it is loose: 17 cm"),
-    (["tight", "tight", "tight", "tight", "loose"], [15, 14, 13, 2, 1], "XXL", "XXL is the smallest size that is not"),
+     "S is the smallest size with the room of a regular fit; it is loose: 17 cm"),
+    (["tight", "tight", "tight", "tight", "loose"], [15, 14, 13, 2, 1], "XXL", "XXL is the smallest size with the room"),
     (["not_draped", "tight", "fits", "fits", "not_draped"], [None, 1, 1, 1, None], "L",
-     "L is the smallest size that fits without being tight anywhere (M too tight)"),
-    (["fits", "tight", "fits", "loose", "not_draped"], [1, 1, 1, 1, None], "S", "S is the smallest size that fits"),
+     "L is the smallest size with the room of a regular fit (M too tight); it fits"),
+    (["fits", "tight", "fits", "loose", "not_draped"], [1, 1, 1, 1, None], "S", "S is the smallest size with the room"),
     (["not_draped", "not_draped", "tight", "fits", "tight"], [None, None, 1, 1, 5], "XL", "(L too tight)"),
     (["tight", "falls_off", "fits", "fits", "not_draped"], [1, 30, 2, 2, None], None,
      "no size fits: M, the smallest that is not too tight (S too tight), does not stay on"),
     (["tight", "tight", "tight", "not_draped", "not_draped"], [1, 1, 1, None, None], None,
      "every size draped is too tight: the largest, L, is"),
 ])
-def test_the_answer_is_the_smallest_size_not_too_tight(verdicts, slid, expected, words):
+def test_without_a_chart_the_answer_is_the_smallest_size_not_too_tight(verdicts, slid, expected, words):
     from tryon.fit.verdict import recommend
 
     sizes = ["S", "M", "L", "XL", "XXL"]
@@ -267,6 +267,61 @@ def test_a_larger_body_never_gets_a_smaller_size():
         b, _ = recommend(sizes, larger, larger, slid)
         if a is not None and b is not None:
             assert sizes.index(b) >= sizes.index(a), (verdicts, larger, a, b)
+
+
+@pytest.mark.parametrize("verdicts,chart,preference,expected,words", [
+    # the chart's size that fits is the answer, whatever a smaller size's drape says
+    (["fits", "fits", "fits", "not_draped", "not_draped"], 1, "regular", "M", "M: the chart's size for you is M; M fits"),
+    # a slim fit: a size under, if it is not too tight; a relaxed one: a size over, if it stays on
+    (["fits", "fits", "fits", "not_draped", "not_draped"], 1, "slim", "S", "M, S for a slim fit; S fits"),
+    (["tight", "fits", "fits", "not_draped", "not_draped"], 1, "slim", "M", "S is too tight at the waist"),
+    (["fits", "fits", "fits", "not_draped", "not_draped"], 1, "relaxed", "L", "M, L for a relaxed fit; L fits"),
+    (["not_draped", "fits", "falls_off", "not_draped", "not_draped"], 1, "relaxed", "M", "L does not stay on"),
+    # the chart's size too tight: the next larger that is not; loose: a smaller one that fits
+    (["not_draped", "tight", "fits", "fits", "not_draped"], 1, "regular", "L", "M is too tight at the waist"),
+    (["not_draped", "fits", "loose", "not_draped", "not_draped"], 2, "regular", "M", "L is loose: 17 cm"),
+    # off the chart's top row: its largest size
+    (["not_draped", "not_draped", "not_draped", "tight", "fits"], 4, "relaxed", "XXL", "XXL fits"),
+])
+def test_with_a_chart_the_answer_is_the_charts_size_moved_by_the_preference_and_the_drape(
+        verdicts, chart, preference, expected, words):
+    from tryon.fit.verdict import recommend
+
+    sizes = ["S", "M", "L", "XL", "XXL"]
+    reasons = {"tight": "too tight at the waist: the cloth is stretched past its limit there",
+               "loose": "loose: 17 cm of ease at the hips (over 16 cm); stays on the hips",
+               "fits": "6 cm of ease at the hips; stays on the hips",
+               "falls_off": "does not stay on the hips: it slid 30 cm down from where it was put on",
+               "not_draped": "not draped"}
+    slid = [30.0 if v == "falls_off" else 1.0 for v in verdicts]
+    size, why = recommend(sizes, verdicts, [reasons[v] for v in verdicts], slid, chart, preference)
+    assert size == expected and words in why, why
+
+
+def test_a_larger_body_on_the_chart_never_gets_a_smaller_size_and_slim_is_never_larger_than_relaxed():
+    """Seeded random verdicts: a larger chart size with more sizes tight never gets a smaller answer; for one
+    body, slim <= regular <= relaxed."""
+    import random
+
+    from tryon.fit.verdict import recommend
+
+    rng = random.Random(11)
+    sizes = ["S", "M", "L", "XL", "XXL"]
+    for _ in range(500):
+        tight_below = rng.randrange(len(sizes))  # a smaller size is tighter: the tight ones come first
+        verdicts = ["tight" if i < tight_below else rng.choice(["fits", "fits", "loose", "falls_off"])
+                    for i in range(len(sizes))]
+        slid = [30.0 if v == "falls_off" else 1.0 for v in verdicts]
+        chart = rng.randrange(len(sizes) - 1)
+        k = rng.randrange(chart + 1)
+        larger = ["tight" if i <= k else v for i, v in enumerate(verdicts)]
+        answers = [recommend(sizes, verdicts, verdicts, slid, chart, p)[0] for p in ("slim", "regular", "relaxed")]
+        order = [sizes.index(a) for a in answers if a is not None]
+        assert order == sorted(order), (verdicts, chart, answers)
+        a, _ = recommend(sizes, verdicts, verdicts, slid, chart)
+        b, _ = recommend(sizes, larger, larger, slid, chart + 1)
+        if a is not None and b is not None:
+            assert sizes.index(b) >= sizes.index(a), (verdicts, larger, chart, a, b)
 
 
 def test_ease_of_a_tube_of_known_girth_around_a_known_body():
@@ -316,12 +371,13 @@ def test_a_person_at_the_m_rows_centre_gets_m(client):
     assert r.status_code == 200, r.text
     out = r.json()
     assert out["style"] == "tshirt" and out["recommended"] == "M", out
-    assert "M is the smallest size that fits" in out["reason"]
+    assert out["preference"] == "regular" and out["reason"].startswith("M: the chart's size for you is M; M fits")
     sizes = {s["size"]: s for s in out["sizes"]}
     assert [s["size"] for s in out["sizes"]] == SIZES
     styles = {s["style"]: s for s in client.get("/api/styles").json()}
     assert [s["garment_id"] for s in out["sizes"]] == [s["garment_id"] for s in styles["tshirt"]["sizes"]]
-    assert sizes["S"]["verdict"] == "tight" and "too tight at the chest" in sizes["S"]["reason"]
+    # S leaves a little room: not too tight, a slim fit (below); the chart's M is the regular answer
+    assert sizes["S"]["verdict"] == "fits" and 0.0 < sizes["S"]["cloth_ease_cm"]["chest"] < 3.0
     m = sizes["M"]
     assert m["verdict"] == "fits" and m["stays_up"] is True and m["too_tight"] == {}
     assert 3.0 < m["ease_cm"]["chest"] < 16.0 and m["max_strain"] > 0
@@ -342,10 +398,23 @@ def test_a_person_at_the_m_rows_centre_gets_m(client):
     assert pool.stats()["submitted"] - before == 3  # nothing draped again
 
 
+def test_the_fit_preference_moves_the_answer_a_size_where_the_drape_allows(client):
+    """At the M row's centre: slim S (not too tight: a little room), relaxed L (stays on, not loose); the drapes
+    are the regular answer's (S, M and L were draped for it: nothing drapes again)."""
+    regular = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_M}).json()
+    slim = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_M, "preference": "slim"}).json()
+    relaxed = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_M, "preference": "relaxed"}).json()
+    assert (slim["recommended"], regular["recommended"], relaxed["recommended"]) == ("S", "M", "L")
+    assert slim["preference"] == "slim" and "S for a slim fit" in slim["reason"]
+    assert relaxed["sizes"] == regular["sizes"] == slim["sizes"]
+    r = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_M, "preference": "baggy"})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "preference"]
+
+
 def test_two_sizes_smaller_is_tight_and_the_trousers_follow_their_chart(client, data_dir):
     out = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_L}).json()
     assert out["recommended"] == "L", out
-    assert [s["verdict"] for s in out["sizes"]][1:3] == ["tight", "fits"]
+    assert [s["verdict"] for s in out["sizes"]][1:3] == ["fits", "fits"]  # M: a slim fit
     assert out["sizes"][0]["verdict"] == "not_draped"  # S: two sizes under L on the chart, so not draped ...
     catalogue = Catalogue(data_dir)
     s = catalogue.style("tshirt")[0]
@@ -397,9 +466,12 @@ def test_fit_command_prints_the_advice_as_a_table(data_dir, capsys):
                  "--data-dir", str(data_dir)]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].split()[:4] == ["size", "verdict", "chest", "ease"]
-    assert [line.split()[:2] for line in out[1:6]] == [["S", "tight"], ["M", "fits"], ["L", "fits"],
+    assert [line.split()[:2] for line in out[1:6]] == [["S", "fits"], ["M", "fits"], ["L", "fits"],
                                                        ["XL", "not_draped"], ["XXL", "not_draped"]]
-    assert out[6].startswith("recommended: M (M is the smallest size that fits")
+    assert out[6].startswith("recommended: M (M: the chart's size for you is M; M fits")
+    assert main(["fit", "tshirt", "--height", "170", "--chest", "96", "--waist", "82", "--hips", "100",
+                 "--fit", "slim", "--data-dir", str(data_dir)]) == 0
+    assert "recommended: S (S: the chart's size for you is M, S for a slim fit; S fits" in capsys.readouterr().out
 
 
 def test_fit_command_errors(data_dir, tmp_path, capsys):

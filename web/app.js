@@ -493,6 +493,7 @@ function clearAdvice() {
   state.advice = null;
   $('size-advice').replaceChildren();
   $('fit-summary').textContent = '';
+  $('fit-notes').textContent = '';
   for (const chip of $('garments').querySelectorAll('.size.recommended')) chip.classList.remove('recommended');
 }
 
@@ -504,10 +505,12 @@ function easeText(ease) {
 }
 
 function renderAdvice(advice) {
-  // "M is the smallest size that fits..." -> "Take M: the smallest size that fits..."
+  // "M: the chart's size for you is M; ..." / "M is the smallest size ..." -> "Take M: ..."
+  const lead = new RegExp(`^${advice.recommended}(: | is )`);
   $('fit-summary').textContent = advice.recommended
-    ? `Take ${advice.recommended}: ${advice.reason.replace(`${advice.recommended} is `, '')}.`
+    ? `Take ${advice.recommended}: ${advice.reason.replace(lead, '')}.`
     : `No size to recommend: ${advice.reason}.`;
+  $('fit-notes').textContent = (advice.notes || []).map((note) => `Note: ${note}.`).join(' ');
   const list = $('size-advice');
   list.replaceChildren();
   for (const z of advice.sizes) {
@@ -572,7 +575,9 @@ async function findSize() {
   $('fit-button').textContent = 'Draping the sizes…';
   $('fit-summary').textContent = `Draping the ${style.name}'s sizes on your body…`;
   try {
-    const response = await postJSON('/api/fit', { style: style.style, ...form.bodyRequest() });
+    const response = await postJSON('/api/fit', {
+      style: style.style, preference: $('fit-preference').value, ...form.bodyRequest(),
+    });
     state.advice = await response.json();
     renderAdvice(state.advice);
     const recommended = state.advice.sizes.find((z) => z.size === state.advice.recommended);
@@ -587,6 +592,8 @@ async function findSize() {
   }
 }
 $('fit-button').addEventListener('click', findSize);
+// another fit asked for: the advice again (its drapes come from the server's result cache)
+$('fit-preference').addEventListener('change', () => { if (state.advice) findSize(); });
 
 // ---- layout -------------------------------------------------------------------------------------
 // On a narrow screen (the breakpoint of style.css) the fit summary is the first card of the controls,

@@ -69,7 +69,7 @@ def style_advice(pool: SimPool, cache: ResultCache, catalogue: Catalogue, entrie
 
     measurements, pose = to_body_params(request.measurements, request.pose)
     body = build_body(measurements, pose)
-    advice, recommended, reason = advise_style(entries, request.measurements.model_dump(), body, drape_sizes,
-                                               lambda gid: catalogue.model(gid).vertices)
-    return {"style": request.style, "recommended": recommended, "reason": reason,
-            "sizes": [a.as_dict() for a in advice]}
+    advice, recommended, reason, notes = advise_style(entries, request.measurements.model_dump(), body, drape_sizes,
+                                                      lambda gid: catalogue.model(gid).vertices, request.preference)
+    return {"style": request.style, "preference": request.preference, "recommended": recommended, "reason": reason,
+            "notes": notes, "sizes": [a.as_dict() for a in advice]}

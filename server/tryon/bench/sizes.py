@@ -53,15 +53,9 @@ def _catalogue(root: Path):
 
 def chart_size(entries, measurements: dict) -> int | None:
     """Index of the chart's size for a person (see the module doc); None outside the chart."""
-    from tryon.fit.advice import chart_position
+    from tryon.fit.advice import chart_size as on_chart
 
-    position = chart_position([m.chart for m in entries], measurements)
-    if not position:
-        return None
-    worst = max(position.values())
-    if worst < 0 or worst >= len(entries) or min(position.values()) < 0:
-        return None
-    return int(worst)
+    return on_chart([m.chart for m in entries], measurements, clamp=False)
 
 
 def run(ctx: Context, sec: Section) -> None:

@@ -1,6 +1,6 @@
 """``tryon fit``: which size of a style fits a body, as a table (the advice ``POST /api/fit`` gives).
 
-    tryon fit STYLE --height CM --chest CM --waist CM --hips CM [--data-dir DIR]
+    tryon fit STYLE --height CM --chest CM --waist CM --hips CM [--fit slim|regular|relaxed] [--data-dir DIR]
 
 The sizes near the person's on the style's chart are draped (``TRYON_SIM_WORKERS`` at once), the others
 reported not draped unless the answer needs them (``tryon.fit.advice``). Exit status 0 with a
@@ -24,6 +24,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("style", help="style id (tryon ingest --style; GET /api/styles)")
     for name in ("height", "chest", "waist", "hips"):
         p.add_argument(f"--{name}", type=float, required=True, metavar="CM", help=f"{name}, cm")
+    p.add_argument("--fit", choices=("slim", "regular", "relaxed"), default="regular",
+                   help="the fit you like: a size under the chart's, the chart's, or a size over (default regular)")
     p.add_argument("--data-dir", type=Path, help="catalogue directory (default: TRYON_DATA_DIR or ./data)")
     p.set_defaults(func=run)
 
@@ -67,8 +69,8 @@ def run(args: argparse.Namespace) -> int:
         def drape_sizes(indices: list[int]) -> dict[int, Drape | str]:
             return dict(zip(indices, workers.map(drape_one, indices)))
 
-        advice, recommended, reason = advise_style(entries, measurements.as_dict(), body, drape_sizes,
-                                                   lambda gid: catalogue.model(gid).vertices)
+        advice, recommended, reason, notes = advise_style(entries, measurements.as_dict(), body, drape_sizes,
+                                                          lambda gid: catalogue.model(gid).vertices, args.fit)
     girths = list(dict.fromkeys(k for a in advice for k in a.ease_cm)) or ["ease"]
     header = ["size", "verdict", *[f"{g} ease cm" for g in girths], "reason"]
     rows = [[a.size, a.verdict, *[_cell(a.ease_cm.get(g)) for g in girths], a.reason] for a in advice]
@@ -76,4 +78,6 @@ def run(args: argparse.Namespace) -> int:
     for r in [header, *rows]:
         print("  ".join(str(v).ljust(w) for v, w in zip(r[:-1], widths)) + "  " + r[-1])
     print(f"recommended: {recommended or 'none'} ({reason}); {time.perf_counter() - started:.2f} s")
+    for note in notes:
+        print(f"note: {note}")
     return 0 if recommended else 1

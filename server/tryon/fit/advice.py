@@ -13,9 +13,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tryon.body.types import Body
+from tryon.garment.fabric import fabric_named
 from tryon.garment.model import GarmentMeta
 from tryon.fit.ease import measure_ease
 from tryon.fit.verdict import judge, recommend
+
+# cm: a larger size measured with less cloth ease than the size under it, at the same girth, by more than this
+# (the tape's precision on the shown mesh) is said in the advice's notes (``ease_notes``).
+EASE_ORDER_CM = 1.0
 
 # Sizes this many or more steps from the person's size on the style's chart are not draped (the answer
 # does not need them: two sizes from the chart's choice are tight or loose for anyone the chart places).
@@ -65,6 +70,19 @@ def chart_position(charts: list[dict | None], measurements: dict) -> dict[str, f
     return out
 
 
+def chart_size(charts: list[dict | None], measurements: dict, clamp: bool = True) -> int | None:
+    """Index of the person's size on a style's chart: the largest of the sizes whose ranges hold each girth the
+    chart gives (a garment must go round every one). Off the chart, the smallest or largest size (``clamp``) or
+    None; None without a chart."""
+    position = chart_position(charts, measurements)
+    if not position:
+        return None
+    worst = max(position.values())
+    if not clamp and (worst < 0 or worst >= len(charts) or min(position.values()) < 0):
+        return None
+    return int(min(max(worst, 0), len(charts) - 1))
+
+
 def sizes_away(index: int, position: dict[str, float]) -> float:
     """How many sizes ``index`` is from the person (the nearest of their girths' places); 0 without a chart."""
     return min((abs(index - p) for p in position.values()), default=0.0)
@@ -82,11 +100,11 @@ def skip_reason(index: int, charts: list[dict | None], position: dict[str, float
 
 
 def advise_size(size: str, garment_id: str, category: str, body: Body, vertices: np.ndarray, faces: np.ndarray,
-                rest_vertices: np.ndarray, metrics: dict) -> SizeAdvice:
+                rest_vertices: np.ndarray, metrics: dict, comfort_stretch: float = 0.0) -> SizeAdvice:
     """One drape's advice: the ease measured on the draped ``vertices`` (n, 3) m (rest shape ``rest_vertices``)
-    around ``body``, and the verdict from it and the drape's ``metrics``."""
+    around ``body``, and the verdict from it, the drape's ``metrics`` and the fabric's ``comfort_stretch``."""
     girths = measure_ease(body, vertices, faces, rest_vertices, category)
-    verdict, reason = judge(category, metrics, girths)
+    verdict, reason = judge(category, metrics, girths, comfort_stretch)
     return SizeAdvice(
         size=size, garment_id=garment_id, verdict=verdict, reason=reason,
         ease_cm={k: (round(g.ease_cm, 1) if g else None) for k, g in girths.items()},
@@ -99,10 +117,30 @@ def not_draped(size: str, garment_id: str, reason: str) -> SizeAdvice:
     return SizeAdvice(size=size, garment_id=garment_id, verdict="not_draped", reason=reason)
 
 
-def recommendation(advice: list[SizeAdvice]) -> tuple[str | None, str]:
+def recommendation(advice: list[SizeAdvice], chart: int | None = None, preference: str = "regular",
+                   category: str = "top") -> tuple[str | None, str]:
     """``verdict.recommend`` over the sizes' advice in order."""
     return recommend([a.size for a in advice], [a.verdict for a in advice], [a.reason for a in advice],
-                     [a.slid_cm for a in advice])
+                     [a.slid_cm for a in advice], chart, preference, [a.cloth_ease_cm for a in advice], category)
+
+
+def ease_notes(advice: list[SizeAdvice]) -> list[str]:
+    """Where a larger size measured less cloth ease than the size under it at a girth (by over
+    ``EASE_ORDER_CM``), why in words: it sits lower on the body (a bottom whose band rests lower, where the body
+    is wider), or else its cut is narrower there."""
+    notes = []
+    draped = [a for a in advice if a.verdict != "not_draped"]
+    for small, large in zip(draped, draped[1:]):
+        for girth, e_small in small.cloth_ease_cm.items():
+            e_large = large.cloth_ease_cm.get(girth)
+            if e_small is None or e_large is None or e_large >= e_small - EASE_ORDER_CM:
+                continue
+            lower = (large.slid_cm or 0.0) - (small.slid_cm or 0.0)
+            why = (f"it sits {lower:.0f} cm lower on the body, where the body is wider" if lower >= 2.0 else
+                   "its cut is narrower there")
+            notes.append(f"{large.size} leaves less room at the {girth} than {small.size} ({e_large:+.1f} against "
+                         f"{e_small:+.1f} cm): {why}")
+    return notes
 
 
 @dataclass
@@ -138,12 +176,14 @@ def next_size(advice: list[SizeAdvice], skipped: set[int]) -> int | None:
 
 
 def advise_style(entries: list[GarmentMeta], measurements: dict, body: Body, drape_sizes: DrapeSizes,
-                 rest_vertices: Callable[[str], np.ndarray]) -> tuple[list[SizeAdvice], str | None, str]:
+                 rest_vertices: Callable[[str], np.ndarray], preference: str = "regular"
+                 ) -> tuple[list[SizeAdvice], str | None, str, list[str]]:
     """The advice over a style's ``entries`` (in size order) for the person with ``measurements`` (cm) and
     ``body`` (built from them): the sizes near the person's on the style's chart are draped at once
     (``drape_sizes``, which may run them concurrently), the others reported ``not_draped`` unless the answer
-    turns out to need them (``next_size``). ``rest_vertices(garment_id)``: the garment's rest mesh (n, 3).
-    Returns each size's advice, the recommended size (or None) and why."""
+    turns out to need them (``next_size``). ``rest_vertices(garment_id)``: the garment's rest mesh (n, 3);
+    ``preference``: slim, regular or relaxed (``verdict.PREFERENCES``). Returns each size's advice, the
+    recommended size (or None), why, and notes on sizes whose ease is out of order (``ease_notes``)."""
     charts = [m.chart for m in entries]
     position = chart_position(charts, measurements)
     advice: list[SizeAdvice] = []
@@ -162,10 +202,12 @@ def advise_style(entries: list[GarmentMeta], measurements: dict, body: Body, dra
             if isinstance(outcome, str):
                 advice[i] = not_draped(meta.size, meta.id, outcome)
             else:
+                comfort = fabric_named(meta.fabric, meta.category).comfort_stretch
                 advice[i] = advise_size(meta.size, meta.id, meta.category, body, outcome.vertices, outcome.faces,
-                                        rest_vertices(meta.id), outcome.metrics)
+                                        rest_vertices(meta.id), outcome.metrics, comfort)
         extra = next_size(advice, skipped)
         wanted = [] if extra is None else [extra]
         skipped.discard(extra)
-    recommended, why = recommendation(advice)
-    return advice, recommended, why
+    category = entries[0].category if entries else "top"
+    recommended, why = recommendation(advice, chart_size(charts, measurements), preference, category)
+    return advice, recommended, why, ease_notes(advice)

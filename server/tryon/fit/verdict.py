@@ -10,7 +10,8 @@ In this order (the first that applies):
   at 2.5x its length).
 - ``falls_off``: the drape's ``stays_up`` is false: it slid off the shoulders or the hips (a waistband
   wider than the hips). Every other figure of such a drape is measured where it lies, not where it is worn.
-- ``tight``: a top's cloth leaves less room than a regular fit at the chest (``MIN_CLOTH_EASE_CM``).
+- ``tight``: a top's or dress's cloth is shorter than the chest by more than its fabric lets it be worn
+  fitted (``Fabric.comfort_stretch`` of the body's chest: a knit a few per cent, a woven nothing).
 - ``loose``: at a covered girth the draped garment has more tape ease than ``MAX_EASE_CM``.
 - ``fits``: none of these.
 
@@ -27,16 +28,15 @@ from tryon.fit.ease import Girth
 
 VERDICTS = ("fits", "tight", "loose", "falls_off", "not_draped")
 
-# cm: the least room a top's or dress's cloth must leave at the chest (its ring of cloth there, unstretched,
-# minus the body's chest; ``ease.Girth.cloth_ease_cm``) for a regular fit. A top hangs from the shoulders:
-# nothing but the body stretches its cloth around the chest, so a ring hardly longer than the chest is a top
-# too small for it. Measured on the catalogue's T-shirt (cut with 8 cm at the chest, in jersey) on bodies at
-# the centres of the chart's S, M and L rows: the chart's own size leaves +3.8 to +4.3 cm, the size below it
-# +0.5 to +1.6 cm (a size below is body-tight, -6 cm two sizes below).
-# The waist and hips are not judged by the cloth's length: a bottom hangs from its band, and a woven's seat
-# does not stretch; there only springs held past their limit by the body (``too_tight``) tell tight: on the
-# catalogue's trousers they do for each size below the chart's, never for the chart's own.
-MIN_CLOTH_EASE_CM = {"chest": 3.0}
+# The girths whose cloth length decides tight: a top or dress hangs from the shoulders, so nothing but the body
+# stretches its cloth around the chest, and a ring shorter than the chest (by more than its fabric's comfortable
+# stretch) is too small for it. Measured on the catalogue's jersey T-shirt at the centres of the chart's rows: the
+# size below the chart's leaves +1.2 to +3.6 cm (a slim fit), two sizes below -7 cm (tight); the jersey dress's
+# chart size -2.7 to +0.2 cm (2.4 % of the chest at most: fitted). The waist and hips are not judged by the
+# cloth's length: a bottom hangs from its band, and a woven's seat does not stretch; there only springs held past
+# their limit by the body (``too_tight``) tell tight: on the catalogue's trousers they do for each size below the
+# chart's, never for the chart's own.
+CLOTH_JUDGED = ("chest",)
 # cm: more tape ease than this at a girth and the garment hangs off the body: loose. The T-shirt is cut with
 # 8 cm at the chest and grows 8 cm a size; measured on the same bodies, one size over the chart's leaves 9-14
 # cm (tape ease, 2.8 cm of it the cloth's offset from the skin), two sizes over 18-25 cm. The trousers' seat
@@ -66,9 +66,11 @@ def place_name(place: str) -> str:
     return f"the {side}{base.replace('_', ' ')}"
 
 
-def judge(category: str, metrics: dict, girths: dict[str, Girth | None]) -> tuple[str, str]:
+def judge(category: str, metrics: dict, girths: dict[str, Girth | None], comfort_stretch: float = 0.0
+          ) -> tuple[str, str]:
     """(verdict, reason) of one drape: its ``metrics`` (``TryOnResult.metrics``: too_tight, stays_up,
-    slid_cm, sized_to_body) and its ``girths`` (``ease.measure_ease``). See the module doc."""
+    slid_cm, sized_to_body), its ``girths`` (``ease.measure_ease``) and its fabric's ``comfort_stretch``
+    (``Fabric``). See the module doc."""
     hangs = HANGS_FROM.get(category, "the body")
     slid = metrics.get("stays_up", True) is False
     if slid and not metrics.get("too_tight"):
@@ -78,14 +80,14 @@ def judge(category: str, metrics: dict, girths: dict[str, Girth | None]) -> tupl
     short = []  # (place, words)
     if not metrics.get("sized_to_body", False) and not slid:  # a slid garment's girths are not where it is worn
         for name, g in measured.items():
-            if name in MIN_CLOTH_EASE_CM and g.cloth_ease_cm < MIN_CLOTH_EASE_CM[name]:
+            allowed = comfort_stretch * g.body_cm
+            if name in CLOTH_JUDGED and g.cloth_ease_cm < -allowed:
                 # the cloth's own length round the body (unstretched), not the draped tape girth (ease_cm: the
                 # cloth stretched over the body and lying off the skin): "+6 cm of ease" and "3 cm short" at once
                 # read as a contradiction on the page
-                room = (f"is {_cm(g.cloth_ease_cm)} shorter than the {name}" if g.cloth_ease_cm < 0.0 else
-                        f"is only {_cm(g.cloth_ease_cm)} longer than the {name}, short of the "
-                        f"{MIN_CLOTH_EASE_CM[name]:g} cm of a regular fit")
-                short.append((name, f"too tight at the {name}: its cloth, unstretched, {room}"))
+                fitted = f", more than the {_cm(allowed)} its fabric takes fitted" if allowed >= 0.5 else ""
+                short.append((name, f"too tight at the {name}: its cloth, unstretched, is "
+                                    f"{_cm(g.cloth_ease_cm)} shorter than the {name}{fitted}"))
     named = {name for name, _ in short}
     stretched = [place_name(p) for p in metrics.get("too_tight") or {}
                  if not (p.startswith("torso ") and p[len("torso "):] in named)]
@@ -111,32 +113,99 @@ def _ease_phrase(measured: dict[str, Girth]) -> str:
     return ", ".join([first, *parts[1:]])
 
 
-def recommend(sizes: list[str], verdicts: list[str], reasons: list[str],
-              slid_cm: list[float | None] | None = None) -> tuple[str | None, str]:
-    """(recommended size or None, why in words) over a style's ``sizes`` in order with their verdicts (and how
-    far each drape slid, cm): the smallest draped size that is not too tight. No larger size can be less
-    tight, only looser: if that size fits, it is the answer; if it is loose, or slid at most ``SITS_LOW_CM`` (a
-    band a little wider than the waist rests lower, on the hips), it is still the best there is and the
-    answer says what is wrong with it; if it slid further, no size fits. So a body larger in every girth
-    (more sizes too tight) never gets a smaller size because one size's drape came out a little looser than
-    the next one's (trousers S loose at 17 cm of hip ease and M fitting at 16 cm, on a body the chart calls
-    S: before, M)."""
+# The fit a shopper asks for, and how many sizes from the chart's size it asks (``recommend``).
+PREFERENCES = {"slim": -1, "regular": 0, "relaxed": 1}
+# cm: the least cloth ease (``Girth.cloth_ease_cm``) at every measured girth a size must leave for each fit, by
+# category, where the style has no chart to start from: a slim fit any that is not tight, a regular one the room
+# the catalogue's chart sizes leave at their rows' centres (T-shirt chest +3.2 to +4.4 cm, bottoms' waist +2.3 to
+# +4.6 and hips +3.0 to +4.0, the jersey dress's chest -2.7 to +0.2), a relaxed one about a size more.
+ROOM_CM = {
+    "top": {"regular": {"chest": 3.0}, "relaxed": {"chest": 9.0}},
+    "dress": {"regular": {"chest": -3.0}, "relaxed": {"chest": 3.0}},
+    "bottom": {"regular": {"waist": 2.0, "hips": 2.0}, "relaxed": {"waist": 5.0, "hips": 5.0}},
+}
+
+
+def _wearable(verdict: str, slid_cm: float | None) -> bool:
+    """A size one can be advised: not too tight, and on the body (a band a little wider than the waist resting
+    lower, on the hips, at most ``SITS_LOW_CM`` down, counts)."""
+    return verdict in ("fits", "loose") or (verdict == "falls_off" and slid_cm is not None and slid_cm <= SITS_LOW_CM)
+
+
+def _has_room(room: dict | None, floor: dict[str, float]) -> bool:
+    """Whether a size's cloth ease ``room`` (girth -> cm or None) leaves at least ``floor`` at every measured
+    girth (unknown room: yes)."""
+    return all(room.get(k) is None or room[k] >= v for k, v in floor.items()) if room else True
+
+
+def recommend(sizes: list[str], verdicts: list[str], reasons: list[str], slid_cm: list[float | None] | None = None,
+              chart: int | None = None, preference: str = "regular", room: list[dict | None] | None = None,
+              category: str = "top") -> tuple[str | None, str]:
+    """(recommended size or None, why in words) over a style's ``sizes`` in order with their verdicts, how far
+    each drape slid (cm) and its cloth ease per girth (``room``).
+
+    With the person's size on the style's chart (``chart``, an index): the chart's size shifted by the
+    ``preference`` (``PREFERENCES``: slim a size under, relaxed a size over), checked by its drape: if it is too
+    tight, the next larger size that is wearable (``_wearable``); if it is not wearable otherwise (it falls off),
+    the nearest smaller one that is; a size that fits goes before one that is loose. Without a chart: the
+    smallest wearable size with the preference's room (``ROOM_CM``); if none has it, the largest wearable one.
+    Either way a body larger in every girth (a larger chart size, more sizes too tight) never gets a smaller
+    size."""
     slid_cm = slid_cm or [None] * len(sizes)
+    room = room or [None] * len(sizes)
     draped = [i for i, v in enumerate(verdicts) if v != "not_draped"]
     if not draped:
         return None, "no size was draped"
+    ok = [i for i in draped if _wearable(verdicts[i], slid_cm[i])]
     tight = [i for i in draped if verdicts[i] == "tight"]
     free = [i for i in draped if verdicts[i] != "tight"]
     if not free:
         return None, f"every size draped is too tight: the largest, {sizes[tight[-1]]}, is {reasons[tight[-1]]}"
-    i = free[0]
-    size, verdict, reason = sizes[i], verdicts[i], reasons[i]
-    smaller = [sizes[k] for k in tight if k < i]
+    if not ok or (chart is None and free[0] not in ok):
+        # the smallest size that is not too tight falls off: a larger one cannot stay on better
+        i = free[0]
+        smaller = [sizes[k] for k in tight if k < i]
+        tight_words = f" ({', '.join(smaller)} too tight)" if smaller else ""
+        return None, f"no size fits: {sizes[i]}, the smallest that is not too tight{tight_words}, {reasons[i]}"
+    fit = "" if preference == "regular" else f" for a {preference} fit"
+    if chart is not None:
+        target = min(max(chart + PREFERENCES[preference], 0), len(sizes) - 1)
+        above = [i for i in ok if i >= target]
+        floor = max([i for i in tight if i <= target], default=-1)  # never below a size that is too tight
+        below = [i for i in ok if floor < i <= target]
+        if verdicts[target] == "tight" or not below:
+            pick = min(above) if above else max(ok)
+        else:
+            fitting = [i for i in below if verdicts[i] == "fits"]
+            pick = max(fitting) if fitting else max(below)
+        start = (f"the chart's size for you is {sizes[chart]}" +
+                 (f", {sizes[target]}{fit}" if target != chart else ""))
+        if pick != target:
+            start += f"; {sizes[target]} {_why_not(verdicts[target], reasons[target])}"
+        return sizes[pick], f"{sizes[pick]}: {start}; {sizes[pick]} {_in_words(verdicts[pick], reasons[pick], slid_cm[pick])}"
+    floor = ROOM_CM.get(category, {}).get(preference, {})
+    roomy = [i for i in ok if _has_room(room[i], floor)]
+    pick = roomy[0] if roomy else ok[-1]
+    smaller = [sizes[k] for k in tight if k < pick]
     tight_words = f" ({', '.join(smaller)} too tight)" if smaller else ""
-    if verdict == "fits":
-        return size, f"{size} is the smallest size that fits without being tight anywhere{tight_words}"
-    sits_low = verdict == "falls_off" and slid_cm[i] is not None and slid_cm[i] <= SITS_LOW_CM
-    if verdict == "loose" or sits_low:
-        what = f"is {reason}" if verdict == "loose" else f"sits {_cm(slid_cm[i])} lower than it was put on"
-        return size, f"{size} is the smallest size that is not too tight anywhere{tight_words}; it {what}"
-    return None, f"no size fits: {size}, the smallest that is not too tight{tight_words}, {reason}"
+    if roomy:
+        what = (f"the smallest size with the room of a {preference} fit" if floor else
+                "the smallest size that is not too tight anywhere")
+    else:
+        what = f"the largest size that is not too tight, still short of the room of a {preference} fit"
+    return sizes[pick], (f"{sizes[pick]} is {what}{tight_words}; it "
+                         f"{_in_words(verdicts[pick], reasons[pick], slid_cm[pick])}")
+
+
+def _why_not(verdict: str, reason: str) -> str:
+    """Why the size the chart and the preference ask for is not the answer: 'is too tight at ...'."""
+    if verdict == "not_draped":
+        return f"was {reason}"
+    return f"is {reason}" if verdict != "falls_off" else reason
+
+
+def _in_words(verdict: str, reason: str, slid_cm: float | None) -> str:
+    """The advised size's verdict as the end of a sentence: 'fits: 4 cm of ease ...'."""
+    if verdict == "falls_off":
+        return f"sits {_cm(slid_cm or 0.0)} lower than it was put on"
+    return f"fits: {reason}" if verdict == "fits" else f"is {reason}"

@@ -28,7 +28,10 @@ class Fabric:
     """One fabric. density kg/m^2; stretch, shear N/m (isotropic: per unit width, per unit strain); bending
     N m (recorded with the measurement; the springs' bending stays the spring model's ``compression``
     fraction: a spring across a fold shortens with the square of the fold angle, so no linear spring carries
-    a bending modulus); source: where the figures come from."""
+    a bending modulus); source: where the figures come from. comfort_stretch: how much shorter than the body
+    (a fraction of its girth) a garment of this fabric may be cut and still be worn as fitted, not tight: a
+    knit is cut with a few per cent of negative ease in a fitted top or dress, a woven with none (a fitting
+    convention, not a measurement; ``fit.verdict``)."""
 
     name: str
     density: float
@@ -36,13 +39,15 @@ class Fabric:
     shear: float
     bending: float
     source: str
+    comfort_stretch: float = 0.0
 
 
 _WANG_2011 = "Wang, O'Brien, Ramamoorthi 2011 (ARCSim materials/{}.json, lowest-strain row, x2)"
 
 FABRICS: dict[str, Fabric] = {
     # T-shirt knit, 60 % cotton 40 % polyester: c11 16.59, c22 34.48, c33 36.86 (x2)
-    "jersey": Fabric("jersey", 0.187, (33.18 + 68.96) / 2, 73.72, 2.0e-5, _WANG_2011.format("gray-interlock")),
+    "jersey": Fabric("jersey", 0.187, (33.18 + 68.96) / 2, 73.72, 2.0e-5, _WANG_2011.format("gray-interlock"),
+                     comfort_stretch=0.03),
     # trousers' woven, 65 % cotton 35 % polyester: c11 2016.6, c22 2035.0, c33 104.8 (x2)
     "cotton-twill": Fabric("cotton-twill", 0.220, (4033.1 + 4069.9) / 2, 209.5, 1.6e-4,
                            _WANG_2011.format("royal-target")),

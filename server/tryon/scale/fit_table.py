@@ -80,8 +80,8 @@ def advise_person(person: Person, style: str, entries: list[GarmentMeta], models
             out[i] = Drape(result.vertices, result.faces, result.metrics)
         return out
 
-    advice, recommended, reason = advise_style(entries, measurements.as_dict(), body, drape_sizes,
-                                               lambda gid: models[gid].vertices)
+    advice, recommended, reason, _ = advise_style(entries, measurements.as_dict(), body, drape_sizes,
+                                                  lambda gid: models[gid].vertices)
     ease = "; ".join(f"{a.size} " + " ".join(f"{k} {v:+.1f}" for k, v in a.ease_cm.items() if v is not None)
                      for a in advice if any(v is not None for v in a.ease_cm.values()))
     return {"person": person.id, "style": style, "recommended": recommended or "",

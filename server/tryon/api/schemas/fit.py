@@ -7,9 +7,10 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from tryon.api.schemas.bodies import MeasurementsIn, PoseIn
-from tryon.fit.verdict import MAX_EASE_CM, MIN_CLOTH_EASE_CM
+from tryon.fit.verdict import MAX_EASE_CM
 
 Verdict = Literal["fits", "tight", "loose", "falls_off", "not_draped"]
+Preference = Literal["slim", "regular", "relaxed"]
 
 
 class FitRequest(BaseModel):
@@ -21,6 +22,10 @@ class FitRequest(BaseModel):
     measurements: MeasurementsIn = Field(description="body measurements, cm")
     pose: PoseIn = Field(default_factory=PoseIn, description="pose angles, degrees, or a named pose "
                                                              "(default: the A-pose)")
+    preference: Preference = Field("regular", description="the fit the shopper likes: slim (a size under the "
+                                                          "chart's, if its drape is not too tight), regular (the "
+                                                          "chart's size, as its drape allows) or relaxed (a size "
+                                                          "over, if it stays on)")
 
 
 class SizeFitOut(BaseModel):
@@ -38,8 +43,9 @@ class SizeFitOut(BaseModel):
                                           "body there). About 2.8 cm of it is the cloth's offset from the skin")
     cloth_ease_cm: dict[str, float | None] = Field(
         default_factory=dict, description="per girth: the garment's tape girth there unstretched minus the "
-                                          "body's, cm; negative = that much short (a top is tight below "
-                                          f"{MIN_CLOTH_EASE_CM} cm)")
+                                          "body's, cm; negative = that much short (a top or dress is tight "
+                                          "when short at the chest by more than its fabric takes fitted: 3 % "
+                                          "for jersey, nothing for a woven)")
     too_tight: dict[str, int] = Field(default_factory=dict, description="springs stretched past their limit by "
                                                                         "the body, per body place")
     max_strain: float | None = Field(None, description="largest spring strain of the drape (length / natural "
@@ -53,9 +59,14 @@ class SizeFitOut(BaseModel):
 
 class FitOut(BaseModel):
     style: str = Field(description="style id")
-    recommended: str | None = Field(description="the smallest draped size that is not too tight, if it fits, is "
-                                                "loose, or sits at most 20 cm lower than put on (the reason says "
-                                                "which); else null (see reason)")
+    preference: Preference = Field(description="the fit asked for")
+    recommended: str | None = Field(description="with a size chart: the chart's size for these measurements, a "
+                                                "size under it for a slim fit or over it for a relaxed one, moved "
+                                                "up while its drape is too tight and down while it falls off; "
+                                                "without one: the smallest size that is not too tight and leaves "
+                                                "the fit's room. Null when no size is wearable (see reason)")
     reason: str = Field(description="why that size, or why none")
+    notes: list[str] = Field(default_factory=list, description="where a larger size measured less room at a "
+                                                                 "girth than the size under it, and why")
     sizes: list[SizeFitOut] = Field(description="every size of the style, in order")
     wall_seconds: float = Field(description="wall-clock time of this answer, s")

@@ -324,6 +324,35 @@ def test_a_larger_body_on_the_chart_never_gets_a_smaller_size_and_slim_is_never_
             assert sizes.index(b) >= sizes.index(a), (verdicts, larger, chart, a, b)
 
 
+def test_a_knit_top_a_little_shorter_than_the_chest_is_fitted_a_woven_one_is_tight():
+    from tryon.fit.ease import Girth
+    from tryon.fit.verdict import judge
+
+    metrics = {"stays_up": True, "slid_cm": 0.5, "too_tight": {}}
+    short = {"chest": Girth("chest", 1.3, body_cm=112.0, garment_cm=114.0, cloth_cm=109.3)}  # 2.7 cm, 2.4 %
+    assert judge("dress", metrics, short, comfort_stretch=0.03)[0] == "fits"
+    verdict, reason = judge("top", metrics, short, comfort_stretch=0.0)
+    assert verdict == "tight" and reason == "too tight at the chest: its cloth, unstretched, is 3 cm shorter than the chest"
+    shorter = {"chest": Girth("chest", 1.3, body_cm=112.0, garment_cm=113.0, cloth_cm=107.0)}  # 5 cm, 4.5 %
+    assert judge("dress", metrics, shorter, comfort_stretch=0.03) == (
+        "tight", "too tight at the chest: its cloth, unstretched, is 5 cm shorter than the chest, more than the 3 cm "
+                 "its fabric takes fitted")
+
+
+def test_a_larger_size_with_less_room_is_noted_with_why():
+    from tryon.fit.advice import SizeAdvice, ease_notes
+
+    def size(name, waist, hips, slid):
+        return SizeAdvice(name, name, "fits", "", cloth_ease_cm={"waist": waist, "hips": hips}, slid_cm=slid)
+
+    notes = ease_notes([size("S", 4.0, 3.0, 0.0), size("M", 3.5, 0.5, 6.0), size("L", 6.0, 4.0, 6.5),
+                        SizeAdvice("XL", "XL", "not_draped", "")])
+    assert notes == ["M leaves less room at the hips than S (+0.5 against +3.0 cm): it sits 6 cm lower on the body, "
+                     "where the body is wider"]
+    assert ease_notes([size("S", 4.0, 3.0, 0.0), size("M", 1.0, 3.0, 0.5)]) == [
+        "M leaves less room at the waist than S (+1.0 against +4.0 cm): its cut is narrower there"]
+
+
 def test_ease_of_a_tube_of_known_girth_around_a_known_body():
     """A straight tube around the body's waist and hips, its sections 8 cm longer than the body's hips: its
     tape ease is its girth minus the body's at each level, within 1 cm."""

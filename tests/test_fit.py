@@ -353,6 +353,37 @@ def test_a_larger_size_with_less_room_is_noted_with_why():
         "M leaves less room at the waist than S (+1.0 against +4.0 cm): its cut is narrower there"]
 
 
+def test_length_in_words_from_where_the_ends_lie():
+    from tryon.fit.verdict import length_notes
+
+    assert length_notes({"sleeve_l": 7.3, "sleeve_r": 2.0, "hem": 21.2}) == [
+        "too long: the sleeves end 7 cm past the wrists", "too long: the hem ends 21 cm below the hips"]
+    assert length_notes({"leg_l": -6.4, "leg_r": -5.5}) == ["too long: the trouser legs end 6 cm below the ankles"]
+    assert length_notes({"leg_l": 3.6, "leg_r": 1.0}) == ["too short: the trouser legs end 4 cm above the ankles"]
+    assert length_notes({"sleeve_l": -6.2, "hem": -9.0}) == [
+        "too short: the sleeves end 6 cm short of the wrists", "too short: the hem ends 9 cm above the hips"]
+    assert length_notes({"sleeve_l": 1.0, "leg_l": 0.0, "hem": 12.0}) == [] and length_notes({}) == []
+
+
+def test_the_same_trousers_reach_the_floor_on_a_short_person_and_bare_the_ankles_on_a_tall_one(data_dir):
+    """Trousers M on M girths at 160 and 190 cm: the legs end below the ankle bone on the short person (too
+    long), above it on the tall one (too short); the advice says so after its verdict."""
+    catalogue = Catalogue(data_dir)
+    m = catalogue.style("trousers")[1]
+    model = catalogue.model(m.id)
+    out = {}
+    for height in (160, 190):
+        body = build_body(Measurements(**{**AT_M, "height": height}))
+        result = drape(body, model, SimSettings())
+        out[height] = advise_size("M", m.id, "bottom", body, result.vertices, result.faces, model.vertices,
+                                  result.metrics)
+    short, tall = out[160], out[190]
+    assert set(short.ends_cm) == {"leg_l", "leg_r"} and max(short.ends_cm.values()) < -5.0
+    assert short.length == [f"too long: the trouser legs end {-min(short.ends_cm.values()):.0f} cm below the ankles"]
+    assert short.reason.endswith(short.length[0])
+    assert min(tall.ends_cm.values()) > 3.0 and tall.length[0].startswith("too short: the trouser legs end")
+
+
 def test_ease_of_a_tube_of_known_girth_around_a_known_body():
     """A straight tube around the body's waist and hips, its sections 8 cm longer than the body's hips: its
     tape ease is its girth minus the body's at each level, within 1 cm."""

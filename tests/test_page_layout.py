@@ -255,6 +255,14 @@ def test_the_fit_summary_judges_the_shown_mesh(browser, big_shop):
         # the limit comes from the init message: 15 % on a 20 % cloth is within it
         assert strain(0.15, 0.20)["Max strain"]["tone"] == ""
 
+        # where the ends lie: the server's words; no row for a garment with nothing measured
+        assert "Length" not in rows
+        long = show(page, {**BASE_METRICS, "ends_cm": {"sleeve_l": 7.3, "sleeve_r": 7.4},
+                           "length": ["too long: the sleeves end 7 cm past the wrists"]})
+        assert long["Length"] == {"value": "too long: the sleeves end 7 cm past the wrists", "tone": "warn"}
+        assert show(page, {**BASE_METRICS, "ends_cm": {"hem": 12.0}, "length": []})["Length"] == {
+            "value": "right", "tone": "good"}
+
         # both directions of penetration, green only when none
         rows = show(page, {**BASE_METRICS, "penetrating_vertices": 3, "max_penetration_mm": 4.26,
                            "body_through_vertices": 41, "max_body_through_mm": 12.04})

@@ -126,6 +126,12 @@ export function metricRows(m, { strainLimit = DEFAULT_STRAIN_LIMIT, stoppedBy = 
   }
   add('Sleeves, legs', openings, openings.value.length > 24);
 
+  // the server's words on where the ends lie (metrics.length: "too long: the sleeves end 7 cm past the wrists")
+  if (Array.isArray(m.length) && m.ends_cm && Object.keys(m.ends_cm).length) {
+    add('Length', m.length.length ? { value: m.length.join('; '), tone: 'warn' } : { value: 'right', tone: 'good' },
+      m.length.length > 0);
+  }
+
   let stays;
   if (typeof m.stays_up !== 'boolean') stays = { value: '—' };
   else if (m.stays_up) {

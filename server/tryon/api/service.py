@@ -15,6 +15,7 @@ from tryon.api.schemas.tryon import TryOnRequest
 from tryon.body.build import build_body
 from tryon.body.params import Pose
 from tryon.body.types import Body
+from tryon.fit.verdict import length_notes
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
 from tryon.sim.outfit import OutfitResult, drape_outfit, piece_categories
@@ -130,6 +131,8 @@ def result_json(result: TryOnResult | OutfitResult, cached_answer_s: float | Non
         "too_tight": m.get("too_tight", {}),
         "openings_on_limbs": m.get("openings_on_limbs"),
         "limb_openings": m.get("limb_openings", []),
+        "ends_cm": m.get("ends_cm", {}),
+        "length": length_notes(m.get("ends_cm") or {}),
         "slid_cm": round(float(m["slid_cm"]), 1),
         "stays_up": bool(m["stays_up"]),
         "sized_to_body": bool(m.get("sized_to_body", False)),

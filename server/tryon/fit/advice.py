@@ -16,7 +16,7 @@ from tryon.body.types import Body
 from tryon.garment.fabric import fabric_named
 from tryon.garment.model import GarmentMeta
 from tryon.fit.ease import measure_ease
-from tryon.fit.verdict import judge, recommend
+from tryon.fit.verdict import judge, length_notes, recommend
 
 # cm: a larger size measured with less cloth ease than the size under it, at the same girth, by more than this
 # (the tape's precision on the shown mesh) is said in the advice's notes (``ease_notes``).
@@ -41,12 +41,14 @@ class SizeAdvice:
     max_strain: float | None = None
     stays_up: bool | None = None
     slid_cm: float | None = None
+    ends_cm: dict = field(default_factory=dict)
+    length: list = field(default_factory=list)
 
     def as_dict(self) -> dict:
         return {"size": self.size, "garment_id": self.garment_id, "verdict": self.verdict,
                 "ease_cm": self.ease_cm, "cloth_ease_cm": self.cloth_ease_cm, "too_tight": self.too_tight,
                 "max_strain": self.max_strain, "stays_up": self.stays_up, "slid_cm": self.slid_cm,
-                "reason": self.reason}
+                "ends_cm": self.ends_cm, "length": self.length, "reason": self.reason}
 
 
 def chart_position(charts: list[dict | None], measurements: dict) -> dict[str, float]:
@@ -102,15 +104,21 @@ def skip_reason(index: int, charts: list[dict | None], position: dict[str, float
 def advise_size(size: str, garment_id: str, category: str, body: Body, vertices: np.ndarray, faces: np.ndarray,
                 rest_vertices: np.ndarray, metrics: dict, comfort_stretch: float = 0.0) -> SizeAdvice:
     """One drape's advice: the ease measured on the draped ``vertices`` (n, 3) m (rest shape ``rest_vertices``)
-    around ``body``, and the verdict from it, the drape's ``metrics`` and the fabric's ``comfort_stretch``."""
+    around ``body``, and the verdict from it, the drape's ``metrics`` and the fabric's ``comfort_stretch``; its
+    length (``metrics["ends_cm"]``) too long or too short is said after the reason."""
     girths = measure_ease(body, vertices, faces, rest_vertices, category)
     verdict, reason = judge(category, metrics, girths, comfort_stretch)
+    ends = dict(metrics.get("ends_cm") or {})
+    length = length_notes(ends)
+    if length and verdict != "falls_off":
+        reason = "; ".join([reason, *length])
     return SizeAdvice(
         size=size, garment_id=garment_id, verdict=verdict, reason=reason,
         ease_cm={k: (round(g.ease_cm, 1) if g else None) for k, g in girths.items()},
         cloth_ease_cm={k: (round(g.cloth_ease_cm, 1) if g else None) for k, g in girths.items()},
         too_tight=dict(metrics.get("too_tight") or {}), max_strain=round(float(metrics["max_strain"]), 5),
-        stays_up=bool(metrics.get("stays_up", True)), slid_cm=float(metrics.get("slid_cm", 0.0)))
+        stays_up=bool(metrics.get("stays_up", True)), slid_cm=float(metrics.get("slid_cm", 0.0)), ends_cm=ends,
+        length=length)
 
 
 def not_draped(size: str, garment_id: str, reason: str) -> SizeAdvice:

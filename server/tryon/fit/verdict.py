@@ -113,6 +113,37 @@ def _ease_phrase(measured: dict[str, Girth]) -> str:
     return ", ".join([first, *parts[1:]])
 
 
+# cm (``sim.length.garment_ends``): beyond these a garment's ends are too long or too short for the body. A
+# long sleeve's cuff more than 5 cm past the wrist joint covers half the palm, more than 5 cm short of it bares
+# the wrist bone and the forearm; a full-length trouser leg's hem more than 5 cm below the ankle bone (6-7 cm
+# above the floor) lies on the shoe and the floor, more than 3 cm above it bares the ankle; a top's hem more
+# than 20 cm below the hips line reaches well past the crotch (about 10 cm below it), more than 8 cm above it
+# is cropped.
+TOO_LONG_CM = {"sleeve": 5.0, "leg": -5.0, "hem": 20.0}
+TOO_SHORT_CM = {"sleeve": -5.0, "leg": 3.0, "hem": -8.0}
+_ENDS = {"sleeve": ("sleeves", "past the wrists", "short of the wrists"),
+         "leg": ("trouser legs", "below the ankles", "above the ankles"),
+         "hem": ("hem", "below the hips", "above the hips")}
+
+
+def length_notes(ends_cm: dict[str, float]) -> list[str]:
+    """Too long or too short, in words, from where a drape's ends lie (``sim.length.garment_ends``): 'too long:
+    the sleeves end 7 cm past the wrists'. A pair of sleeves or legs is judged by the one farther out of range."""
+    notes = []
+    for kind, (what, past, short) in _ENDS.items():
+        values = [v for k, v in ends_cm.items() if k.split("_")[0] == kind and v is not None]
+        if not values:
+            continue
+        sign = -1.0 if kind == "leg" else 1.0  # legs: lower (more negative) is longer
+        longest, shortest = max(values, key=lambda v: sign * v), min(values, key=lambda v: sign * v)
+        verb = "ends" if kind == "hem" else "end"
+        if sign * longest > sign * TOO_LONG_CM[kind]:
+            notes.append(f"too long: the {what} {verb} {_cm(longest)} {past if sign * longest > 0 else short}")
+        elif sign * shortest < sign * TOO_SHORT_CM[kind]:
+            notes.append(f"too short: the {what} {verb} {_cm(shortest)} {past if sign * shortest > 0 else short}")
+    return notes
+
+
 # The fit a shopper asks for, and how many sizes from the chart's size it asks (``recommend``).
 PREFERENCES = {"slim": -1, "regular": 0, "relaxed": 1}
 # cm: the least cloth ease (``Girth.cloth_ease_cm``) at every measured girth a size must leave for each fit, by

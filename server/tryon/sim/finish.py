@@ -9,6 +9,7 @@ from typing import Callable
 import numpy as np
 
 from tryon.sim.full_mesh import display_strain, follow_coarse
+from tryon.sim.length import garment_ends
 from tryon.sim.limbs import openings_on_shown_limbs
 from tryon.sim.metrics import penetration_metrics, slid_metrics, strain_metrics, too_tight_places
 from tryon.sim.relax import Relaxation
@@ -69,6 +70,7 @@ def result(d: Drape, relaxation: Relaxation, full: np.ndarray, full_parts: np.nd
         "too_tight": too_tight,
         "limb_openings": on_limbs,
         "openings_on_limbs": all(o["ok"] for o in on_limbs) if on_limbs else None,
+        "ends_cm": garment_ends(full, model, body, d.openings, model.meta.category),
         **slid_metrics(d.placed_tops, x, d.piece),
         "sized_to_body": d.sized,
         "kinetic_energy_per_kg": float(st.energy),

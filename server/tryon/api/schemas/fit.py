@@ -54,6 +54,10 @@ class SizeFitOut(BaseModel):
                                                     "not draped")
     slid_cm: float | None = Field(None, description="how far the garment's top ended under where it was put on, "
                                                     "cm (over 10: it does not stay up); null if not draped")
+    ends_cm: dict[str, float] = Field(default_factory=dict, description="where the drape's ends lie, cm (POST "
+                                                                       "/api/tryon's metrics.ends_cm)")
+    length: list[str] = Field(default_factory=list, description="too long or too short, in words (also at the "
+                                                                "end of reason)")
     reason: str = Field(description="the verdict in words")
 
 

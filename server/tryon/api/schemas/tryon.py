@@ -167,6 +167,13 @@ class TryOnMetricsOut(BaseModel):
                                                              "its end); null for a garment with none")
     limb_openings: list[LimbOpeningOut] = Field(default_factory=list,
                                                 description="each such opening and where it ended")
+    ends_cm: dict[str, float] = Field(default_factory=dict, description="where the garment ends on the body, cm, "
+                                                                       "on the shown mesh: sleeve_l / sleeve_r "
+                                                                       "past the wrist (long sleeves), leg_l / leg_r "
+                                                                       "above the ankle bone (full-length legs), hem "
+                                                                       "below the hips line (tops)")
+    length: list[str] = Field(default_factory=list, description="too long or too short, in words: 'too long: the "
+                                                                "sleeves end 7 cm past the wrists'")
     slid_cm: float = Field(0.0, description="how far the garment slid down the body from where it was put on: "
                                             "the largest drop of the highest point of any of its pieces, cm")
     stays_up: bool = Field(True, description=f"whether it slid down no more than {SLID_LIMIT_CM:g} cm (false: it "

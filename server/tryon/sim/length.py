@@ -1,0 +1,73 @@
+"""Where a drape's ends lie on the body, measured on the shown mesh: each long sleeve's cuff against the wrist,
+each full-length trouser leg's hem against the ankle, a top's or dress's hem against the hips line (issue 52's
+length: the size advice says too long or too short from these, ``fit.verdict``).
+
+A sleeve is long when its cuff lies on the forearm or past it (its centre farther from the shoulder joint than
+the elbow); a leg is full length when its hem lies below the knee. The ankle is not a joint of the body model:
+its height is 3.9 % of the body's (the lateral malleolus, Drillis and Contini's segment proportions).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tryon.body.types import Body
+from tryon.sim.landmarks import body_landmarks
+from tryon.sim.limbs import shown_openings
+
+# Of the body's height: the ankle bone above the floor (Drillis and Contini 1966, 0.039 H).
+ANKLE_HEIGHT = 0.039
+
+
+def _centre(full: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    return full[ring].mean(axis=0)
+
+
+def _cuff_past_wrist(centre: np.ndarray, body: Body, s: str) -> float | None:
+    """cm the cuff's centre lies past the wrist joint along the forearm (negative: short of it), or None for a
+    short sleeve (its cuff nearer the shoulder than the elbow)."""
+    shoulder, elbow, wrist = (np.asarray(body.joints[f"{j}_{s}"]) for j in ("shoulder", "elbow", "wrist"))
+    if np.linalg.norm(centre - shoulder) < np.linalg.norm(elbow - shoulder):
+        return None
+    axis = (wrist - elbow) / np.linalg.norm(wrist - elbow)
+    return 100.0 * float((centre - wrist) @ axis)
+
+
+def _hem_over_ankle(centre: np.ndarray, body: Body, s: str, height_m: float) -> float | None:
+    """cm the leg hem's centre lies above the ankle bone (negative: below it, towards the floor), or None for a
+    leg ending above the knee."""
+    if centre[1] > np.asarray(body.joints[f"knee_{s}"])[1]:
+        return None
+    return 100.0 * float(centre[1] - ANKLE_HEIGHT * height_m)
+
+
+def garment_ends(full: np.ndarray, model, body: Body, openings: list[tuple[str, str, np.ndarray]],
+                 category: str) -> dict[str, float]:
+    """Where the shown mesh ``full`` (n, 3) m of ``model`` ends on ``body``, cm: ``sleeve_l`` / ``sleeve_r`` past
+    the wrist (long sleeves), ``leg_l`` / ``leg_r`` above the ankle bone (full-length legs), ``hem`` below the
+    hips line (tops: the lowest opening that is no limb's; a dress's length is its style's). ``openings``: the drape's limb openings
+    (``limbs.limb_openings``, on the coarse mesh). Empty for a body without joints (not built by
+    ``build_body``)."""
+    if not body.joints or not len(full):
+        return {}
+    out: dict[str, float] = {}
+    height = float(body.vertices[:, 1].max() - body.vertices[:, 1].min())
+    rings = shown_openings(model, openings)
+    for side, limb, ring in rings:
+        s = side[0]
+        centre = _centre(full, ring)
+        key = f"sleeve_{s}" if limb == "arm" else f"leg_{s}"
+        value = _cuff_past_wrist(centre, body, s) if limb == "arm" else _hem_over_ankle(centre, body, s, height)
+        if value is None:
+            continue
+        # of a sleeve's openings (armhole and cuff), the cuff is the one farthest out
+        if key not in out or (value > out[key] if limb == "arm" else value < out[key]):
+            out[key] = round(value, 1)
+    if category == "top":
+        limb_vertices = set(int(v) for _, _, ring in rings for v in ring)
+        hems = [loop for loop in model.loops if not limb_vertices.intersection(int(v) for v in loop)]
+        if hems:
+            lowest = min(hems, key=lambda loop: float(full[loop, 1].mean()))
+            out["hem"] = round(100.0 * (body_landmarks(body).hips_y - float(full[lowest, 1].mean())), 1)
+    return out
+

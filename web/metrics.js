@@ -103,12 +103,14 @@ export function metricRows(m, { strainLimit = DEFAULT_STRAIN_LIMIT, stoppedBy = 
   const kinds = m.strain_by_kind ? Object.values(m.strain_by_kind) : [];
   const springsOver = kinds.length ? kinds.reduce((n, k) => n + (Number(k.over) || 0), 0) : null;
   const strain = describeStrain(m.display_max_strain, strainLimit, springsOver);
-  add('Max strain', strain, true);
   const withinLimit = strain.tone === 'good' || (strain.tone === '' && strain.value !== '—');
-
   // where the (simulated) cloth is over its limit on the body; "nowhere" is green only if the shown mesh
   // agrees (its strain within the limit), else it would call a drape good that the strain row calls bad
   const tight = m.too_tight ? Object.keys(m.too_tight) : null;  // largest count first
+  // one verdict: cloth at its limit where the body holds nothing too tight is taut cloth, not a size too
+  // small (a loose T-shirt's shoulders): told, not coloured as a warning beside "Fits"
+  if (strain.tone === 'warn' && tight !== null && !tight.length) strain.tone = '';
+  add('Max strain', strain, true);
   add('Too tight at', tight === null ? { value: '—' }
     : (tight.length ? { value: tight.slice(0, 3).map(placeName).join(', '), tone: 'warn' }
       : { value: 'nowhere', tone: withinLimit ? 'good' : '' }));

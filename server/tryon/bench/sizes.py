@@ -5,8 +5,9 @@ style CSV (``tryon bench --bodies CSV``; by default the small sample of made-up 
 how often they agree, exactly and within one size, every disagreement with the advice's reason, and the time
 of one advice.
 
-The chart is the maker's claim, the drape our measurement: where they disagree the report says why (the
-advice's reason), it does not tune the verdict to the chart. The chart's size of a person is the largest of
+The advice starts from the chart's size (the maker's claim) and the drapes move it (our measurement: up while
+too tight, down while it falls off or is loose), so every disagreement is such a move and the report gives its
+reason (the advice's); the verdicts are the drapes' alone. The chart's size of a person is the largest of
 the sizes whose ranges hold each of their girths the chart gives (a garment must go round every one);
 people outside the chart (below its smallest row or above its largest) are counted apart.
 """
@@ -104,7 +105,9 @@ def run(ctx: Context, sec: Section) -> None:
         rows,
         note="The chart's size: the largest of the sizes whose ranges hold the person's girths (chest and waist for "
              "tops, waist and hips for bottoms, as the catalogue's charts give them); 'in the chart': people inside "
-             "its smallest and largest rows. 'no size fits': the advice recommends none (its reason below).",
+             "its smallest and largest rows. 'no size fits': the advice recommends none (its reason below). The "
+             "advice (regular fit) starts from the chart's size and moves where its drape is too tight, falls off "
+             "or is loose: each disagreement below is such a move.",
     ))
     sec.tables.append(Table(
         "Where the drape and the chart disagree",

@@ -26,6 +26,7 @@ from tryon.cli import main
 from tryon.config import Settings
 from tryon.fit.advice import advise_size
 from tryon.fit.ease import measure_ease
+from tryon.fit.verdict import length_notes
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.generate import GARMENTS, SIZE_CHART, chart_row, garment_mesh, half_axes, obj_text, spow
 from tryon.garment.ingest import GarmentError
@@ -382,6 +383,19 @@ def test_the_same_trousers_reach_the_floor_on_a_short_person_and_bare_the_ankles
     assert short.length == [f"too long: the trouser legs end {-min(short.ends_cm.values()):.0f} cm below the ankles"]
     assert short.reason.endswith(short.length[0])
     assert min(tall.ends_cm.values()) > 3.0 and tall.length[0].startswith("too short: the trouser legs end")
+
+
+def test_long_sleeves_reach_over_the_hands_of_a_short_person_and_a_tshirt_has_only_its_hem_measured(data_dir, tmp_path):
+    body = build_body(Measurements(**{**AT_M, "height": 160}))
+    catalogue = Catalogue(tmp_path / "data")
+    name, category = GARMENTS["longsleeve"]
+    sleeve = catalogue.ingest(obj_text(garment_mesh("longsleeve", "M"), "longsleeve M").encode(), filename="ls.obj",
+                              name=f"{name} M", category=category, units="m")
+    ends = drape(body, catalogue.model(sleeve.id), SimSettings()).metrics["ends_cm"]
+    assert set(ends) == {"sleeve_l", "sleeve_r", "hem"} and min(ends["sleeve_l"], ends["sleeve_r"]) > 5.0
+    assert "too long: the sleeves end" in length_notes(ends)[0]
+    shirt = Catalogue(data_dir).style("tshirt")[1]
+    assert set(drape(body, Catalogue(data_dir).model(shirt.id), SimSettings()).metrics["ends_cm"]) == {"hem"}
 
 
 def test_ease_of_a_tube_of_known_girth_around_a_known_body():

@@ -220,6 +220,14 @@ def test_a_band_too_small_that_slid_down_is_tight_not_falling_off():
         "falls_off", "does not stay on the hips: it slid 25 cm down from where it was put on")
 
 
+# A verdict's reason in words, as ``judge`` gives them, for the recommendation's tests.
+REASONS = {"tight": "too tight at the waist: the cloth is stretched past its limit there",
+           "loose": "loose: 17 cm of ease at the hips (over 16 cm); stays on the hips",
+           "fits": "6 cm of ease at the hips; stays on the hips",
+           "falls_off": "does not stay on the hips: it slid 30 cm down from where it was put on",
+           "not_draped": "not draped"}
+
+
 @pytest.mark.parametrize("verdicts,slid,expected,words", [
     # trousers on a 90 cm waist, 99 cm hips: L's band a little wider than the waist rests on the hips
     (["tight", "tight", "falls_off", "fits", "not_draped"], [1, 1, 11, 2, None], "L",
@@ -240,13 +248,7 @@ def test_a_band_too_small_that_slid_down_is_tight_not_falling_off():
 def test_without_a_chart_the_answer_is_the_smallest_size_not_too_tight(verdicts, slid, expected, words):
     from tryon.fit.verdict import recommend
 
-    sizes = ["S", "M", "L", "XL", "XXL"]
-    reasons = {"tight": "too tight at the waist: the cloth is stretched past its limit there",
-               "loose": "loose: 17 cm of ease at the hips (over 16 cm); stays on the hips",
-               "fits": "6 cm of ease at the hips; stays on the hips",
-               "falls_off": "does not stay on the hips: it slid 30 cm down from where it was put on",
-               "not_draped": "not draped"}
-    size, why = recommend(sizes, verdicts, [reasons[v] for v in verdicts], slid)
+    size, why = recommend(SIZES, verdicts, [REASONS[v] for v in verdicts], slid)
     assert size == expected and words in why, why
 
 
@@ -288,14 +290,8 @@ def test_with_a_chart_the_answer_is_the_charts_size_moved_by_the_preference_and_
         verdicts, chart, preference, expected, words):
     from tryon.fit.verdict import recommend
 
-    sizes = ["S", "M", "L", "XL", "XXL"]
-    reasons = {"tight": "too tight at the waist: the cloth is stretched past its limit there",
-               "loose": "loose: 17 cm of ease at the hips (over 16 cm); stays on the hips",
-               "fits": "6 cm of ease at the hips; stays on the hips",
-               "falls_off": "does not stay on the hips: it slid 30 cm down from where it was put on",
-               "not_draped": "not draped"}
     slid = [30.0 if v == "falls_off" else 1.0 for v in verdicts]
-    size, why = recommend(sizes, verdicts, [reasons[v] for v in verdicts], slid, chart, preference)
+    size, why = recommend(SIZES, verdicts, [REASONS[v] for v in verdicts], slid, chart, preference)
     assert size == expected and words in why, why
 
 

@@ -68,6 +68,10 @@ def test_json_numbers_are_finite(bench):
 @pytest.mark.slow
 def test_sections_carry_their_figures(bench):
     _, _, report = bench
+    sizes = _section(report, "sizes")["data"]
+    for style, by in sizes["preferences"].items():  # slim never a larger size, relaxed never a smaller one
+        assert by["slim"]["larger"] == 0 and by["relaxed"]["smaller"] == 0
+        assert 0 < sum(by["slim"].values()) <= sizes["styles"][style]["people"]
     t1 = _section(report, "table1")["data"]["ours"][0]
     assert 0 < t1["simplified"] < t1["vertices"]
     assert t1["collision_ms_full"] > 0 and t1["collision_ms_simplified"] > 0

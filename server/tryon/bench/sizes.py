@@ -23,6 +23,8 @@ import numpy as np
 from tryon.bench.common import Context, Section, SkipSection, Table, fmt
 
 STYLES = ("tshirt", "trousers")
+# The fit preferences compared with the regular fit's advice (``fit.verdict.PREFERENCES``).
+PREFERENCES = ("slim", "relaxed")
 # People taken in the quick run (the first of the CSV).
 QUICK_PEOPLE = 3
 SAMPLE = Path("tests") / "data" / "bodies-sample.csv"
@@ -71,14 +73,19 @@ def run(ctx: Context, sec: Section) -> None:
         styles = {s: catalogue.style(s) for s in STYLES if catalogue.style(s)}
         models = {m.id: catalogue.model(m.id) for entries in styles.values() for m in entries}
         rows, disagreements, times = [], [], []
-        stats = {}
+        stats, moved = {}, {}
         for style, entries in styles.items():
             labels = [m.size for m in entries]
             st = stats[style] = {"people": 0, "covered": 0, "exact": 0, "within_one": 0, "no_advice": 0}
+            mv = moved[style] = {p: {"smaller": 0, "same": 0, "larger": 0} for p in PREFERENCES}
             for person in people:
                 t = time.perf_counter()
-                row = advise_person(person, style, entries, models)
+                row = advise_person(person, style, entries, models, also=PREFERENCES)
                 times.append(time.perf_counter() - t)
+                for p in PREFERENCES:
+                    if row[p] in labels and row["recommended"] in labels:
+                        step = labels.index(row[p]) - labels.index(row["recommended"])
+                        mv[p]["smaller" if step < 0 else "larger" if step > 0 else "same"] += 1
                 st["people"] += 1
                 want = chart_size(entries, person.measurements)
                 got = labels.index(row["recommended"]) if row["recommended"] in labels else None
@@ -96,7 +103,7 @@ def run(ctx: Context, sec: Section) -> None:
         covered = max(st["covered"], 1)
         rows.append([style, st["people"], st["covered"], st["exact"], f"{100 * st['exact'] / covered:.0f} %",
                      st["within_one"], f"{100 * st['within_one'] / covered:.0f} %", st["no_advice"]])
-    sec.data.update({"bodies": str(path), "people": len(people), "styles": stats,
+    sec.data.update({"bodies": str(path), "people": len(people), "styles": stats, "preferences": moved,
                      "advice_s_median": float(np.median(times)) if times else None,
                      "disagreements": disagreements})
     sec.tables.append(Table(
@@ -110,6 +117,13 @@ def run(ctx: Context, sec: Section) -> None:
              "or is loose: each disagreement below is such a move.",
     ))
     sec.tables.append(Table(
+        "The fit preference against the regular fit's advice (people with both)",
+        ["style", "preference", "a size smaller", "the same size", "a size larger"],
+        [[style, p, c["smaller"], c["same"], c["larger"]] for style, by in moved.items() for p, c in by.items()],
+        note="slim asks for a size under the chart's and relaxed for one over; the same size where that size's "
+             "drape is too tight (slim), falls off or is loose (relaxed), or the chart has no size beyond.",
+    ))
+    sec.tables.append(Table(
         "Where the drape and the chart disagree",
         ["person", "style", "chart", "advice", "verdicts", "the advice's reason"],
         disagreements or [["-", "-", "-", "-", "-", "none"]],
@@ -120,4 +134,5 @@ def run(ctx: Context, sec: Section) -> None:
         sec.headline.append(
             f"sizes, {style}: the advice agrees with the chart for {st['exact']} of {st['covered']} people "
             f"({100 * st['exact'] / covered:.0f} %), within one size for {st['within_one']} "
-            f"({100 * st['within_one'] / covered:.0f} %); median {fmt(median)} s an advice")
+            f"({100 * st['within_one'] / covered:.0f} %); median {fmt(median)} s an advice (its three fits from "
+            f"the same drapes)")

@@ -347,7 +347,8 @@ def test_a_larger_size_with_less_room_is_noted_with_why():
     assert notes == ["M leaves less room at the hips than S (+0.5 against +3.0 cm): it sits 6 cm lower on the body, "
                      "where the body is wider"]
     assert ease_notes([size("S", 4.0, 3.0, 0.0), size("M", 1.0, 3.0, 0.5)]) == [
-        "M leaves less room at the waist than S (+1.0 against +4.0 cm): its cut is narrower there"]
+        "M leaves less room at the waist than S (+1.0 against +4.0 cm): it sits no lower: its drape, not its size, "
+        "leaves less cloth round the body there"]
 
 
 def test_length_in_words_from_where_the_ends_lie():

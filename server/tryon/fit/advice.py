@@ -135,7 +135,8 @@ def recommendation(advice: list[SizeAdvice], chart: int | None = None, preferenc
 def ease_notes(advice: list[SizeAdvice]) -> list[str]:
     """Where a larger size measured less cloth ease than the size under it at a girth (by over
     ``EASE_ORDER_CM``), why in words: it sits lower on the body (a bottom whose band rests lower, where the body
-    is wider), or else its cut is narrower there."""
+    is wider), or else it does not, and the drape itself is to blame (the cloth folded or gathered differently
+    where the tape crosses it)."""
     notes = []
     draped = [a for a in advice if a.verdict != "not_draped"]
     for small, large in zip(draped, draped[1:]):
@@ -145,7 +146,7 @@ def ease_notes(advice: list[SizeAdvice]) -> list[str]:
                 continue
             lower = (large.slid_cm or 0.0) - (small.slid_cm or 0.0)
             why = (f"it sits {lower:.0f} cm lower on the body, where the body is wider" if lower >= 2.0 else
-                   "its cut is narrower there")
+                   "it sits no lower: its drape, not its size, leaves less cloth round the body there")
             notes.append(f"{large.size} leaves less room at the {girth} than {small.size} ({e_large:+.1f} against "
                          f"{e_small:+.1f} cm): {why}")
     return notes

@@ -54,14 +54,8 @@ def _catalogue(root: Path):
     return catalogue
 
 
-def chart_size(entries, measurements: dict) -> int | None:
-    """Index of the chart's size for a person (see the module doc); None outside the chart."""
-    from tryon.fit.advice import chart_size as on_chart
-
-    return on_chart([m.chart for m in entries], measurements, clamp=False)
-
-
 def run(ctx: Context, sec: Section) -> None:
+    from tryon.fit.advice import chart_size
     from tryon.scale.fit_table import advise_person, read_bodies
 
     path = _bodies_path(ctx)
@@ -87,7 +81,7 @@ def run(ctx: Context, sec: Section) -> None:
                         step = labels.index(row[p]) - labels.index(row["recommended"])
                         mv[p]["smaller" if step < 0 else "larger" if step > 0 else "same"] += 1
                 st["people"] += 1
-                want = chart_size(entries, person.measurements)
+                want = chart_size([m.chart for m in entries], person.measurements, clamp=False)
                 got = labels.index(row["recommended"]) if row["recommended"] in labels else None
                 if got is None:
                     st["no_advice"] += 1

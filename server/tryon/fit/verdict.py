@@ -202,8 +202,8 @@ def recommend(sizes: list[str], verdicts: list[str], reasons: list[str], slid_cm
     if chart is not None:
         target = min(max(chart + PREFERENCES[preference], 0), len(sizes) - 1)
         above = [i for i in ok if i >= target]
-        floor = max([i for i in tight if i <= target], default=-1)  # never below a size that is too tight
-        below = [i for i in ok if floor < i <= target]
+        tightest = max([i for i in tight if i <= target], default=-1)  # never below a size that is too tight
+        below = [i for i in ok if tightest < i <= target]
         if verdicts[target] == "tight" or not below:
             pick = min(above) if above else max(ok)
         else:

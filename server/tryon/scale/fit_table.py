@@ -61,11 +61,11 @@ def advise_person(person: Person, style: str, entries: list[GarmentMeta], models
                   also: tuple[str, ...] = ()) -> dict:
     """The table row of one person and one style (``entries`` in size order, ``models`` by garment id): the
     recommended size (regular fit), each size's verdict and ease, the reason; and for each fit preference in
-    ``also`` (slim, relaxed) its recommended size under that key, from the same drapes. The sizes' drapes run
+    ``also`` (slim, relaxed) its recommended size under that key, chosen among the same sizes' advice. The sizes' drapes run
     here, one after another (default settings, the pose the API defaults to)."""
     from tryon.body.build import build_body
     from tryon.body.params import Measurements, Pose, check_measurements
-    from tryon.fit.advice import Drape, advise_style
+    from tryon.fit.advice import Drape, advise_style, chart_size, recommendation
     from tryon.sim.run import drape
 
     measurements = Measurements(**person.measurements)
@@ -75,19 +75,18 @@ def advise_person(person: Person, style: str, entries: list[GarmentMeta], models
                 "reason": "not advised: " + "; ".join(problems)}
     body = build_body(measurements, Pose())
 
-    draped: dict[int, Drape] = {}
-
     def drape_sizes(indices: list[int]) -> dict[int, Drape]:
+        out = {}
         for i in indices:
-            if i not in draped:
-                result = drape(body, models[entries[i].id])
-                draped[i] = Drape(result.vertices, result.faces, result.metrics)
-        return {i: draped[i] for i in indices}
+            result = drape(body, models[entries[i].id])
+            out[i] = Drape(result.vertices, result.faces, result.metrics)
+        return out
 
-    others = {p: advise_style(entries, measurements.as_dict(), body, drape_sizes, lambda gid: models[gid].vertices,
-                              p)[1] or "" for p in also}
     advice, recommended, reason, _ = advise_style(entries, measurements.as_dict(), body, drape_sizes,
                                                   lambda gid: models[gid].vertices)
+    # the other fits from the same sizes' advice: only the choice among them differs
+    chart = chart_size([m.chart for m in entries], measurements.as_dict())
+    others = {p: recommendation(advice, chart, p, entries[0].category)[0] or "" for p in also}
     ease = "; ".join(f"{a.size} " + " ".join(f"{k} {v:+.1f}" for k, v in a.ease_cm.items() if v is not None)
                      for a in advice if any(v is not None for v in a.ease_cm.values()))
     return {"person": person.id, "style": style, "recommended": recommended or "",

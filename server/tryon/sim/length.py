@@ -48,10 +48,10 @@ def garment_ends(full: np.ndarray, model, body: Body, openings: list[tuple[str, 
     hips line (tops: the lowest opening that is no limb's; a dress's length is its style's). ``openings``: the drape's limb openings
     (``limbs.limb_openings``, on the coarse mesh). Empty for a body without joints (not built by
     ``build_body``)."""
-    if not body.joints or not len(full):
+    if not body.joints or "height" not in body.achieved or not len(full):
         return {}
     out: dict[str, float] = {}
-    height = float(body.vertices[:, 1].max() - body.vertices[:, 1].min())
+    height = body.achieved["height"] / 100.0  # m: the built body's own measurement
     rings = shown_openings(model, openings)
     for side, limb, ring in rings:
         s = side[0]

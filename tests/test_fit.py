@@ -220,6 +220,40 @@ def test_a_band_too_small_that_slid_down_is_tight_not_falling_off():
         "falls_off", "does not stay on the hips: it slid 25 cm down from where it was put on")
 
 
+def test_too_tight_is_told_from_the_shown_mesh_but_not_round_a_hand_or_a_foot(data_dir):
+    """The T-shirt M at rest on the M body: nothing too tight. Its shown mesh widened 30 % round the body's axis
+    (every edge across the body stretched past the 15 % shear limit), its coarse mesh unchanged: too tight at the
+    chest, from the shown mesh alone. Points below the ankle bones or on a hand are not a place to be sized by."""
+    from tryon.sim.constraints import spring_strain
+    from tryon.sim.metrics import beyond_limb_ends, too_tight_places
+
+    catalogue = Catalogue(data_dir)
+    meta = catalogue.style("tshirt")[1]
+    model = catalogue.model(meta.id)
+    body = build_body(Measurements(**AT_M))
+    result = drape(body, model, SimSettings())
+    assert result.metrics["too_tight"] == {} and result.metrics["display_max_strain"] < 0.16
+    strain = spring_strain(result.coarse, model.springs, model.rest)
+    on_body = np.ones(len(result.coarse), dtype=np.bool_)  # as if every point touched the body
+    limits = np.asarray(SimSettings().strain_limit)
+    axis = result.vertices.mean(axis=0)
+    wide = result.vertices.copy()
+    wide[:, [0, 2]] = axis[[0, 2]] + 1.3 * (wide[:, [0, 2]] - axis[[0, 2]])
+    assert "torso chest" not in too_tight_places(result.coarse, model, strain, limits, on_body, body, result.vertices)
+    assert "torso chest" in too_tight_places(result.coarse, model, strain, limits, on_body, body, wide)
+    # nothing counts off the body: the same wide mesh with no point touching it
+    assert too_tight_places(result.coarse, model, strain, limits, ~on_body, body, wide) == {}
+
+    wrist, elbow = np.asarray(body.joints["wrist_l"]), np.asarray(body.joints["elbow_l"])
+    along = (wrist - elbow) / np.linalg.norm(wrist - elbow)
+    points = np.array([[0.1, 0.02, 0.05],  # at a foot, under the ankle bone (6.6 cm on a 170 cm body)
+                       [0.1, 0.10, 0.05],  # above it, on the shin
+                       wrist + 0.06 * along,  # on the hand
+                       elbow,  # on the forearm
+                       wrist + 0.30 * along])  # past the hand's length
+    assert beyond_limb_ends(points, body).tolist() == [True, False, True, False, False]
+
+
 # A verdict's reason in words, as ``judge`` gives them, for the recommendation's tests.
 REASONS = {"tight": "too tight at the waist: the cloth is stretched past its limit there",
            "loose": "loose: 17 cm of ease at the hips (over 16 cm); stays on the hips",
@@ -460,9 +494,12 @@ def test_a_person_at_the_m_rows_centre_gets_m(client):
     stats = pool.stats()  # S, M and L draped on the pool, at most its workers at once; nothing left running
     assert stats["submitted"] - before == 3 and stats["running"] == 0 and stats["waiting"] == 0
 
-    # the page then shows M's drape without simulating again
+    # the page then shows M's drape without simulating again, with the advice's verdict for it: one verdict
     t = client.post("/api/tryon", json={"garment_id": m["garment_id"], "measurements": AT_M})
     assert t.status_code == 200 and t.json()["metrics"]["cached"] is True
+    assert (t.json()["metrics"]["verdict"], t.json()["metrics"]["verdict_reason"]) == ("fits", m["reason"])
+    s = client.post("/api/tryon", json={"garment_id": sizes["S"]["garment_id"], "measurements": AT_M}).json()
+    assert (s["metrics"]["verdict"], s["metrics"]["verdict_reason"]) == ("fits", sizes["S"]["reason"])
     # ... and the advice again comes from the cache too
     again = client.post("/api/fit", json={"style": "tshirt", "measurements": AT_M}).json()
     assert again["sizes"] == out["sizes"] and again["wall_seconds"] >= 0

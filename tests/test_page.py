@@ -116,10 +116,16 @@ def test_try_on_in_the_browser(page):
     strain = page.locator("#metrics div", has_text="Max strain").locator("dd")
     assert strain.inner_text().startswith(percent(shown) + ": ")
     assert (strain.get_attribute("class") == "good") == (shown < 0.6 * limit)
-    # past the limit it is coloured, unless it is only at the limit with nothing too tight (taut cloth beside a
-    # size that fits: told in words, one verdict)
+    # past the limit it is coloured only beside the verdict "tight" (or when the drape came apart), and not when it
+    # is only at the limit with nothing too tight (taut cloth: told in words, one verdict)
     taut = not state["m"]["too_tight"] and "at the cloth's" in strain.inner_text()
-    assert (strain.get_attribute("class") in ("warn", "bad")) == (shown > limit and not taut)
+    told = state["m"]["verdict"] == "tight" or "not reliable" in strain.inner_text()
+    assert (strain.get_attribute("class") in ("warn", "bad")) == (shown > limit and not taut and told)
+    # the server's one verdict heads the summary, in its colour
+    verdict = page.locator("#metrics div:has(dt:text-is('Verdict')) dd")
+    words = {"fits": "Fits", "tight": "Too tight", "loose": "Loose", "falls_off": "Falls off"}[state["m"]["verdict"]]
+    assert verdict.inner_text().startswith(words)
+    assert verdict.get_attribute("class") == {"fits": "good", "loose": "warn"}.get(state["m"]["verdict"], "bad")
     # both directions of penetration; '—' (never green) from a server without the body-through metric
     through = page.locator("#metrics div", has_text="Body through cloth").locator("dd")
     if "body_through_vertices" in state["m"]:
@@ -179,9 +185,13 @@ def test_a_garment_too_small_says_where(page):
                           " m: window.tryon.done && window.tryon.done.metrics})")
     assert state["s"] == "done", state["e"]
     assert next(iter(state["m"]["too_tight"])) == "torso chest", state["m"]["too_tight"]
-    row = page.locator("#metrics div", has_text="Too tight at")
-    assert row.locator("dd").inner_text().startswith("chest")
-    assert row.locator("dd").get_attribute("class") == "warn"
+    row = page.locator("#metrics div:has(dt:text-is('Too tight at')) dd")
+    assert row.inner_text().startswith("chest")
+    assert row.get_attribute("class") == "warn"
+    # one verdict: the same, in red, at the head of the summary
+    assert state["m"]["verdict"] == "tight"
+    verdict = page.locator("#metrics div:has(dt:text-is('Verdict')) dd")
+    assert verdict.inner_text().startswith("Too tight at the chest") and verdict.get_attribute("class") == "bad"
     assert page.problems == []
 
 

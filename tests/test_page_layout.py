@@ -289,6 +289,25 @@ def test_the_fit_summary_judges_the_shown_mesh(browser, big_shop):
         assert wrong["Stays up"] == {"value": "no, slid 14 cm down", "tone": "warn"}
         assert wrong["Rest reached"] == {"value": "no", "tone": "warn"}
         assert show(page, {**BASE_METRICS, "openings_on_limbs": None})["Sleeves, legs"] == {"value": "none", "tone": ""}
+
+        # the server's one verdict heads the summary and sets the strain's colour: beside a size that is not too
+        # tight, a strain beyond the limit (the shown mesh at a hand or a foot) is told, not coloured; a drape that
+        # comes apart is still "not reliable"
+        assert "Verdict" not in rows  # an older server: no verdict, no row
+        fits = show(page, {**BASE_METRICS, "display_max_strain": 0.25, "verdict": "fits",
+                           "verdict_reason": "8 cm of ease at the chest; stays on the shoulders"})
+        assert fits["Verdict"] == {"value": "Fits: 8 cm of ease at the chest; stays on the shoulders", "tone": "good"}
+        assert fits["Max strain"] == {"value": "25 %: beyond the cloth's 10 % stretch limit", "tone": ""}
+        assert show(page, {**BASE_METRICS, "display_max_strain": 3.67, "verdict": "fits"})["Max strain"]["tone"] == "bad"
+        tight = show(page, {**BASE_METRICS, "display_max_strain": 0.25, "too_tight": {"torso waist": 92},
+                            "verdict": "tight", "verdict_reason": "too tight at the waist: the cloth is stretched past "
+                                                                  "its limit there"})
+        assert tight["Verdict"] == {"value": "Too tight at the waist: the cloth is stretched past its limit there",
+                                    "tone": "bad"}
+        assert tight["Max strain"]["tone"] == "bad" and tight["Too tight at"] == {"value": "waist", "tone": "warn"}
+        off = show(page, {**BASE_METRICS, "stays_up": False, "slid_cm": 40.0, "verdict": "falls_off",
+                          "verdict_reason": "does not stay on the hips: it slid 40 cm down from where it was put on"})
+        assert off["Verdict"]["tone"] == "bad" and off["Verdict"]["value"].startswith("Falls off: does not stay")
         assert page.problems == []
     finally:
         context.close()

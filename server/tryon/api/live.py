@@ -22,7 +22,7 @@ from tryon.api.pool import CachedTryOn, RunGuard
 from tryon.api.schemas.bodies import PoseIn, to_body_params
 from tryon.api.schemas.tryon import TryOnRequest
 from tryon.api.outfits import OutfitMesh, layered, outfit_models
-from tryon.api.service import body_mesh, prepare_outfit, prepare_tryon, result_json
+from tryon.api.service import body_mesh, judged, prepare_outfit, prepare_tryon, result_json
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
 from tryon.body.build import build_body
@@ -161,16 +161,16 @@ def run_live(catalogue: Catalogue, request: LiveTryOnRequest, session: LiveSessi
     init_base, box = replay_parts(run, shown)
     session.offer_init(init_base, shown, FrameCodec.around(request.encoding, box))
     if request.outfit:
-        run.result = drape_outfit(body, models, sim_settings, request.tuck, on_frame=guard)
+        run.result = judged(drape_outfit(body, models, sim_settings, request.tuck, on_frame=guard), body, models)
     elif request.live:
         if piece_categories(shown) is not None:
             raise ValueError("live re-posing is not available for a garment file of several pieces (an outfit): "
                              "ask without \"live\" to drape it once in a pose")
         d = start(body, shown, sim_settings)
-        run.result, _ = settle(d, guard)
+        run.result = judged(settle(d, guard)[0], body, [shown])
         session.reposing = LiveReposing(session, to_body_params(request.measurements)[0], d)
     else:
-        run.result = drape(body, shown, sim_settings, guard)
+        run.result = judged(drape(body, shown, sim_settings, guard), body, [shown])
     return run, done_message(run.result, guard.stopped_by)
 
 
@@ -219,6 +219,7 @@ class LiveReposing:
         if gave_way:
             return None
         d, result, redraped = redrape_if_off(d, result, guard)
+        result = judged(result, body, [d.model])
         self.drape = d
         session.post_final(d.state.step, result.vertices)
         done = {**done_message(result, guard.stopped_by), "update": update, "redraped": redraped}

@@ -15,6 +15,7 @@ from tryon.api.schemas.tryon import TryOnRequest
 from tryon.body.build import build_body
 from tryon.body.params import Pose
 from tryon.body.types import Body
+from tryon.fit.advice import advise_size
 from tryon.fit.verdict import length_notes
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
@@ -52,12 +53,28 @@ def simulate(catalogue: Catalogue, request: TryOnRequest, on_frame: FrameCallbac
     gets one coarse array per garment, in layer order."""
     if request.outfit:
         body, models, settings = prepare_outfit(catalogue, request)
-        result = drape_outfit(body, models, settings, request.tuck, on_frame=on_frame)
+        result = judged(drape_outfit(body, models, settings, request.tuck, on_frame=on_frame), body, models)
         return CachedTryOn(result=result, body=body_mesh(body), settings=settings)
     if request.poses is not None:
         return simulate_motion(catalogue, request, on_frame)
     body, model, settings = prepare_tryon(catalogue, request)
-    return CachedTryOn(result=drape(body, model, settings, on_frame), body=body_mesh(body), settings=settings)
+    return CachedTryOn(result=judged(drape(body, model, settings, on_frame), body, [model]), body=body_mesh(body),
+                       settings=settings)
+
+
+def judged(result: TryOnResult | OutfitResult, body: Body, models: list[GarmentModel]) -> TryOnResult | OutfitResult:
+    """``result`` with each garment's one verdict in its metrics: ``verdict`` and ``verdict_reason``, judged on
+    the shown mesh as ``POST /api/fit`` judges a size (``fit.advice.advise_size``: too tight where, falls off,
+    loose, its length; a file of several pieces by its catalogue category, its girths over all its pieces).
+    ``models``: the garments draped (an outfit's in the order given to ``drape_outfit``)."""
+    pairs = ([(r, models[i]) for r, i in zip(result.results, result.order)] if isinstance(result, OutfitResult)
+             else [(result, models[0])])
+    for r, model in pairs:
+        meta = model.meta
+        advice = advise_size(meta.size or "", meta.id, meta.category, body, r.vertices, r.faces, model.vertices,
+                             r.metrics, model.fabric.comfort_stretch)
+        r.metrics["verdict"], r.metrics["verdict_reason"] = advice.verdict, advice.reason
+    return result
 
 
 def simulate_motion(catalogue: Catalogue, request: TryOnRequest, on_frame: FrameCallback | None = None
@@ -82,7 +99,7 @@ def simulate_motion(catalogue: Catalogue, request: TryOnRequest, on_frame: Frame
             first_body = body
         else:
             d, result, _ = redrape_if_off(d, result, on_frame)
-        motion.append((result, body.vertices))
+        motion.append((judged(result, body, [model]), body.vertices))
     run = CachedTryOn(result=motion[0][0], body=body_mesh(first_body), settings=settings)
     run.extra["motion"] = motion
     return run
@@ -135,6 +152,8 @@ def result_json(result: TryOnResult | OutfitResult, cached_answer_s: float | Non
         "length": length_notes(m.get("ends_cm") or {}),
         "slid_cm": round(float(m["slid_cm"]), 1),
         "stays_up": bool(m["stays_up"]),
+        "verdict": m.get("verdict"),
+        "verdict_reason": m.get("verdict_reason"),
         "sized_to_body": bool(m.get("sized_to_body", False)),
         "pose": m.get("pose", {}),
         "motion_max_penetration_mm": (None if m.get("motion_max_penetration_mm") is None

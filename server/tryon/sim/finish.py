@@ -54,7 +54,7 @@ def result(d: Drape, relaxation: Relaxation, full: np.ndarray, full_parts: np.nd
     x = st.x
     depth = d.collider.depth(full, full_parts, offset=False)
     spring_strain_, per_vertex, by_kind = strain_metrics(x, model, d.limits, on_body=st.has_plane.copy())
-    too_tight = too_tight_places(x, model, spring_strain_, d.limits, st.has_plane, body)
+    too_tight = too_tight_places(x, model, spring_strain_, d.limits, st.has_plane, body, full)
     on_limbs = openings_on_shown_limbs(x, full, model, body, d.openings)
     metrics = {
         "steps": int(st.step),
@@ -71,7 +71,7 @@ def result(d: Drape, relaxation: Relaxation, full: np.ndarray, full_parts: np.nd
         "limb_openings": on_limbs,
         "openings_on_limbs": all(o["ok"] for o in on_limbs) if on_limbs else None,
         "ends_cm": garment_ends(full, model, body, d.openings, model.meta.category),
-        **slid_metrics(d.placed_tops, x, d.piece),
+        **slid_metrics(d.placed_tops, full, d.piece[model.coarse_faces[model.attach_face, 0]]),
         "sized_to_body": d.sized,
         "kinetic_energy_per_kg": float(st.energy),
         "grown": bool(d.grow_steps),

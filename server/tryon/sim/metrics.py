@@ -9,6 +9,7 @@ from scipy.spatial import cKDTree
 
 from tryon.garment.springs import SPRING_KINDS
 from tryon.sim.constraints import spring_strain
+from tryon.sim.length import ANKLE_HEIGHT
 from tryon.sim.pieces import piece_tops
 
 # m: a garment vertex deeper than this inside the un-offset body counts as penetrating (SPEC 7).
@@ -126,17 +127,86 @@ def slid_metrics(placed_tops: np.ndarray, x: np.ndarray, piece: np.ndarray) -> d
 
 
 def too_tight_places(coarse: np.ndarray, model, strain: np.ndarray, limits: np.ndarray, on_body: np.ndarray,
-                     body) -> dict[str, int]:
-    """Where the garment is too small for the body: the springs over the target (``springs_over`` of their
-    strain (s,), as ``strain_metrics`` counts them) with both ends on the body (``on_body`` (k,) bool),
-    counted by the body place nearest to their middle: a limb part's name (``upper_arm_l``,
-    ``thigh_r``...), or for the torso its band (``torso chest``, ``torso waist``, ``torso hips``: the
-    nearest of the body's girth levels). Empty when the garment meets the target on the body; largest
-    count first."""
+                     body, full: np.ndarray | None = None) -> dict[str, int]:
+    """Where the garment is too small for the body, each place with how many springs say so, largest count first;
+    empty when it is nowhere. Two kinds of spring say so, both with both ends on the body (``on_body`` (k,) bool,
+    the coarse points touching it; a shown vertex is on it when its coarse triangle's three corners are):
+
+    - a simulated spring held over its limit (``springs_over`` of its strain (s,), as ``strain_metrics`` counts);
+    - an edge or quad diagonal of the shown mesh ``full`` (n, 3) m longer than at rest by more than the cloth's
+      loosest in-plane limit (the shear limit, ``limits`` (3,) by kind) and ``SHOWN_TOLERANCE``: the cloth a
+      shopper sees stretched past what it can stretch, where the coarse springs, meeting their limits, let their
+      triangles shear across a body larger than the garment (a jersey dress M on a size XL body: its waist's
+      shown edges at 22 %, no simulated spring over); at least ``SHOWN_MIN_EDGES`` of them at a place.
+
+    Springs of either kind past a wrist or below an ankle bone do not count: a garment is not sized round a hand
+    or a foot, and a cuff or hem caught there is its length (``length.garment_ends``), not a girth.
+
+    A place is a limb part's name (``upper_arm_l``, ``thigh_r``...), or for the torso its band (``torso chest``,
+    ``torso waist``, ``torso hips``: the nearest of the body's girth levels), of the body point nearest the
+    spring's middle; its count the larger of the two kinds'."""
     over = springs_over(strain, model, limits, on_body)
-    if not over.any():
-        return {}
     middle = 0.5 * (coarse[model.springs[over, 0]] + coarse[model.springs[over, 1]])
+    places = _place_counts(middle[~beyond_limb_ends(middle, body)], body)
+    if full is not None:
+        for place, n in _place_counts(shown_over_on_body(full, model, limits, on_body, body), body).items():
+            if n >= SHOWN_MIN_EDGES:
+                places[place] = max(n, places.get(place, 0))
+    return dict(sorted(places.items(), key=lambda item: -item[1]))
+
+
+# Of length: the shown mesh's edges follow the coarse mesh in 3 rounds of stretch passes that end on the
+# collision, which leaves a few edges up to a per cent over the limit they were held to (the 60 fitting drapes
+# of the fit bench: shown edges at most 0.159 with a 0.15 shear limit).
+SHOWN_TOLERANCE = 0.01
+# Shown edges over that at a place before it is too tight: fewer is an edge or two the stretch passes left, not a
+# patch of cloth (the real DiffAvatar long-sleeve shirt and polo on fitting bodies: one edge each at 0.17-0.19 of
+# their ~20,000; a size too small: tens to thousands at each place).
+SHOWN_MIN_EDGES = 3
+
+
+def shown_over_on_body(full: np.ndarray, model, limits: np.ndarray, on_body: np.ndarray, body) -> np.ndarray:
+    """Middles (m, 3) m of the shown mesh's springs (``model.display_springs`` at ``full`` (n, 3) m) stretched past
+    the loosest in-plane limit of ``limits`` (3,) by ``SHOWN_TOLERANCE``, both ends on the body (their coarse
+    triangles' corners in ``on_body`` (k,) bool), neither past a wrist nor below an ankle bone (see
+    ``too_tight_places``)."""
+    pairs, rest, _ = model.display_springs
+    if not len(rest):
+        return np.zeros((0, 3))
+    length = np.linalg.norm(full[pairs[:, 0]] - full[pairs[:, 1]], axis=1)
+    limit = float(np.max(limits[:2])) + SHOWN_TOLERANCE
+    touching = on_body[model.coarse_faces[model.attach_face]].all(axis=1)
+    over = (length > np.maximum(rest * (1.0 + limit), rest + LENGTH_TOLERANCE)) & touching[pairs].all(axis=1)
+    middle = 0.5 * (full[pairs[over, 0]] + full[pairs[over, 1]])
+    return middle[~beyond_limb_ends(middle, body)]
+
+
+def beyond_limb_ends(points: np.ndarray, body) -> np.ndarray:
+    """(m,) bool: the points (m, 3) m below the body's ankle bones (``length.ANKLE_HEIGHT`` of its height) or
+    past a wrist joint along its forearm (elbow to wrist); none for a body without joints."""
+    out = np.zeros(len(points), dtype=np.bool_)
+    if not body.joints or "height" not in body.achieved or not len(points):
+        return out
+    out |= points[:, 1] < ANKLE_HEIGHT * body.achieved["height"] / 100.0
+    for s in ("l", "r"):
+        elbow, wrist = np.asarray(body.joints[f"elbow_{s}"]), np.asarray(body.joints[f"wrist_{s}"])
+        axis = (wrist - elbow) / np.linalg.norm(wrist - elbow)
+        along = (points - wrist) @ axis
+        across = np.linalg.norm(points - wrist - along[:, None] * axis, axis=1)
+        out |= (along > 0.0) & (along < HAND_LENGTH) & (across < HAND_REACH)
+    return out
+
+
+# m: a point past a wrist joint along the forearm, by at most HAND_LENGTH and within HAND_REACH of the forearm's
+# line, is on the hand (a hand is about 19 cm long and 8-9 cm wide, its fingers spread a little more).
+HAND_LENGTH = 0.20
+HAND_REACH = 0.12
+
+
+def _place_counts(middle: np.ndarray, body) -> dict[str, int]:
+    """How many of the points ``middle`` (m, 3) m are at each body place (see ``too_tight_places``)."""
+    if not len(middle):
+        return {}
     vertex_part = np.zeros(len(body.vertices), dtype=np.int64)
     vertex_part[body.faces.ravel()] = np.repeat(body.face_part, 3)
     part = vertex_part[cKDTree(body.vertices).query(middle)[1]]
@@ -148,5 +218,4 @@ def too_tight_places(coarse: np.ndarray, model, strain: np.ndarray, limits: np.n
         torso = names == "torso"
         names[torso] = [f"torso {level_names[b]}" for b in band[torso]]
     places, counts = np.unique(names.astype(str), return_counts=True)
-    order = np.argsort(-counts, kind="stable")
-    return {str(places[i]): int(counts[i]) for i in order}
+    return {str(p): int(c) for p, c in zip(places, counts)}

@@ -158,9 +158,17 @@ class TryOnMetricsOut(BaseModel):
     strain_by_kind: dict[str, dict] = Field(default_factory=dict,
                                             description="per spring type: max strain, its limit, springs over")
     too_tight: dict[str, int] = Field(default_factory=dict,
-                                      description="where the garment is too small for the body: springs over "
-                                                  "their limit with both ends on the body, per body place "
-                                                  "(a limb part, or 'torso chest' / 'torso waist' / 'torso hips')")
+                                      description="where the garment is too small for the body, per body place "
+                                                  "(a limb part, or 'torso chest' / 'torso waist' / 'torso hips'): "
+                                                  "springs with both ends on the body held over their limit, or "
+                                                  "edges of the shown mesh there stretched past the cloth's "
+                                                  "loosest limit (the shear limit) by more than 1 %")
+    verdict: Literal["fits", "tight", "loose", "falls_off"] | None = Field(
+        None, description="the drape's one verdict, judged on the shown mesh as POST /api/fit judges a size: fits | "
+                          "tight (too_tight somewhere, or a top's cloth shorter than the chest) | loose | falls_off "
+                          "(stays_up false); null from a run that was not judged")
+    verdict_reason: str | None = Field(None, description="the verdict in words, with the length if too long or "
+                                                         "too short")
 
     openings_on_limbs: bool | None = Field(None, description="whether every sleeve, armhole and trouser leg "
                                                              "ends around its own arm or leg (or hangs past "

@@ -134,6 +134,9 @@ def test_try_on_in_the_browser(page):
                                              f"{state['m']['max_body_through_mm']:.1f} mm deep")
     else:
         assert through.inner_text() == "—" and through.get_attribute("class") != "good"
+    itself = page.locator("#metrics div:has(dt:text-is('Cloth through itself')) dd").inner_text()
+    assert itself == ("none" if state["m"]["self_crossings"] == 0 else f"{state['m']['self_crossings']} edges in its folds"
+                      if state["m"]["self_crossings"] > 1 else "1 edge in its folds")
     tight = list(state["m"]["too_tight"])  # where the garment is too small, largest count first
     if tight:
         first = tight[0].removeprefix("torso ")

@@ -271,6 +271,12 @@ def test_the_fit_summary_judges_the_shown_mesh(browser, big_shop):
                            "body_through_vertices": 41, "max_body_through_mm": 12.04})
         assert rows["Cloth in body"] == {"value": "3 points, 4.3 mm deep", "tone": "warn"}
         assert rows["Body through cloth"] == {"value": "41 points, 12.0 mm deep", "tone": "warn"}
+        # the cloth through its own folds: green only for none; '—' from a server without the figure
+        assert show(page, {**BASE_METRICS, "self_crossings": 0})["Cloth through itself"] == {"value": "none",
+                                                                                         "tone": "good"}
+        assert show(page, {**BASE_METRICS, "self_crossings": 14})["Cloth through itself"] == {
+            "value": "14 edges in its folds", "tone": "warn"}
+        assert rows["Cloth through itself"] == {"value": "—", "tone": ""}
         # an older server without the body-through-cloth metric: '—', never green
         older = {k: v for k, v in BASE_METRICS.items() if k not in ("body_through_vertices", "max_body_through_mm")}
         assert show(page, older)["Body through cloth"] == {"value": "—", "tone": ""}

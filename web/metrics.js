@@ -148,6 +148,10 @@ export function metricRows(m, { strainLimit = DEFAULT_STRAIN_LIMIT, stoppedBy = 
 
   add('Cloth in body', depthRow(m.penetrating_vertices, m.max_penetration_mm));
   add('Body through cloth', depthRow(m.body_through_vertices, m.max_body_through_mm));
+  const crossings = m.self_crossings;
+  add('Cloth through itself', !Number.isFinite(crossings) ? { value: '—' }
+    : (crossings === 0 ? { value: 'none', tone: 'good' }
+      : { value: `${crossings} ${crossings === 1 ? 'edge' : 'edges'} in its folds`, tone: 'warn' }));
 
   let openings;
   if (m.openings_on_limbs === undefined) openings = { value: '—' };

@@ -144,6 +144,7 @@ def result_json(result: TryOnResult | OutfitResult, cached_answer_s: float | Non
         "max_strain": round(float(m["max_strain"]), 5),
         "strain": np.round(result.strain, 4).tolist(),
         "display_max_strain": round(float(m["display_max_strain"]), 5),
+        "self_crossings": int(m["self_crossings"]),
         "strain_by_kind": m.get("strain_by_kind", {}),
         "too_tight": m.get("too_tight", {}),
         "openings_on_limbs": m.get("openings_on_limbs"),

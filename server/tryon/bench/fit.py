@@ -29,7 +29,6 @@ BODIES = {
 def run(ctx: Context, sec: Section) -> None:
     from tryon.body.build import build_body
     from tryon.body.params import Measurements, Pose
-    from tryon.sim.collision.crossings import self_intersections
     from tryon.sim.collision.collider import BodyCollider
     from tryon.sim.metrics import SLID_LIMIT_CM
     from tryon.sim.settings import SimSettings
@@ -56,7 +55,7 @@ def run(ctx: Context, sec: Section) -> None:
                  "on_limbs": m["openings_on_limbs"],
                  "off_limbs": [o["opening"] for o in m["limb_openings"] if not o["ok"]],
                  "slid_cm": m["slid_cm"], "stays_up": m["stays_up"],
-                 "self_intersections": self_intersections(result.vertices, result.faces),
+                 "self_intersections": m["self_crossings"],
                  "hang_stretch": hang_stretch(model, result.vertices), "fabric": model.fabric.name, **frames}
             data.append(d)
             rows.append([body_name, entry["name"], d["steps"], fmt(d["rest"]), fmt(d["wall_s"]), d["penetrating"],
@@ -85,8 +84,8 @@ def run(ctx: Context, sec: Section) -> None:
              f"{SLID_LIMIT_CM:g} cm of where it was put on, with how far it slid (metrics ``stays_up``, "
              "``slid_cm``: a waistband wider than the hips slides off them, meeting every target where it "
              "lands); self-crossings: edges of the shown mesh through one of its own triangles "
-             "(``collision.crossings.self_intersections``: cloth through its own folds; the solver has no "
-             "self-collision yet); deepest frame: the deepest simulated point inside the body in any step a caller "
+             "(metrics ``self_crossings``, ``collision.crossings.self_intersections``: cloth through its own folds; "
+             "the solver has no self-collision yet); deepest frame: the deepest simulated point inside the body in any step a caller "
              "is shown (``run.settle``: all but the start-up, where the body is grown into the garment and the arms "
              "turned from the sleeves; issue 26: at most 2 mm in every streamed frame, not only the answer); "
              "fabric: what the garment is made of (``garment/fabric.py``); hang stretch: the median stretch of the "

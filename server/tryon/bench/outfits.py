@@ -24,7 +24,6 @@ COST_BOUND = 1.5
 def run(ctx: Context, sec: Section) -> None:
     from tryon.body.build import build_body
     from tryon.body.params import Measurements, Pose
-    from tryon.sim.collision.crossings import self_intersections
     from tryon.sim.outfit import drape_outfit
     from tryon.sim.run import drape
     from tryon.sim.settings import SimSettings
@@ -55,7 +54,7 @@ def run(ctx: Context, sec: Section) -> None:
              "tuck_as_asked": m["tuck_as_asked"],
              "on_limbs": all(r.metrics["openings_on_limbs"] is not False for r in out.results),
              "springs_over": sum(k["over"] for r in out.results for k in r.metrics["strain_by_kind"].values()),
-             "self_intersections": sum(self_intersections(r.vertices, r.faces) for r in out.results)}
+             "self_intersections": sum(r.metrics["self_crossings"] for r in out.results)}
         d["cost_ratio"] = d["wall_s"] / max(d["single_sum_s"], 1e-9)
         d["cost_ratio_one_thread"] = d["wall_one_thread_s"] / max(d["single_sum_s"], 1e-9)
         ctx.log(f"  outfit {body_name} {' under '.join(files)} ({tuck}): layer {d['layer_penetrating']}, "

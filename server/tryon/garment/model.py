@@ -99,6 +99,12 @@ class GarmentModel:
         return spring_stiffness(self.kind, self.fabric)
 
     @cached_property
+    def edges(self) -> np.ndarray:
+        """(e, 2) int64: the full mesh's edges, each once, smaller id first (what ``self_crossings`` tests)."""
+        f = np.asarray(self.faces, dtype=np.int64)
+        return np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+
+    @cached_property
     def display_springs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The full mesh's structural and shear springs (``springs.spring_model`` without bending): pairs
         (m, 2) int64, natural lengths (m,) m, kinds (m,) int8. What keeps the displayed mesh's triangles

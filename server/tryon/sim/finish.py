@@ -8,6 +8,7 @@ from typing import Callable
 
 import numpy as np
 
+from tryon.sim.collision.crossings import self_intersections
 from tryon.sim.full_mesh import display_strain, follow_coarse
 from tryon.sim.length import garment_ends
 from tryon.sim.limbs import openings_on_shown_limbs
@@ -66,6 +67,7 @@ def result(d: Drape, relaxation: Relaxation, full: np.ndarray, full_parts: np.nd
         **show_through_metrics(show_through_depth(d.collider, full_parts, full, model.faces)),
         "max_strain": float(spring_strain_.max()) if len(spring_strain_) else 0.0,
         "display_max_strain": display_strain(full, model),
+        "self_crossings": self_intersections(full, model.faces, edges=model.edges),
         "strain_by_kind": by_kind,
         "too_tight": too_tight,
         "limb_openings": on_limbs,

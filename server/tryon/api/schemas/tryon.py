@@ -155,6 +155,9 @@ class TryOnMetricsOut(BaseModel):
     strain: list[float] = Field(description="per garment vertex: largest strain of its springs")
     display_max_strain: float = Field(0.0, description="largest strain of the fitted (displayed) mesh's own "
                                                         "edges and quad diagonals: how far the shown mesh stretches")
+    self_crossings: int = Field(0, description="edges of the shown mesh through one of its own triangles (the "
+                                               "cloth through itself, in a fold); 0 for cloth that never passes "
+                                               "through itself")
     strain_by_kind: dict[str, dict] = Field(default_factory=dict,
                                             description="per spring type: max strain, its limit, springs over")
     too_tight: dict[str, int] = Field(default_factory=dict,

@@ -426,9 +426,7 @@ def test_long_sleeves_reach_over_the_hands_of_a_short_person_and_a_tshirt_has_on
     sleeve = catalogue.ingest(obj_text(garment_mesh("longsleeve", "M"), "longsleeve M").encode(), filename="ls.obj",
                               name=f"{name} M", category=category, units="m")
     ends = drape(body, catalogue.model(sleeve.id), SimSettings()).metrics["ends_cm"]
-    # both cuffs past the wrists, the farther (by which a pair is judged) more than 5 cm
-    assert set(ends) == {"sleeve_l", "sleeve_r", "hem"} and min(ends["sleeve_l"], ends["sleeve_r"]) > 0.0
-    assert max(ends["sleeve_l"], ends["sleeve_r"]) > 5.0
+    assert set(ends) == {"sleeve_l", "sleeve_r", "hem"} and min(ends["sleeve_l"], ends["sleeve_r"]) > 5.0
     assert "too long: the sleeves end" in length_notes(ends)[0]
     shirt = Catalogue(data_dir).style("tshirt")[1]
     assert set(drape(body, Catalogue(data_dir).model(shirt.id), SimSettings()).metrics["ends_cm"]) == {"hem"}

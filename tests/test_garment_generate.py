@@ -113,16 +113,6 @@ def test_sleeves_point_down_and_out_in_an_a_pose(meshes, kind):
         assert math.degrees(math.atan2(dx, dy)) == pytest.approx(27.0, abs=4.0)
 
 
-def test_no_garment_passes_through_itself(meshes):
-    """Every size of every style is made without its cloth crossing itself: a large size's two trouser legs do
-    not overlap below the crotch, a wide size's sleeve does not cut into the body tube at the armpit (the
-    self-collision keeps the side each point starts on: a crossing made here would be kept)."""
-    from tryon.sim.collision.crossings import self_intersections
-
-    crossed = {key: self_intersections(np.asarray(m.vertices), np.asarray(m.faces)) for key, m in meshes.items()}
-    assert {key: n for key, n in crossed.items() if n} == {}
-
-
 def test_committed_files_match_the_generator(tmp_path):
     entries = write_catalogue(tmp_path)
     listed = json.loads((REPO_GARMENTS / "catalogue.json").read_text())

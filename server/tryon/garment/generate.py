@@ -53,9 +53,6 @@ SHOULDER_JOINT = (0.16, 1.39)
 ARM_Z = -0.055
 # A sleeve started outside the armpit rejoins the arm's axis within this length along the arm, m.
 SLEEVE_RETURN = 0.2
-# m: a sleeve's first ring starts with its under-arm point at least this far outside the armpit (5 mm left the XXL
-# sizes' sleeves cutting into the body tube at the armpit as they turn from the armhole into a circle).
-SLEEVE_CLEAR = 0.010
 # The body's mid-plane is not z = 0 at every height: the neck and shoulders sit behind the chest, the
 # buttocks behind the belly. (y, z of the torso's section centre), m, measured on the service's
 # parametric body (tryon.body) of a 1.70 m person; the legs are centred on z = 0.
@@ -94,8 +91,6 @@ def half_axes(girth_m: float, ratio: float = DEPTH_RATIO) -> tuple[float, float]
 LEG_CENTRE_X = ((0.0, 0.47, 0.70), (0.125, 0.11, 0.10))
 # z of the leg axes: the shins lean forward to the ankles (0.04 m ahead at the floor).
 LEG_CENTRE_Z = ((0.0, 0.20), (0.04, 0.0))
-# m: the least gap between a trouser leg's tube and the body's mid-plane below the crotch.
-LEG_GAP = 0.003
 # Height over the crotch point (m) in which the seat's figure eight opens into the hip ellipse.
 SEAT_RISE = 0.10
 
@@ -301,7 +296,7 @@ def _build_sleeve(mb: MeshBuilder, root: np.ndarray, side: int, spec: TopSpec) -
     # start the sleeve's axis that much further out and bring it back onto the arm's axis over
     # ``SLEEVE_RETURN`` m, so that the sleeve still goes around the arm further down
     under_x = joint[0] * side + start * math.sin(alpha) - r_top * math.cos(alpha)
-    shift = np.array([side * max(0.0, abs(root_pts[0, 0]) + SLEEVE_CLEAR - under_x), 0.0, 0.0])
+    shift = np.array([side * max(0.0, abs(root_pts[0, 0]) + 0.005 - under_x), 0.0, 0.0])
     length = spec.sleeve_end - start
     rows = max(3, int(round(length / SPACING)))
     blend = max(1.0, 0.09 / (length / rows))  # rows over which the armhole turns into a circle (9 cm)
@@ -398,9 +393,8 @@ def build_trousers(seat_girths: list[tuple[float, float]], thigh_girth: float, k
             # straight from the knee down over the calf (y 0.30), then narrowing to the hem
             g = np.interp(y, [Y_ANKLE, 0.30, Y_KNEE, Y_CROTCH], [hem_girth, knee_girth, knee_girth, thigh_girth])
             r = g / (2 * np.pi)
-            # the leg's centre follows the body's legs (slightly apart towards the feet), but never so close to the
-            # middle that the two legs' tubes overlap (a wide leg of a large size would cross its other leg)
-            xc = max(np.interp(y, (*LEG_CENTRE_X[0], Y_CROTCH), (*LEG_CENTRE_X[1], x_leg)), r + LEG_GAP)
+            # the leg's centre follows the body's legs (slightly apart towards the feet)
+            xc = np.interp(y, (*LEG_CENTRE_X[0], Y_CROTCH), (*LEG_CENTRE_X[1], x_leg))
             zc = np.interp(y, LEG_CENTRE_Z[0], LEG_CENTRE_Z[1])
             pts = np.column_stack([leg_side * (xc + r * np.cos(psi[nodes])), np.full(len(nodes), y),
                                    r * np.sin(psi[nodes]) + zc])

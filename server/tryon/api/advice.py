@@ -36,7 +36,7 @@ def style_advice(pool: SimPool, cache: ResultCache, catalogue: Catalogue, entrie
             key = tryon_key(tryon, catalogue)
             hit = cache.get(key)
             if hit is not None:
-                out[i] = Drape(hit.result.vertices, hit.result.faces, hit.result.metrics)
+                out[i] = Drape(hit.result.vertices, hit.result.faces, hit.result.metrics, hit.extra.get("advice"))
             else:
                 pending.append((i, tryon, key))
         in_flight: dict[Future, tuple] = {}
@@ -64,7 +64,7 @@ def style_advice(pool: SimPool, cache: ResultCache, catalogue: Catalogue, entrie
                     out[i] = "not draped: the drape ran past the service's time limit"
                     continue
                 cache.put(key, run)
-                out[i] = Drape(run.result.vertices, run.result.faces, run.result.metrics)
+                out[i] = Drape(run.result.vertices, run.result.faces, run.result.metrics, run.extra.get("advice"))
         return out
 
     measurements, pose = to_body_params(request.measurements, request.pose)

@@ -15,7 +15,7 @@ from tryon.api.schemas.tryon import TryOnRequest
 from tryon.body.build import build_body
 from tryon.body.params import Pose
 from tryon.body.types import Body
-from tryon.fit.advice import advise_size
+from tryon.fit.advice import SizeAdvice, advise_size
 from tryon.fit.verdict import length_notes
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
@@ -58,23 +58,34 @@ def simulate(catalogue: Catalogue, request: TryOnRequest, on_frame: FrameCallbac
     if request.poses is not None:
         return simulate_motion(catalogue, request, on_frame)
     body, model, settings = prepare_tryon(catalogue, request)
-    return CachedTryOn(result=judged(drape(body, model, settings, on_frame), body, [model]), body=body_mesh(body),
-                       settings=settings)
+    run = CachedTryOn(result=drape(body, model, settings, on_frame), body=body_mesh(body), settings=settings)
+    # the size advice of this drape, kept for POST /api/fit's same body (``fit.advice.Drape.advice``)
+    run.extra["advice"] = judge_sizes(run.result, body, [model])[0]
+    return run
 
 
 def judged(result: TryOnResult | OutfitResult, body: Body, models: list[GarmentModel]) -> TryOnResult | OutfitResult:
-    """``result`` with each garment's one verdict in its metrics: ``verdict`` and ``verdict_reason``, judged on
-    the shown mesh as ``POST /api/fit`` judges a size (``fit.advice.advise_size``: too tight where, falls off,
-    loose, its length; a file of several pieces by its catalogue category, its girths over all its pieces).
-    ``models``: the garments draped (an outfit's in the order given to ``drape_outfit``)."""
+    """``result`` with each garment's one verdict in its metrics (``judge_sizes``)."""
+    judge_sizes(result, body, models)
+    return result
+
+
+def judge_sizes(result: TryOnResult | OutfitResult, body: Body, models: list[GarmentModel]) -> list[SizeAdvice]:
+    """Each garment's one verdict, put in its metrics (``verdict`` and ``verdict_reason``) and returned as its
+    size advice: judged on the shown mesh as ``POST /api/fit`` judges a size (``fit.advice.advise_size``: too
+    tight where, falls off, loose, its length; a file of several pieces by its catalogue category, its girths over
+    all its pieces). ``models``: the garments draped (an outfit's in the order given to ``drape_outfit``); the
+    advice in layer order."""
     pairs = ([(r, models[i]) for r, i in zip(result.results, result.order)] if isinstance(result, OutfitResult)
              else [(result, models[0])])
+    out = []
     for r, model in pairs:
         meta = model.meta
         advice = advise_size(meta.size or "", meta.id, meta.category, body, r.vertices, r.faces, model.vertices,
                              r.metrics, model.fabric.comfort_stretch)
         r.metrics["verdict"], r.metrics["verdict_reason"] = advice.verdict, advice.reason
-    return result
+        out.append(advice)
+    return out
 
 
 def simulate_motion(catalogue: Catalogue, request: TryOnRequest, on_frame: FrameCallback | None = None

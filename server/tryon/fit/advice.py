@@ -155,11 +155,13 @@ def ease_notes(advice: list[SizeAdvice]) -> list[str]:
 @dataclass
 class Drape:
     """What advice needs of one size's drape: the shown mesh (vertices (n, 3) m, faces (f, 3)) and the
-    drape's metrics (``TryOnResult.metrics``)."""
+    drape's metrics (``TryOnResult.metrics``); ``advice``: its ``advise_size`` if the caller already judged it on
+    the same body (the service judges every try-on), else None."""
 
     vertices: np.ndarray
     faces: np.ndarray
     metrics: dict
+    advice: "SizeAdvice | None" = None
 
 
 # Runs the drapes of the sizes at the given indices (of the style's entries) and answers, per index, the
@@ -210,6 +212,8 @@ def advise_style(entries: list[GarmentMeta], measurements: dict, body: Body, dra
             meta = entries[i]
             if isinstance(outcome, str):
                 advice[i] = not_draped(meta.size, meta.id, outcome)
+            elif outcome.advice is not None:
+                advice[i] = outcome.advice
             else:
                 comfort = fabric_named(meta.fabric, meta.category).comfort_stretch
                 advice[i] = advise_size(meta.size, meta.id, meta.category, body, outcome.vertices, outcome.faces,

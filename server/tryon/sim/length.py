@@ -19,6 +19,17 @@ from tryon.sim.limbs import shown_openings
 ANKLE_HEIGHT = 0.039
 
 
+def ankle_y(body: Body) -> float:
+    """m: the height of the body's ankle bones (``ANKLE_HEIGHT`` of its built height)."""
+    return ANKLE_HEIGHT * body.achieved["height"] / 100.0
+
+
+def forearm(body: Body, s: str) -> tuple[np.ndarray, np.ndarray]:
+    """The wrist joint (3,) m of side ``s`` ('l' or 'r') and the forearm's unit direction (3,), elbow to wrist."""
+    elbow, wrist = np.asarray(body.joints[f"elbow_{s}"]), np.asarray(body.joints[f"wrist_{s}"])
+    return wrist, (wrist - elbow) / np.linalg.norm(wrist - elbow)
+
+
 def _centre(full: np.ndarray, ring: np.ndarray) -> np.ndarray:
     return full[ring].mean(axis=0)
 
@@ -26,19 +37,19 @@ def _centre(full: np.ndarray, ring: np.ndarray) -> np.ndarray:
 def _cuff_past_wrist(centre: np.ndarray, body: Body, s: str) -> float | None:
     """cm the cuff's centre lies past the wrist joint along the forearm (negative: short of it), or None for a
     short sleeve (its cuff nearer the shoulder than the elbow)."""
-    shoulder, elbow, wrist = (np.asarray(body.joints[f"{j}_{s}"]) for j in ("shoulder", "elbow", "wrist"))
+    shoulder, elbow = np.asarray(body.joints[f"shoulder_{s}"]), np.asarray(body.joints[f"elbow_{s}"])
     if np.linalg.norm(centre - shoulder) < np.linalg.norm(elbow - shoulder):
         return None
-    axis = (wrist - elbow) / np.linalg.norm(wrist - elbow)
+    wrist, axis = forearm(body, s)
     return 100.0 * float((centre - wrist) @ axis)
 
 
-def _hem_over_ankle(centre: np.ndarray, body: Body, s: str, height_m: float) -> float | None:
+def _hem_over_ankle(centre: np.ndarray, body: Body, s: str) -> float | None:
     """cm the leg hem's centre lies above the ankle bone (negative: below it, towards the floor), or None for a
     leg ending above the knee."""
     if centre[1] > np.asarray(body.joints[f"knee_{s}"])[1]:
         return None
-    return 100.0 * float(centre[1] - ANKLE_HEIGHT * height_m)
+    return 100.0 * float(centre[1] - ankle_y(body))
 
 
 def garment_ends(full: np.ndarray, model, body: Body, openings: list[tuple[str, str, np.ndarray]],
@@ -51,13 +62,12 @@ def garment_ends(full: np.ndarray, model, body: Body, openings: list[tuple[str, 
     if not body.joints or "height" not in body.achieved or not len(full):
         return {}
     out: dict[str, float] = {}
-    height = body.achieved["height"] / 100.0  # m: the built body's own measurement
     rings = shown_openings(model, openings)
     for side, limb, ring in rings:
         s = side[0]
         centre = _centre(full, ring)
         key = f"sleeve_{s}" if limb == "arm" else f"leg_{s}"
-        value = _cuff_past_wrist(centre, body, s) if limb == "arm" else _hem_over_ankle(centre, body, s, height)
+        value = _cuff_past_wrist(centre, body, s) if limb == "arm" else _hem_over_ankle(centre, body, s)
         if value is None:
             continue
         # of a sleeve's openings (armhole and cuff), the cuff is the one farthest out

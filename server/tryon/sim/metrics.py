@@ -9,7 +9,7 @@ from scipy.spatial import cKDTree
 
 from tryon.garment.springs import SPRING_KINDS
 from tryon.sim.constraints import spring_strain
-from tryon.sim.length import ANKLE_HEIGHT
+from tryon.sim.length import ankle_y, forearm
 from tryon.sim.pieces import piece_tops
 
 # m: a garment vertex deeper than this inside the un-offset body counts as penetrating (SPEC 7).
@@ -147,11 +147,13 @@ def too_tight_places(coarse: np.ndarray, model, strain: np.ndarray, limits: np.n
     spring's middle; its count the larger of the two kinds'."""
     over = springs_over(strain, model, limits, on_body)
     middle = 0.5 * (coarse[model.springs[over, 0]] + coarse[model.springs[over, 1]])
-    places = _place_counts(middle[~beyond_limb_ends(middle, body)], body)
-    if full is not None:
-        for place, n in _place_counts(shown_over_on_body(full, model, limits, on_body, body), body).items():
-            if n >= SHOWN_MIN_EDGES:
-                places[place] = max(n, places.get(place, 0))
+    middle = middle[~beyond_limb_ends(middle, body)]
+    shown = shown_over_on_body(full, model, limits, on_body, body) if full is not None else np.zeros((0, 3))
+    names = _place_names(np.concatenate([middle, shown]), body)  # one search of the body for both kinds
+    places = _counts(names[:len(middle)])
+    for place, n in _counts(names[len(middle):]).items():
+        if n >= SHOWN_MIN_EDGES:
+            places[place] = max(n, places.get(place, 0))
     return dict(sorted(places.items(), key=lambda item: -item[1]))
 
 
@@ -182,15 +184,14 @@ def shown_over_on_body(full: np.ndarray, model, limits: np.ndarray, on_body: np.
 
 
 def beyond_limb_ends(points: np.ndarray, body) -> np.ndarray:
-    """(m,) bool: the points (m, 3) m below the body's ankle bones (``length.ANKLE_HEIGHT`` of its height) or
+    """(m,) bool: the points (m, 3) m below the body's ankle bones (``length.ankle_y``) or
     past a wrist joint along its forearm (elbow to wrist); none for a body without joints."""
     out = np.zeros(len(points), dtype=np.bool_)
     if not body.joints or "height" not in body.achieved or not len(points):
         return out
-    out |= points[:, 1] < ANKLE_HEIGHT * body.achieved["height"] / 100.0
+    out |= points[:, 1] < ankle_y(body)
     for s in ("l", "r"):
-        elbow, wrist = np.asarray(body.joints[f"elbow_{s}"]), np.asarray(body.joints[f"wrist_{s}"])
-        axis = (wrist - elbow) / np.linalg.norm(wrist - elbow)
+        wrist, axis = forearm(body, s)
         along = (points - wrist) @ axis
         across = np.linalg.norm(points - wrist - along[:, None] * axis, axis=1)
         out |= (along > 0.0) & (along < HAND_LENGTH) & (across < HAND_REACH)
@@ -203,10 +204,16 @@ HAND_LENGTH = 0.20
 HAND_REACH = 0.12
 
 
-def _place_counts(middle: np.ndarray, body) -> dict[str, int]:
-    """How many of the points ``middle`` (m, 3) m are at each body place (see ``too_tight_places``)."""
+def _counts(names: np.ndarray) -> dict[str, int]:
+    """How many times each place name occurs in ``names``."""
+    places, counts = np.unique(names.astype(str), return_counts=True)
+    return {str(p): int(c) for p, c in zip(places, counts)}
+
+
+def _place_names(middle: np.ndarray, body) -> np.ndarray:
+    """(m,) object: the body place of each of the points ``middle`` (m, 3) m (see ``too_tight_places``)."""
     if not len(middle):
-        return {}
+        return np.zeros(0, dtype=object)
     vertex_part = np.zeros(len(body.vertices), dtype=np.int64)
     vertex_part[body.faces.ravel()] = np.repeat(body.face_part, 3)
     part = vertex_part[cKDTree(body.vertices).query(middle)[1]]
@@ -217,5 +224,4 @@ def _place_counts(middle: np.ndarray, body) -> dict[str, int]:
         band = np.argmin(np.abs(middle[:, 1, None] - np.array([levels[k] for k in level_names])[None]), axis=1)
         torso = names == "torso"
         names[torso] = [f"torso {level_names[b]}" for b in band[torso]]
-    places, counts = np.unique(names.astype(str), return_counts=True)
-    return {str(p): int(c) for p, c in zip(places, counts)}
+    return names

@@ -220,12 +220,15 @@ def test_a_band_too_small_that_slid_down_is_tight_not_falling_off():
         "falls_off", "does not stay on the hips: it slid 25 cm down from where it was put on")
 
 
-def test_too_tight_is_told_from_the_shown_mesh_but_not_round_a_hand_or_a_foot(data_dir):
+def test_too_tight_is_told_from_the_shown_mesh_but_not_round_a_hand_a_foot_or_between_the_legs(data_dir):
     """The T-shirt M at rest on the M body: nothing too tight. Its shown mesh widened 30 % round the body's axis
     (every edge across the body stretched past the 15 % shear limit), its coarse mesh unchanged: too tight at the
-    chest, from the shown mesh alone. Points below the ankle bones or on a hand are not a place to be sized by."""
+    chest, from the shown mesh alone. Points below the ankle bones, on a hand or between the thighs are not a place to
+    be sized by."""
     from tryon.sim.constraints import spring_strain
-    from tryon.sim.metrics import beyond_limb_ends, too_tight_places
+    from scipy.spatial import cKDTree
+
+    from tryon.sim.metrics import between_sides, beyond_limb_ends, too_tight_places
 
     catalogue = Catalogue(data_dir)
     meta = catalogue.style("tshirt")[1]
@@ -255,6 +258,16 @@ def test_too_tight_is_told_from_the_shown_mesh_but_not_round_a_hand_or_a_foot(da
                        elbow,  # on the forearm
                        wrist + 0.30 * along])  # past the hand's length
     assert beyond_limb_ends(points, body).tolist() == [True, False, True, False, False]
+
+    # cloth pinched between the thighs (a crotch seam hanging between them) is not a girth of either
+    names = np.array(body.parts)[body.vertex_part]
+    left, right = body.vertices[names == "thigh_l"], body.vertices[names == "thigh_r"]
+    gap, nearest = cKDTree(right).query(left)
+    closest = int(np.argmin(gap))
+    between = 0.5 * (left[closest] + right[nearest[closest]])
+    outer = left[np.argmax(left[:, 0])]  # the outside of the left thigh
+    chest = np.array([0.0, body.levels["chest"], body.vertices[:, 2].max()])
+    assert between_sides(np.array([between, outer, chest]), body).tolist() == [True, False, False]
 
 
 # A verdict's reason in words, as ``judge`` gives them, for the recommendation's tests.

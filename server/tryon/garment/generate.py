@@ -91,6 +91,9 @@ def half_axes(girth_m: float, ratio: float = DEPTH_RATIO) -> tuple[float, float]
 LEG_CENTRE_X = ((0.0, 0.47, 0.70), (0.125, 0.11, 0.10))
 # z of the leg axes: the shins lean forward to the ankles (0.04 m ahead at the floor).
 LEG_CENTRE_Z = ((0.0, 0.20), (0.04, 0.0))
+# m: the least gap between a trouser leg's tube and the body's mid-plane below the crotch (a wide leg of a large
+# size would otherwise cross its other leg there, and the cloth would start the drape through itself).
+LEG_GAP = 0.001
 # Height over the crotch point (m) in which the seat's figure eight opens into the hip ellipse.
 SEAT_RISE = 0.10
 
@@ -393,8 +396,9 @@ def build_trousers(seat_girths: list[tuple[float, float]], thigh_girth: float, k
             # straight from the knee down over the calf (y 0.30), then narrowing to the hem
             g = np.interp(y, [Y_ANKLE, 0.30, Y_KNEE, Y_CROTCH], [hem_girth, knee_girth, knee_girth, thigh_girth])
             r = g / (2 * np.pi)
-            # the leg's centre follows the body's legs (slightly apart towards the feet)
-            xc = np.interp(y, (*LEG_CENTRE_X[0], Y_CROTCH), (*LEG_CENTRE_X[1], x_leg))
+            # the leg's centre follows the body's legs (slightly apart towards the feet), but never so close to the
+            # middle that the two legs' tubes overlap
+            xc = max(np.interp(y, (*LEG_CENTRE_X[0], Y_CROTCH), (*LEG_CENTRE_X[1], x_leg)), r + LEG_GAP)
             zc = np.interp(y, LEG_CENTRE_Z[0], LEG_CENTRE_Z[1])
             pts = np.column_stack([leg_side * (xc + r * np.cos(psi[nodes])), np.full(len(nodes), y),
                                    r * np.sin(psi[nodes]) + zc])

@@ -140,15 +140,18 @@ def too_tight_places(coarse: np.ndarray, model, strain: np.ndarray, limits: np.n
       shown edges at 22 %, no simulated spring over); at least ``SHOWN_MIN_EDGES`` of them at a place.
 
     Springs of either kind past a wrist or below an ankle bone do not count: a garment is not sized round a hand
-    or a foot, and a cuff or hem caught there is its length (``length.garment_ends``), not a girth.
+    or a foot, and a cuff or hem caught there is its length (``length.garment_ends``), not a girth. Nor do those
+    pinched between the body's left and right sides (``between_sides``: a crotch seam caught between the thighs,
+    where a rise longer than the body's hangs): that is not a girth of either leg.
 
     A place is a limb part's name (``upper_arm_l``, ``thigh_r``...), or for the torso its band (``torso chest``,
     ``torso waist``, ``torso hips``: the nearest of the body's girth levels), of the body point nearest the
     spring's middle; its count the larger of the two kinds'."""
     over = springs_over(strain, model, limits, on_body)
     middle = 0.5 * (coarse[model.springs[over, 0]] + coarse[model.springs[over, 1]])
-    middle = middle[~beyond_limb_ends(middle, body)]
+    middle = middle[~(beyond_limb_ends(middle, body) | between_sides(middle, body))]
     shown = shown_over_on_body(full, model, limits, on_body, body) if full is not None else np.zeros((0, 3))
+    shown = shown[~between_sides(shown, body)]
     names = _place_names(np.concatenate([middle, shown]), body)  # one search of the body for both kinds
     places = _counts(names[:len(middle)])
     for place, n in _counts(names[len(middle):]).items():
@@ -196,6 +199,25 @@ def beyond_limb_ends(points: np.ndarray, body) -> np.ndarray:
         across = np.linalg.norm(points - wrist - along[:, None] * axis, axis=1)
         out |= (along > 0.0) & (along < HAND_LENGTH) & (across < HAND_REACH)
     return out
+
+
+def between_sides(points: np.ndarray, body) -> np.ndarray:
+    """(m,) bool: the points (m, 3) m within ``PINCH_REACH`` of both a left part of the body and a right one
+    (``body.parts`` ending in ``_l`` / ``_r``): cloth pinched between the thighs, the shins, two crossed
+    forearms."""
+    out = np.zeros(len(points), dtype=np.bool_)
+    if not len(points):
+        return out
+    side = np.array([p[-2:] for p in body.parts])[body.vertex_part]
+    near = [cKDTree(body.vertices[side == s]).query(points, distance_upper_bound=PINCH_REACH)[0] < PINCH_REACH
+            for s in ("_l", "_r") if (side == s).any()]
+    return near[0] & near[1] if len(near) == 2 else out
+
+
+# m: how close to both a left and a right part of the body a spring's middle is when pinched between them. The
+# crotch seams of trousers whose rise hangs between the thighs (ANSUR II people in the chart's size, and
+# larger) lie 2-15 mm from each thigh; a thigh's own girth springs are a thigh's width from the other.
+PINCH_REACH = 0.015
 
 
 # m: a point past a wrist joint along the forearm, by at most HAND_LENGTH and within HAND_REACH of the forearm's

@@ -194,6 +194,29 @@ def test_a_missing_peer_is_a_note_not_a_failure(bench, monkeypatch, tmp_path):
     assert quality["met"] and quality["max_stretch"] <= 0.11 + 1e-9 and quality["frames"] == 300
 
 
+def test_the_equal_quality_search_does_not_start_a_try_it_cannot_finish():
+    """A try whose run would last longer than the cap (estimated from the last one, its cost growing with the
+    substeps) is not started: the search ends there, not met, and says why; at two threads the summary says so."""
+    from tryon.bench.equal_quality import at_equal_quality
+
+    def row(stretch, frame_ms):
+        return {"frames": 300, "max_stretch": stretch, "max_penetration_mm": 0.5, "frame_ms_median": frame_ms,
+                "final_stretch": stretch}
+
+    target = {"target": "taichi (2 threads)", "stretch": 0.11, "penetration_mm": 2.0, "frame_ms": 100.0}
+    runs = []
+
+    def run(settings):
+        runs.append(settings.substeps)
+        return row(0.2, 1000.0 * settings.substeps / 16)  # 300 frames of 1 s: 300 s a try at 16 substeps
+
+    out = at_equal_quality(200, row(0.3, 500.0), target, run, threads=2, max_seconds=400.0)
+    # the default took 150 s; the projection at 16 substeps ~150 s: run; 32 substeps ~600 s: not started
+    assert runs == [16] and not out["met"] and out["threads"] == 2
+    assert out["stopped"].startswith("32 substeps a step + 4 projection steps would run ~600 s")
+    assert [t[:2] for t in out["tried"]] == [[16, 0], [16, 4]]
+
+
 def test_bad_out_or_section_is_refused_before_running(tmp_path, capsys):
     blocker = tmp_path / "a-file"
     blocker.write_text("")

@@ -31,7 +31,7 @@ import numpy as np
 from tryon.bench.cloth_scene import FRAMES, SIZES, WARMUP_FRAMES
 from tryon.bench.common import Context, Section, Table, fmt, speed_words
 from tryon.bench.equal_quality import (
-    QUALITY_MAX_PARTICLES, at_equal_quality, quality_headline, quality_table, quality_target,
+    at_equal_quality, quality_headline, quality_table, quality_target,
 )
 from tryon.bench.report import plot_peers
 from tryon.sim.blocks import MIN_SPLIT_SPRINGS, machine_threads, parallel_ok, use_threads
@@ -213,17 +213,19 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
     sec.headline.extend(ball_headline(h) for h in ratios)
     quality = []
     for n in sizes:
-        if n * n > QUALITY_MAX_PARTICLES:
-            continue
         rows = results[str(n * n)]
-        default = next((r for r in rows if r["engine"] == threads_label("ours", 1)), None)
-        if default is None or "error" in default:
-            continue
-        ctx.log(f"[bench]   cloth on ball, {n * n} particles: ours at {threads_label('taichi', 1)}'s quality")
-        use_threads(1)
-        quality.append(at_equal_quality(n, default, quality_target(rows, threads_label("taichi", 1)),
-                                        lambda settings, n=n: run_sphere(n, FRAMES, settings, substeps=our_substeps(n),
-                                                                         max_seconds=budget * 4)))
+        for threads in our_thread_counts(n):
+            default = next((r for r in rows if r["engine"] == threads_label("ours", threads)), None)
+            if default is None or "error" in default:
+                continue
+            peer = threads_label("taichi", threads)
+            ctx.log(f"[bench]   cloth on ball, {n * n} particles: ours at {peer}'s quality")
+            use_threads(threads)
+            quality.append(at_equal_quality(n, default, quality_target(rows, peer),
+                                            lambda settings, n=n: run_sphere(n, FRAMES, settings,
+                                                                             substeps=our_substeps(n),
+                                                                             max_seconds=budget * 4),
+                                            threads, budget * 4))
         use_threads(machine_threads())
     sec.data["equal_quality"] = quality
     if quality:

@@ -17,7 +17,7 @@ from tryon.sim.full_mesh import PINCHED_LEAST_DEEP
 from tryon.bench.synthetic import body_from_parts, cloth_square
 from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.state import DrapeState
-from tryon.sim.substeps import finish_step
+from tryon.sim.substeps import Planes, Springs, Substeps, Sweep, finish_step
 
 LIMITS = np.array([0.10, 0.15, 0.30])
 COMPRESSION = np.array([1.0, 1.0, 0.1])
@@ -166,8 +166,10 @@ def test_finish_step_is_the_substeps_kernels_one_by_one():
     idle = BodyCollider(_post(), 0.004).movers(DrapeState.at(x.copy(), inv_mass), np.zeros(0, dtype=np.int64), 0.0005,
                                                0.005, np.inf, False)
     a, a_prev, a_push = x.copy(), x_prev.copy(), np.zeros(len(x))
-    finish_step(a, a_prev, inv_mass, w_eff, h, 9.81, 1.0, 10.0, n_sub, 1, ends, table, 2, body_ends, body_table,
-                touching, point, normal, on_body, a_push, 0.6, 0.4, True, True, sweep_ends, sweep_lmax, floor_y, idle)
+    one = np.zeros(3, dtype=np.int64)
+    finish_step(a, a_prev, inv_mass, w_eff, Springs(ends, table, one), Springs(body_ends, body_table, one),
+                Sweep(sweep_ends, sweep_lmax, one), Planes(touching, point, normal, on_body, a_push),
+                Substeps(h, n_sub, 1, 2, 9.81, 1.0, 10.0, 0.6, 0.4, True, True, floor_y), idle)
     b, b_prev, b_push = x.copy(), x_prev.copy(), np.zeros(len(x))
     for sub in range(n_sub):
         if sub > 0:
@@ -315,14 +317,17 @@ def test_spring_visits_count_the_passes_and_sweeps_of_a_step():
     from tryon.bench import perf
 
     names = list(inspect.signature(finish_step.py_func).parameters)
+    one = np.zeros(3, dtype=np.int64)
     args = dict.fromkeys(names, 0)
-    args.update(n_sub=8, per_sub=2, ends=np.zeros((10, 2)), contact_passes=1, body_ends=np.zeros((4, 2)),
-                sweep=True, sweep_every_substep=True, sweep_ends=np.zeros((6, 2)))
+    run = Substeps(0.02 / 8, 8, 2, 1, 9.81, 1.0, 10.0, 0.6, 0.4, True, True, 0.0)
+    args.update(springs=Springs(np.zeros((10, 2)), np.zeros((10, 5)), one),
+                on_body=Springs(np.zeros((4, 2)), np.zeros((4, 5)), one),
+                sweep=Sweep(np.zeros((6, 2)), np.zeros(6), one), run=run)
     visits = perf.spring_visits([args[n] for n in names])
     assert visits["per_step"] == {"springs": 160, "contact_springs": 32, "sweep_springs": 48}
     assert visits["total"] == 240
     assert perf.spring_visits([args[n] for n in names], passed=1)["total"] == 140 + 28 + 48
-    args["sweep_every_substep"] = False
+    args["run"] = run._replace(sweep_every_substep=False)
     assert perf.spring_visits([args[n] for n in names])["per_step"]["sweep_springs"] == 6
 
 

@@ -132,7 +132,7 @@ def _copied(a):
     return a
 
 
-# finish_step's parameters that switch its parts off (see ``finish_step_split``)
+# the fields of finish_step's ``run`` (``Substeps``) that switch its parts off (see ``finish_step_split``)
 _FINISH_PARTS = {"passes": {"per_sub": 0}, "contact_passes": {"contact_passes": 0}, "sweep": {"sweep": False}}
 
 
@@ -146,9 +146,11 @@ def finish_step_split(args: list, repeats: int = 15) -> dict:
     whole call, and the time each of the spring passes, the contact passes and the top-down sweep adds
     (the call without it, subtracted from the whole; median of ``repeats``); the rest is the tail (Verlet,
     planes, friction, floor)."""
-    def timed(**off) -> float:
+    def timed(movers=None, **off) -> float:
         call = finish_step_arguments([_copied(a) for a in args])
-        call.update(off)
+        call["run"] = call["run"]._replace(**off)
+        if movers is not None:
+            call["movers"] = movers
         t = time.perf_counter()
         finish_step(*call.values())
         return time.perf_counter() - t
@@ -172,12 +174,13 @@ def spring_visits(args: list, passed: int = 0) -> dict:
     many substeps' passes to leave out (1: only what ``finish_step`` itself visits, the first substep's
     passes being its caller's)."""
     a = finish_step_arguments(args)
-    n_sub = int(a["n_sub"])
-    sweeps = (n_sub if a["sweep_every_substep"] else 1) if a["sweep"] else 0
+    run = a["run"]
+    n_sub = int(run.n_sub)
+    sweeps = (n_sub if run.sweep_every_substep else 1) if run.sweep else 0
     per_step = {
-        "springs": (n_sub - passed) * int(a["per_sub"]) * len(a["ends"]),
-        "contact_springs": (n_sub - passed) * int(a["contact_passes"]) * len(a["body_ends"]),
-        "sweep_springs": sweeps * len(a["sweep_ends"]),
+        "springs": (n_sub - passed) * int(run.per_sub) * len(a["springs"].ends),
+        "contact_springs": (n_sub - passed) * int(run.contact_passes) * len(a["on_body"].ends),
+        "sweep_springs": sweeps * len(a["sweep"].ends),
     }
     return {"substeps": n_sub, "per_step": per_step, "total": sum(per_step.values())}
 

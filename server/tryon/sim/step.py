@@ -21,7 +21,7 @@ from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.pieces import hanging_pieces
 from tryon.sim.projection import project_stretch, sticking
 from tryon.sim.state import Drape
-from tryon.sim.substeps import finish_step
+from tryon.sim.substeps import Planes, Springs, Substeps, Sweep, finish_step
 
 
 def step(d: Drape) -> bool:
@@ -92,15 +92,18 @@ def step(d: Drape) -> bool:
         hangs = hanging_pieces(d.piece, st.has_plane | (inv_mass == 0.0))
         d.sweep_ends, d.sweep_lmax, d.sweep_blocks = sweep_springs(d.ordered_ends, d.ordered_lmax, st.has_plane,
                                                                    hangs, d.ordered_blocks)
+    planes = Planes(touching, st.plane_point, st.plane_normal, st.has_plane, st.push)
     # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its upward bias would
-    # make a tight garment climb off the body
-    finish_step(x, x_prev, step_mass, w_eff, d.h, gravity, s.air_drag, s.max_speed, d.n_sub, d.per_sub, d.ends,
-                d.table, contact_passes, d.body_ends, d.body_table, touching, st.plane_point, st.plane_normal,
-                st.has_plane, st.push, mu_s, mu_k, not changing, tu.sweep_every_substep, d.sweep_ends, d.sweep_lmax,
-                d.floor_y, d.collider.movers(st, d.parts, s.contact_offset, tu.near, s.collision_margin + tu.frame_depth,
-                                             hold_pinched=not changing, retest_planes=d.moving,
-                                             hold_depth=hold_depth, two=bool(d.blocks[2])), d.blocks, d.body_blocks,
-                d.sweep_blocks)
+    # make a tight garment climb off the body (sweep: not changing)
+    run = Substeps(float(d.h), int(d.n_sub), int(d.per_sub), int(contact_passes), float(gravity), float(s.air_drag),
+                   float(s.max_speed), float(mu_s), float(mu_k), not changing, bool(tu.sweep_every_substep),
+                   float(d.floor_y))
+    movers = d.collider.movers(st, d.parts, s.contact_offset, tu.near, s.collision_margin + tu.frame_depth,
+                               hold_pinched=not changing, retest_planes=d.moving, hold_depth=hold_depth,
+                               two=bool(d.blocks[2]))
+    finish_step(x, x_prev, step_mass, w_eff, Springs(d.ends, d.table, d.blocks),
+                Springs(d.body_ends, d.body_table, d.body_blocks), Sweep(d.sweep_ends, d.sweep_lmax, d.sweep_blocks),
+                planes, run, movers)
     if s.projection_steps and not changing:
         _project(d, w_eff)
     if not changing or d.moving:  # a re-pose's start-up is the body's motion, shown: its frames too

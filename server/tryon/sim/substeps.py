@@ -9,6 +9,8 @@ growth, the rest test) stays once per step in ``run.drape``.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -19,46 +21,94 @@ from tryon.sim.constraints import ONE_BLOCK, solve_listed
 from tryon.sim.integrate import keep_above_floor, verlet_step
 
 
-@njit(cache=True, nogil=True)
-def finish_step(x, x_prev, inv_mass, w_eff, h, gravity, air_drag, max_speed, n_sub, per_sub, ends, table,
-                contact_passes, body_ends, body_table, touching, plane_point, plane_normal, has_plane, push,
-                mu_static, mu_kinetic, sweep, sweep_every_substep, sweep_ends, sweep_lmax, floor_y, movers,
-                blocks=ONE_BLOCK, body_blocks=ONE_BLOCK, sweep_blocks=ONE_BLOCK):
-    """The rest of a step whose first substep has been predicted, collided and passed over (the caller's
-    part: ``verlet_step``, the collision, then ``solve_listed`` over ``ends`` / ``table`` and, if
-    ``contact_passes``, over ``body_ends`` / ``body_table``), in place.
+class Springs(NamedTuple):
+    """Springs as a pass reads them: ends (s, 2) uint32 and table (s, 5) (``constraints.pack_springs``), in the
+    blocks (3,) int64 of ``constraints._blocked_pass``. The garment's springs, or those of them a step selects (the
+    contact passes' springs with both ends on the body)."""
 
-    First substep: the top-down sweep (if ``sweep``), the contact planes, friction, the floor. Each of the
-    ``n_sub - 1`` further substeps of ``h`` s: Verlet (eq. 1; inv_mass (k,)), the planes of the points
-    ``touching`` (q,) int64 with friction on the inertial motion, ``per_sub`` passes over the springs and
-    ``contact_passes`` over the body's springs (weighted by ``w_eff`` (k,)), then the same tail. The sweep
-    runs on every substep if ``sweep_every_substep``, else on the last only. x, x_prev (k, 3) m;
-    plane_point, plane_normal (k, 3) and has_plane (k,) bool from the collision; push (k,) the summed
-    pushes for friction (zero on return); sweep_ends (q, 2) uint32 / sweep_lmax (q,) m from
-    ``sweep_springs``; floor_y m; movers: the points without a plane that moved far since their collision test
-    are tested again after each further substep's prediction (``collision.movers``), and join ``touching``
-    if they get a plane. blocks, body_blocks, sweep_blocks (3,) int64: the blocks of ``ends``, ``body_ends``
-    and ``sweep_ends`` (``constraints._blocked_pass``, ``sweep_blocked``).
+    ends: np.ndarray
+    table: np.ndarray
+    blocks: np.ndarray
+
+
+class Sweep(NamedTuple):
+    """The top-down sweep's springs (``constraints.sweep_springs``): ends (q, 2) uint32, lmax (q,) m, blocks (3,)
+    int64 (``blocks.sweep_blocked``)."""
+
+    ends: np.ndarray
+    lmax: np.ndarray
+    blocks: np.ndarray
+
+
+class Planes(NamedTuple):
+    """The step's contact planes, from its collision: touching (q,) int64 the points with a plane (increasing),
+    point (k, 3) m and normal (k, 3) unit each point's plane, has (k,) bool; push (k,) m the pushes summed over a
+    substep for friction (written; zero after each substep)."""
+
+    touching: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    has: np.ndarray
+    push: np.ndarray
+
+
+class Substeps(NamedTuple):
+    """How a step's substeps run: n_sub substeps of h s, per_sub passes over the springs and contact_passes over
+    those on the body in each; gravity m/s^2, air_drag 1/s, max_speed m/s (``verlet_step``); mu_static,
+    mu_kinetic: Coulomb friction on the planes; sweep: the top-down sweep on (after every substep if
+    sweep_every_substep, else after the last); floor_y m."""
+
+    h: float
+    n_sub: int
+    per_sub: int
+    contact_passes: int
+    gravity: float
+    air_drag: float
+    max_speed: float
+    mu_static: float
+    mu_kinetic: float
+    sweep: bool
+    sweep_every_substep: bool
+    floor_y: float
+
+
+@njit(cache=True, nogil=True)
+def finish_step(x, x_prev, inv_mass, w_eff, springs, on_body, sweep, planes, run, movers):
+    """The rest of a step whose first substep has been predicted, collided and passed over (the caller's
+    part: ``verlet_step``, the collision, then ``solve_listed`` over ``springs`` and, if ``run.contact_passes``,
+    over ``on_body``), in place.
+
+    Reads: inv_mass (k,) 1/kg, w_eff (k,) 1/kg (the passes' weights), springs and on_body (``Springs``: the
+    garment's, and those with both ends on the body), sweep (``Sweep``), run (``Substeps``). Writes: x, x_prev
+    (k, 3) m, planes (``Planes``: push, and the planes the within-step test adds), movers (``collision.Movers``:
+    the points without a plane that moved far since their collision test are tested again after each further
+    substep's prediction, and join the planes if they get one).
+
+    First substep: the top-down sweep (if on), the contact planes, friction, the floor. Each of the
+    ``run.n_sub - 1`` further substeps: Verlet (eq. 1), the within-step test, the planes with friction on the
+    inertial motion, ``run.per_sub`` passes over the springs and ``run.contact_passes`` over the body's springs,
+    then the same tail.
     """
-    for sub in range(n_sub):
+    touching = planes.touching
+    for sub in range(run.n_sub):
         if sub > 0:
-            verlet_step(x, x_prev, inv_mass, h, gravity, air_drag, max_speed)
-            if collide_movers(x, x_prev, inv_mass, movers, mu_static, mu_kinetic, has_plane, plane_point,
-                              plane_normal):
-                touching = np.flatnonzero(has_plane)
+            verlet_step(x, x_prev, inv_mass, run.h, run.gravity, run.air_drag, run.max_speed)
+            if collide_movers(x, x_prev, inv_mass, movers, run.mu_static, run.mu_kinetic, planes.has, planes.point,
+                              planes.normal):
+                touching = np.flatnonzero(planes.has)
             # friction acts on the inertial motion only (x - x_prev right after the prediction), never on
             # the springs' corrections (which stand for the cloth's tension)
-            project_listed(x, x_prev, touching, plane_point, plane_normal, mu_static, mu_kinetic)
-            solve_listed(x, x_prev, w_eff, ends, table, per_sub, touching, plane_point, plane_normal, 0.0, 0.0,
-                         push, 1.0, blocks)
-            if contact_passes:
-                solve_listed(x, x_prev, w_eff, body_ends, body_table, contact_passes, touching, plane_point,
-                             plane_normal, 0.0, 0.0, push, 1.0, body_blocks)
-        if sweep and (sub == n_sub - 1 or sweep_every_substep):
-            sweep_blocked(x, x_prev, w_eff, sweep_ends, sweep_lmax, has_plane, sweep_blocks)
-        project_listed(x, x_prev, touching, plane_point, plane_normal, 0.0, 0.0, push)
-        apply_friction(x, x_prev, touching, plane_normal, push, mu_static, mu_kinetic)
-        keep_above_floor(x, x_prev, floor_y)
+            project_listed(x, x_prev, touching, planes.point, planes.normal, run.mu_static, run.mu_kinetic)
+            solve_listed(x, x_prev, w_eff, springs.ends, springs.table, run.per_sub, touching, planes.point,
+                         planes.normal, 0.0, 0.0, planes.push, 1.0, springs.blocks)
+            if run.contact_passes:
+                solve_listed(x, x_prev, w_eff, on_body.ends, on_body.table, run.contact_passes, touching,
+                             planes.point, planes.normal, 0.0, 0.0, planes.push, 1.0, on_body.blocks)
+        if run.sweep and (sub == run.n_sub - 1 or run.sweep_every_substep):
+            sweep_blocked(x, x_prev, w_eff, sweep.ends, sweep.lmax, planes.has, sweep.blocks)
+        project_listed(x, x_prev, touching, planes.point, planes.normal, 0.0, 0.0, planes.push)
+        apply_friction(x, x_prev, touching, planes.normal, planes.push, run.mu_static, run.mu_kinetic)
+        keep_above_floor(x, x_prev, run.floor_y)
 
 
 @njit(cache=True, nogil=True)

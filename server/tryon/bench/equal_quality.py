@@ -77,7 +77,8 @@ def at_equal_quality(n: int, default: dict, target: dict, run, threads: int = 1,
 
 def quality_table(results: list[dict]) -> Table:
     """The section's table of ``at_equal_quality`` summaries."""
-    rows = [[r["particles"], r.get("threads", 1), r["target_target"], fmt(r["target_stretch"]), fmt(r["target_penetration_mm"]),
+    rows = [[r["particles"], r.get("threads", 1), r["target_target"], fmt(r["target_stretch"]),
+             fmt(r["target_penetration_mm"]),
              _setting(r["substeps"], r.get("projection_steps", 0)), fmt(r["met"]), fmt(r["frame_ms"]),
              fmt(r["target_frame_ms"]),
              fmt(r.get("speedup")), fmt(r["max_stretch"]), fmt(r["final_stretch"]),

@@ -17,7 +17,7 @@ from tryon.sim.integrate import verlet_step
 from tryon.sim.limbs import openings_on_limbs
 from tryon.sim.metrics import allowed_length
 from tryon.sim.state import Drape
-from tryon.sim.substeps import finish_relaxation_round
+from tryon.sim.substeps import Planes, Springs, Substeps, finish_relaxation_round
 
 
 @dataclass
@@ -57,6 +57,10 @@ def relax(d: Drape) -> Relaxation:
     # the buckled cloth on the body)
     stretch_only[:, 1:] = 0.0
     fewest_over, best_round = len(d.springs) + 1, 0
+    springs = Springs(d.ends, stretch_only, d.blocks)
+    # gravity and friction off, light drag (``tuning.relax_drag``)
+    run = Substeps(float(d.h), int(d.n_sub), int(d.per_sub), 0, 0.0, float(tu.relax_drag), float(s.max_speed), 0.0,
+                   0.0, False, False, float(d.floor_y))
     for rounds in range(1, tu.max_polish_rounds + 1):
         # the first substep's prediction and collision here, the rest of the round in one kernel
         verlet_step(x, x_prev, inv_mass, d.h, 0.0, tu.relax_drag, s.max_speed)
@@ -64,8 +68,8 @@ def relax(d: Drape) -> Relaxation:
         collider.collide(x, x_prev, inv_mass, st.active, d.parts, s.contact_offset, 0.0, 0.0, st.contact,
                          near=tu.near, planes=st.planes, two=bool(d.blocks[2]))
         touching = np.flatnonzero(st.has_plane)
-        finish_relaxation_round(x, x_prev, inv_mass, d.h, tu.relax_drag, s.max_speed, d.n_sub, d.per_sub, d.ends,
-                                stretch_only, touching, st.plane_point, st.plane_normal, st.push, d.floor_y, d.blocks)
+        finish_relaxation_round(x, x_prev, inv_mass, springs, Planes(touching, st.plane_point, st.plane_normal,
+                                                                      st.has_plane, st.push), run)
         cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
         if rounds >= tu.min_polish_rounds:
             # judged after the final collision the result gets (between two collision tests a point may

@@ -17,7 +17,7 @@ from numba import njit
 from tryon.sim.blocks import sweep_blocked
 from tryon.sim.collision.contacts import apply_friction, project_listed
 from tryon.sim.collision.movers import collide_movers
-from tryon.sim.constraints import ONE_BLOCK, solve_listed
+from tryon.sim.constraints import solve_listed
 from tryon.sim.integrate import keep_above_floor, verlet_step
 
 
@@ -112,22 +112,21 @@ def finish_step(x, x_prev, inv_mass, w_eff, springs, on_body, sweep, planes, run
 
 
 @njit(cache=True, nogil=True)
-def finish_relaxation_round(x, x_prev, inv_mass, h, air_drag, max_speed, n_sub, per_sub, ends, table, touching,
-                            plane_point, plane_normal, push, floor_y, blocks=ONE_BLOCK):
+def finish_relaxation_round(x, x_prev, inv_mass, springs, planes, run):
     """The rest of a round of the relaxation after the loop (``run.drape``) whose first substep has been
-    predicted and collided by the caller, in place: each substep's ``per_sub`` passes over the springs
-    ``ends`` / ``table`` (stretch only) with the contact planes of the points ``touching``, the planes again,
-    a frictionless floor at ``floor_y`` m; then the other ``n_sub - 1`` substeps of ``h`` s, each with its
-    Verlet prediction (no gravity, ``air_drag`` 1/s) first. One call instead of ~60 per round: the A-line
-    skirt S on the large body (60 rounds) drapes in 0.274 instead of 0.278 s of CPU, same result.
+    predicted and collided by the caller, in place: each substep's ``run.per_sub`` passes over ``springs``
+    (``Springs``, stretch only) with the contact ``planes`` (``Planes``: their pushes written), the planes again, a
+    frictionless floor at ``run.floor_y``; then the other ``run.n_sub - 1`` substeps, each with its Verlet
+    prediction (no gravity, ``run.air_drag``) first. Writes x, x_prev (k, 3) m. One call instead of ~60 per round:
+    the A-line skirt S on the large body (60 rounds) drapes in 0.274 instead of 0.278 s of CPU, same result.
     """
-    for sub in range(n_sub):
+    for sub in range(run.n_sub):
         if sub > 0:
-            verlet_step(x, x_prev, inv_mass, h, 0.0, air_drag, max_speed)
-        solve_listed(x, x_prev, inv_mass, ends, table, per_sub, touching, plane_point, plane_normal, 0.0, 0.0, push,
-                     1.0, blocks)
-        project_listed(x, x_prev, touching, plane_point, plane_normal, 0.0, 0.0)
+            verlet_step(x, x_prev, inv_mass, run.h, 0.0, run.air_drag, run.max_speed)
+        solve_listed(x, x_prev, inv_mass, springs.ends, springs.table, run.per_sub, planes.touching, planes.point,
+                     planes.normal, 0.0, 0.0, planes.push, 1.0, springs.blocks)
+        project_listed(x, x_prev, planes.touching, planes.point, planes.normal, 0.0, 0.0)
         # a frictionless floor: a hem on it may still slide
         for i in range(x.shape[0]):
-            if x[i, 1] < floor_y:
-                x[i, 1] = floor_y
+            if x[i, 1] < run.floor_y:
+                x[i, 1] = run.floor_y

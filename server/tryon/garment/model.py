@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tryon.body.measure import mesh_edges
 from tryon.garment.fabric import Fabric, fabric_named, spring_stiffness
 from tryon.garment.springs import BENDING, spring_model
 
@@ -101,8 +102,7 @@ class GarmentModel:
     @cached_property
     def edges(self) -> np.ndarray:
         """(e, 2) int64: the full mesh's edges, each once, smaller id first (what ``self_crossings`` tests)."""
-        f = np.asarray(self.faces, dtype=np.int64)
-        return np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+        return mesh_edges(np.asarray(self.faces, dtype=np.int64))
 
     @cached_property
     def display_springs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -7,6 +7,8 @@ import numpy as np
 import scipy.sparse
 import scipy.sparse.csgraph
 
+from tryon.body.measure import mesh_edges
+
 
 def vertex_pieces(faces: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray]:
     """Connected pieces over shared vertices of the triangles ``faces`` (f, 3): (count, (n_vertices,) int64
@@ -40,7 +42,7 @@ def cloth_distance(x: np.ndarray, faces: np.ndarray, sources: np.ndarray) -> np.
     f = np.asarray(faces, dtype=np.int64)
     # each edge once: coo_matrix sums repeated entries (an edge listed the same way round by two faces of a
     # mesh whose faces are not consistently oriented)
-    e = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    e = mesh_edges(f)
     w = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
     graph = scipy.sparse.coo_matrix((w, (e[:, 0], e[:, 1])), shape=(len(x), len(x))).tocsr()
     return scipy.sparse.csgraph.dijkstra(graph, directed=False, indices=np.asarray(sources), min_only=True)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from tryon.body.measure import mesh_edges
 from tryon.sim.collision.cloth import build_tri_grid, nearest_over
 
 
@@ -105,6 +106,6 @@ def self_intersections(vertices: np.ndarray, faces: np.ndarray, cell: float = 0.
     x = np.ascontiguousarray(vertices, dtype=np.float64)
     f = np.ascontiguousarray(faces, dtype=np.int64)
     if edges is None:
-        edges = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+        edges = mesh_edges(f)
     grid = build_tri_grid(x, f, cell, 0.0)
     return int(_count_crossings(x, edges, f, grid.lo, grid.cell, grid.shape, grid.cell_start, grid.cell_tris))

@@ -149,12 +149,15 @@ def too_tight_places(coarse: np.ndarray, model, strain: np.ndarray, limits: np.n
     spring's middle; its count the larger of the two kinds'."""
     over = springs_over(strain, model, limits, on_body)
     middle = 0.5 * (coarse[model.springs[over, 0]] + coarse[model.springs[over, 1]])
-    middle = middle[~(beyond_limb_ends(middle, body) | between_sides(middle, body))]
+    middle = middle[~beyond_limb_ends(middle, body)]
     shown = shown_over_on_body(full, model, limits, on_body, body) if full is not None else np.zeros((0, 3))
-    shown = shown[~between_sides(shown, body)]
-    names = _place_names(np.concatenate([middle, shown]), body)  # one search of the body for both kinds
-    places = _counts(names[:len(middle)])
-    for place, n in _counts(names[len(middle):]).items():
+    # one search of the body for both kinds: their places, and which are pinched between its sides
+    points = np.concatenate([middle, shown])
+    names = _place_names(points, body)
+    counted = ~between_sides(points, body)
+    k = len(middle)
+    places = _counts(names[:k][counted[:k]])
+    for place, n in _counts(names[k:][counted[k:]]).items():
         if n >= SHOWN_MIN_EDGES:
             places[place] = max(n, places.get(place, 0))
     return dict(sorted(places.items(), key=lambda item: -item[1]))
@@ -236,9 +239,7 @@ def _place_names(middle: np.ndarray, body) -> np.ndarray:
     """(m,) object: the body place of each of the points ``middle`` (m, 3) m (see ``too_tight_places``)."""
     if not len(middle):
         return np.zeros(0, dtype=object)
-    vertex_part = np.zeros(len(body.vertices), dtype=np.int64)
-    vertex_part[body.faces.ravel()] = np.repeat(body.face_part, 3)
-    part = vertex_part[cKDTree(body.vertices).query(middle)[1]]
+    part = body.vertex_part[cKDTree(body.vertices).query(middle)[1]]
     names = np.array(body.parts, dtype=object)[part]
     levels = {k: v for k, v in (body.levels or {}).items() if k in ("chest", "waist", "hips")}
     if levels:

@@ -254,6 +254,18 @@ def test_long_sleeves_are_carried_back_with_arms_posed_away_from_them(catalogue,
     assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, m["strain_by_kind"]
 
 
+def test_the_long_sleeve_m_fits_the_body_at_the_centre_of_its_chart_row(catalogue):
+    """The long-sleeve M on the body at the centre of its chart row (172 cm, 96 / 82 / 100): both arms are aimed
+    through their cuffs and the shirt fits. Its left cuff was centred 3.9 cm off the arm's line with a radius of
+    4.0 cm: the line alone went through, so only the right arm (4.0 cm off) was aimed; the left hand started
+    across the cuff's rim and the cuff ended folded round the wrist, too tight at the forearm (20 springs)."""
+    chart_m = build_body(Measurements(height=172, chest=96, waist=82, hips=100), Pose())
+    m = drape(chart_m, _model(catalogue, "longsleeve-m.obj", "top"), SimSettings()).metrics
+    assert min(m["arm_turn_deg"]) > 2.0, m["arm_turn_deg"]
+    assert m["too_tight"] == {} and m["stays_up"], (m["too_tight"], m["slid_cm"])
+    assert m["openings_on_limbs"] is True, m["limb_openings"]
+
+
 def test_short_sleeves_on_bent_elbows_and_hanging_arms(catalogue):
     """A T-shirt's sleeve ends round the upper arm: with the elbows bent 90 degrees the arm is not turned
     (the line from shoulder to wrist, 50 degrees off the sleeve, is not the arm a short sleeve is on), and

@@ -16,7 +16,7 @@ from tryon.garment.ingest import CleanMesh
 from tryon.garment.prepare import prepare
 from tryon.garment.topology import boundary_loops
 from tryon.sim.align import align_garment
-from tryon.sim.arm_plan import arm_direction, plan_arms
+from tryon.sim.arm_plan import arm_direction, arm_misses, plan_arms
 from tryon.sim.landmarks import arm_joints, body_landmarks
 from tryon.sim.legs import LEG_BLEND, LEG_EASE, garment_crotch, leg_axes, leg_points, leg_radii
 from tryon.sim.constraints import spring_strain
@@ -316,6 +316,17 @@ def test_a_sleeve_bent_at_the_elbow_turns_the_forearm_onto_it(body, bent_top):
         arm /= np.linalg.norm(arm)
         to_cuff = cuffs[sign] - joint
         assert np.linalg.norm(to_cuff - (to_cuff @ arm) * arm) > 0.05
+
+
+def test_an_arm_misses_a_cuff_its_own_width_would_cut():
+    """A cuff of 4 cm radius centred 3 cm off the arm's line: a line goes through it, an arm 1.5 cm thick on each
+    side of its line does not (it would start across the rim), one 0.5 cm thick does."""
+    angle = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+    cuff = np.stack([0.03 + 0.04 * np.cos(angle), np.full(24, -0.5), 0.04 * np.sin(angle)], axis=1)
+    joint, arm = np.zeros(3), np.array([0.0, -1.0, 0.0])
+    assert not arm_misses(cuff, joint, arm)
+    assert not arm_misses(cuff, joint, arm, 0.005)
+    assert arm_misses(cuff, joint, arm, 0.015)
 
 
 def test_a_straight_or_short_sleeve_gets_no_elbow_turn(body):

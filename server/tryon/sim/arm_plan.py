@@ -13,7 +13,7 @@ from tryon.body.params import POSE_RANGES
 from tryon.body.types import Body
 from tryon.garment.topology import boundary_loops
 from tryon.geometry import rotation
-from tryon.sim.landmarks import BodyLandmarks, arm_joints, body_landmarks, part_index
+from tryon.sim.landmarks import BodyLandmarks, arm_joints, body_landmarks, part_index, part_points
 from tryon.sim.pieces import bottom_mask
 from tryon.sim.sleeves import MIN_SLEEVE_POINTS, far_opening, side_opening, sleeve_mask, sleeve_openings
 
@@ -25,12 +25,18 @@ from tryon.sim.sleeves import MIN_SLEEVE_POINTS, far_opening, side_opening, slee
 HANGING_CUFF = 0.6
 # Smallest difference between sleeve and arm angles worth posing the arms for, radians.
 MIN_ARM_TURN = np.radians(6.0)
-# A sleeve whose cuff's centre lies farther than CUFF_MISS x the cuff's mean radius from the arm's line is
-# aimed through its cuff, however small the turn: the hand would start outside the cuff, across its rim,
-# and end beside it, out through the side of the sleeve. On the catalogue this was the long-sleeve S on
-# the medium body and the S and M on the large one, 2-6 degrees off (``tryon bench --only fit``: their
-# shown-mesh strain 1.7 / 6.2 / 2.6 -> 0.4 / 0.5 / 0.4, the large M's 426 springs over -> 0).
+# A sleeve whose cuff the arm would not go through is aimed through its cuff, however small the turn: the hand
+# would start outside the cuff, across its rim, and end beside it, out through the side of the sleeve. The arm
+# goes through when its line passes the cuff's centre closer than CUFF_MISS x the cuff's mean radius less the
+# arm's own half-width there, as the arm starts (the body grown from ``SimSettings.grow_from`` of its size).
+# With the arm's line alone (no half-width) the catalogue's long-sleeve S on the medium body and the S and M on
+# the large one, 2-6 degrees off, were missed (``tryon bench --only fit``: their shown-mesh strain 1.7 / 6.2 /
+# 2.6 -> 0.4 / 0.5 / 0.4 once aimed), and the long-sleeve M on the chart's M body kept its left arm 3.9 cm off
+# a cuff of 4.0 cm radius (its right, 4.0 cm off, was aimed): the hand started across the rim and the cuff ended
+# folded round the wrist, too tight.
 CUFF_MISS = 1.0
+# m: the arm's body points within this of the cuff's centre along the arm give its half-width there.
+CUFF_SLICE = 0.015
 # Smallest bend of a long sleeve at the elbow worth turning the forearm for, radians; a smaller bend is
 # followed by the one shoulder turn along the whole sleeve. Measured on the small / medium / large bodies:
 # the MakeHuman blouse's sleeves 38-53 degrees, the MakeHuman men's shirt 26-31, the catalogue's long
@@ -78,14 +84,30 @@ class ArmPlan:
     right_cuff: np.ndarray | None = None
 
 
-def arm_misses(cuff: np.ndarray, joint: np.ndarray, arm: np.ndarray) -> bool:
-    """Whether an arm from the shoulder ``joint`` (3,) along the unit direction ``arm`` (3,) misses the
-    opening whose points are ``cuff`` (q, 3): the opening's centre lies farther from the arm's line than
-    ``CUFF_MISS`` x its mean radius."""
+def arm_misses(cuff: np.ndarray, joint: np.ndarray, arm: np.ndarray, half_width: float = 0.0) -> bool:
+    """Whether an arm from the shoulder ``joint`` (3,) along the unit direction ``arm`` (3,), ``half_width`` m
+    thick on each side of its line where it meets the opening whose points are ``cuff`` (q, 3), misses it: its
+    line lies farther from the opening's centre than ``CUFF_MISS`` x the opening's mean radius less
+    ``half_width``."""
     centre = cuff.mean(axis=0)
     radius = float(np.linalg.norm(cuff - centre, axis=1).mean())
     rel = centre - joint
-    return float(np.linalg.norm(rel - (rel @ arm) * arm)) > CUFF_MISS * radius
+    return float(np.linalg.norm(rel - (rel @ arm) * arm)) + half_width > CUFF_MISS * radius
+
+
+def arm_half_width(body: Body, side: str, joint: np.ndarray, arm: np.ndarray, at: np.ndarray) -> float:
+    """How far (m) the arm's surface reaches from its line (from the shoulder ``joint`` (3,) along the unit
+    ``arm`` (3,)) level with the point ``at`` (3,): the 90th percentile of the distances of the arm's body
+    points within ``CUFF_SLICE`` of that level (the hand's breadth at a cuff over it); 0 past the arm's end."""
+    parts = [part_index(body, f"{p}_{side}") for p in ("upper_arm", "forearm")]
+    points = np.concatenate([part_points(body, k) for k in parts if k is not None])
+    along = (points - joint) @ arm
+    level = (np.asarray(at) - joint) @ arm
+    near = np.abs(along - level) < CUFF_SLICE
+    if not near.any():
+        return 0.0
+    off = points[near] - joint - np.outer(along[near], arm)
+    return float(np.quantile(np.linalg.norm(off, axis=1), 0.9))
 
 
 def hanging_cuff(body: Body, side: str, x: np.ndarray, lm: BodyLandmarks, sign: float, loops: list[np.ndarray],
@@ -124,7 +146,8 @@ def arm_angle(body: Body, side: str) -> float:
 
 
 def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None = None,
-              loops: list[np.ndarray] | None = None, piece: np.ndarray | None = None) -> ArmPlan:
+              loops: list[np.ndarray] | None = None, piece: np.ndarray | None = None,
+              start_scale: float = 1.0) -> ArmPlan:
     """Turns that put each arm along its sleeve, measured from the aligned garment points (k, 3).
 
     Sleeve points: points of the pieces over the shoulders (``faces`` (f, 3), if given, tells the pieces
@@ -137,7 +160,8 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
     wrist) and the sleeve direction.
 
     A sleeve only a few degrees off the arm (under ``MIN_ARM_TURN``) is still turned if the arm would miss
-    its cuff (``CUFF_MISS``): then the arm is aimed through the cuff's centre. ``loops``: the boundary loops
+    its cuff (``CUFF_MISS``; the arm ``start_scale`` of its thickness, as the drape starts it): then the arm is
+    aimed through the cuff's centre. ``loops``: the boundary loops
     of ``faces`` if known (``GarmentModel.coarse_loops``); ``piece`` (k,): the points'
     ``pieces.piece_labels`` if known.
 
@@ -191,7 +215,8 @@ def plan_arms(body: Body, x: np.ndarray, category: str, faces: np.ndarray | None
         if ends:
             # the arm must go through the cuff: aim at the centre of the far opening if the arm misses it
             far = x[cuffs[side]]
-            misses_cuff = arm_misses(far, joint, arm)
+            width = start_scale * arm_half_width(body, side, joint, arm, far.mean(axis=0))
+            misses_cuff = arm_misses(far, joint, arm, width)
             if misses_cuff:
                 turn, axis = _turn_between(arm, far.mean(axis=0) - joint)
         if misses_cuff or turn >= MIN_ARM_TURN:

@@ -43,7 +43,9 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         sized = shape is not None
         if sized:  # sized to this body (guessed units): its springs' natural lengths change too
             model = model.resized(shape)
-        plan = plan_arms(body, x, model.meta.category, model.coarse_faces, model.coarse_loops, piece)
+        # the arms start as thin as the body starts growing: a cuff must have room for them then
+        plan = plan_arms(body, x, model.meta.category, model.coarse_faces, model.coarse_loops, piece,
+                         start_scale=settings.grow_from if settings.grow_steps else 1.0)
     else:
         x = np.array(initial, dtype=np.float64)
         plan = ArmPlan(0.0, 0.0)

@@ -98,9 +98,12 @@ def arm_misses(cuff: np.ndarray, joint: np.ndarray, arm: np.ndarray, half_width:
 def arm_half_width(body: Body, side: str, joint: np.ndarray, arm: np.ndarray, at: np.ndarray) -> float:
     """How far (m) the arm's surface reaches from its line (from the shoulder ``joint`` (3,) along the unit
     ``arm`` (3,)) level with the point ``at`` (3,): the 90th percentile of the distances of the arm's body
-    points within ``CUFF_SLICE`` of that level (the hand's breadth at a cuff over it); 0 past the arm's end."""
-    parts = [part_index(body, f"{p}_{side}") for p in ("upper_arm", "forearm")]
-    points = np.concatenate([part_points(body, k) for k in parts if k is not None])
+    points within ``CUFF_SLICE`` of that level (the hand's breadth at a cuff over it); 0 past the arm's end or
+    on a body without that arm."""
+    parts = [k for k in (part_index(body, f"{p}_{side}") for p in ("upper_arm", "forearm")) if k is not None]
+    if not parts:
+        return 0.0
+    points = np.concatenate([part_points(body, k) for k in parts])
     along = (points - joint) @ arm
     level = (np.asarray(at) - joint) @ arm
     near = np.abs(along - level) < CUFF_SLICE

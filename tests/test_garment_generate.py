@@ -114,11 +114,12 @@ def test_sleeves_point_down_and_out_in_an_a_pose(meshes, kind):
         assert math.degrees(math.atan2(dx, dy)) == pytest.approx(27.0, abs=4.0)
 
 
-def test_no_garment_passes_through_itself_but_the_xxl_sleeves(meshes):
+def test_no_garment_passes_through_itself(meshes):
     """Every size of every style is made without its cloth crossing itself (the written OBJ, rounded to 0.1 mm,
     as the catalogue ingests it): a large size's two trouser or shorts legs do not overlap below the crotch
-    (before: trousers L-XXL, shorts M-XXL). Left: the XXL tops' sleeves cut into the body tube at the armpit
-    (``docs/limits.md``)."""
+    (before: trousers L-XXL, shorts M-XXL), and a wide top's sleeve, started outside the armpit, comes back onto
+    the arm gently enough that its first rows stay out of the body tube (before: the T-shirt and long-sleeve
+    XXL, 36 and 30 edges through)."""
     from tryon.garment.generate import obj_text
     from tryon.sim.collision.crossings import self_intersections
 
@@ -128,7 +129,7 @@ def test_no_garment_passes_through_itself_but_the_xxl_sleeves(meshes):
         n = self_intersections(np.asarray(rounded.vertices), np.asarray(rounded.faces))
         if n:
             crossed[key] = n
-    assert set(crossed) == {("tshirt", "XXL"), ("longsleeve", "XXL")}, crossed
+    assert crossed == {}
 
 
 def test_committed_files_match_the_generator(tmp_path):

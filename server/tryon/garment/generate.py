@@ -53,6 +53,9 @@ SHOULDER_JOINT = (0.16, 1.39)
 ARM_Z = -0.055
 # A sleeve started outside the armpit rejoins the arm's axis within this length along the arm, m.
 SLEEVE_RETURN = 0.2
+# ... and no steeper than this (m across per m along): a shift of 6.9 cm (the tops' XXL) taken back within 20 cm
+# turned the sleeve's first rows into the body tube at the armpit, the cloth through itself
+SLEEVE_SLOPE = 0.24
 # The body's mid-plane is not z = 0 at every height: the neck and shoulders sit behind the chest, the
 # buttocks behind the belly. (y, z of the torso's section centre), m, measured on the service's
 # parametric body (tryon.body) of a 1.70 m person; the legs are centred on z = 0.
@@ -301,12 +304,13 @@ def _build_sleeve(mb: MeshBuilder, root: np.ndarray, side: int, spec: TopSpec) -
     under_x = joint[0] * side + start * math.sin(alpha) - r_top * math.cos(alpha)
     shift = np.array([side * max(0.0, abs(root_pts[0, 0]) + 0.005 - under_x), 0.0, 0.0])
     length = spec.sleeve_end - start
+    back = max(SLEEVE_RETURN, float(np.abs(shift).max()) / SLEEVE_SLOPE)
     rows = max(3, int(round(length / SPACING)))
     blend = max(1.0, 0.09 / (length / rows))  # rows over which the armhole turns into a circle (9 cm)
     prev = root
     for l_ in range(1, rows + 1):
         t = l_ / rows
-        c = joint + (start + length * t) * d + shift * max(0.0, 1.0 - length * t / SLEEVE_RETURN)
+        c = joint + (start + length * t) * d + shift * max(0.0, 1.0 - length * t / back)
         r = r_top + (r_end - r_top) * t
         circle = c + r * (-np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * np.array([0.0, 0.0, 1.0]))
         w = smoothstep(l_ / blend)

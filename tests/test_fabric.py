@@ -60,7 +60,7 @@ def test_hanging_jersey_stretches_as_the_fabric_does():
     """Tension at depth s: rho g (H - s) N/m. Under the pinned top row the sheet cannot narrow, so it is as stiff
     per unit width as its vertical and diagonal springs together: k1 + k2 = 108 N/m for jersey, 0.55 % at the
     top. Solved finely the sheet meets that within 25 %; at the default settings (one Gauss-Seidel pass a
-    substep) it stretches up to 2.5x that, still a fabric's stretch and far from the 10 % limit."""
+    substep, its restart's compliance taken back) within 60 % (2.35x before it was taken back)."""
     model, (depth, default), _ = _hang("top")
     _, (_, fine), _ = _hang("top", **FINE)
     jersey = model.fabric
@@ -68,7 +68,7 @@ def test_hanging_jersey_stretches_as_the_fabric_does():
     top = depth < 0.03
     assert 0.75 * expected < fine[top].mean() < 1.25 * expected
     assert fine[depth > HEIGHT - 0.03].mean() < 0.2 * fine[top].mean()  # little weight under the hem
-    assert 0.5 * expected < default.mean() and default[top].mean() < 2.5 * expected
+    assert 0.5 * expected < default.mean() and default[top].mean() < 1.6 * expected
 
 
 def test_a_woven_barely_stretches_and_any_fabric_stops_at_its_limit():
@@ -82,7 +82,8 @@ def test_a_woven_barely_stretches_and_any_fabric_stops_at_its_limit():
 
 
 def test_a_finer_time_step_hangs_the_same():
-    """The same sheet with a 4x smaller step and three passes a substep: its hem within 3 mm."""
+    """The same sheet with a 4x smaller step and three passes a substep: its hem within 1.5 mm (1.9 mm apart before
+    the passes took back their restart's compliance, 0.7 mm after)."""
     _, _, default = _hang("top")
     _, _, fine = _hang("top", **FINE)
-    assert abs(default - fine) < 0.003
+    assert abs(default - fine) < 0.0015

@@ -327,3 +327,29 @@ def test_no_spring_of_an_outfit_ends_past_three_times_its_length(tmp_path, body)
     assert max(worst) <= FINAL_CAP - 1.0 + 1e-6, worst
     assert max(worst) > 1.5  # the band is still far too small: the figure says so
     assert out.metrics["tuck_as_asked"]
+
+
+def test_an_inner_layer_on_the_body_does_not_give_way_to_the_outer_one():
+    """Two crossed layers 1 mm apart: pushed apart by inverse mass, the inner one gives way (it moves in); where
+    its points lie on the body (``on_body``), the body is under them and the outer layer takes the whole move.
+    Pushed into the body instead, a waistband under a top's hem was pushed back out along the body's normal,
+    up the hips' slope, a little every step: the A-line skirt M under the long-sleeve M on the small body climbed
+    23 cm once the jersey was as stiff as its fabric."""
+    from tryon.sim.outfit import collide_layers
+
+    tri = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0]])
+    faces = [np.array([[0, 1, 2]], dtype=np.int64)] * 2
+    sides = [np.ones(1)] * 2  # counter-clockwise seen from +z: +z is outward
+
+    def collided(on_body):
+        inner, outer = tri.copy(), tri + [0.01, 0.01, -0.001]
+        points = [inner, outer]
+        collide_layers(points, [p.copy() for p in points], [np.ones(3), np.ones(3)], faces, sides, 0.002,
+                       both_ways=True, on_body=on_body)
+        return inner, outer
+
+    inner, outer = collided(None)
+    assert inner[:, 2].min() < -1e-4  # the inner layer gave way
+    inner, outer = collided([np.ones(3, dtype=np.bool_), np.zeros(3, dtype=np.bool_)])
+    assert np.array_equal(inner, tri)
+    assert outer[0, 2] == pytest.approx(0.002)  # its point over the inner triangle went the whole gap out

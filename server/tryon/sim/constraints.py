@@ -188,11 +188,14 @@ def pack_springs(springs: np.ndarray, rest: np.ndarray, kind: np.ndarray, limit:
 def _spring_pass(x, inv_mass, ends, table, backward, relax):
     """One Gauss-Seidel pass over packed springs (``pack_springs``), forward or backward, in place.
 
-    A spring longer than its natural length l0 is shortened by k h^2 w / (1 + k h^2 w) of its stretch l - l0,
-    w = w_i + w_j split by inverse mass (XPBD with compliance 1 / (k h^2), one pass from a zero multiplier;
-    ``table[:, 4]`` = k h^2 per pass, kg, from the fabric's stiffness, ``garment.fabric``): a soft knit's a
-    part, a stiff woven's (k h^2 w >> 1) nearly all of it, as PBD; and always at least back to l_max (the
-    strain limit, where the fabric locks: eq. 3). A shorter one is pushed back by the compression fraction of
+    A spring longer than its natural length l0 is shortened by min(1, k h^2 w) of its stretch l - l0, w = w_i +
+    w_j split by inverse mass (``table[:, 4]`` = k h^2 per pass, kg, from the fabric's stiffness,
+    ``garment.fabric``): XPBD with compliance 1 / (k h^2) - w, one pass from a zero multiplier. One such pass a
+    substep holds a tension T at a stretch of T (1 / k + h^2 w): the restart from a zero multiplier adds the
+    compliance h^2 w to the fabric's (Macklin et al. 2016's non-converged XPBD; a knit at the default settings,
+    k h^2 w ~ 1.8, hung 2.3x its fabric's stretch), taken back here from the compliance; a fabric stiffer than one
+    pass can hold (k h^2 w > 1: a woven) is corrected whole, as PBD. And always at least back to l_max (the strain
+    limit, where the fabric locks: eq. 3). A shorter one is pushed back by the compression fraction of
     its shortfall. A spring without stiffness within its range costs no square root.
 
     An unsigned spring index (no negative-index wrap-around) and numpy's error model (no zero-division
@@ -216,7 +219,7 @@ def _spring_pass(x, inv_mass, ends, table, backward, relax):
             if k == 0.0 and d2 <= lmax * lmax:
                 continue
             d = math.sqrt(d2)
-            excess = max(d - lmax, (d - l0) * k * wsum / (k * wsum + 1.0))
+            excess = max(d - lmax, (d - l0) * min(1.0, k * wsum))
         elif d2 < l0 * l0:
             d = math.sqrt(d2)
             excess = (d - l0) * table[s, 2]

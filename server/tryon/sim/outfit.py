@@ -207,7 +207,7 @@ def collide_layers(points: list[np.ndarray], prev: list[np.ndarray], inv_mass: l
                    faces: list[np.ndarray], sides: list[np.ndarray], gap: float, near: float = 0.0,
                    planes: list[tuple] | None = None, max_push: float = np.inf,
                    pressed: list[np.ndarray] | None = None, both_ways: bool = False,
-                   reach: float = None) -> int:
+                   reach: float = None, on_body: list[np.ndarray] | None = None) -> int:
     """Keep the layers (``points[i]`` (k_i, 3) m, in place, innermost first; triangles ``faces[i]`` (f_i, 3) int64,
     turned outward by ``sides[i]`` (f_i,), ``face_sides``) ``gap`` m apart: every outer layer's points outside
     each layer under it, and with ``both_ways`` also every inner layer's points under each layer over it (a point
@@ -219,18 +219,26 @@ def collide_layers(points: list[np.ndarray], prev: list[np.ndarray], inv_mass: l
     in one call; ``pressed``: per layer (k_i,) bool out, its points an outer layer pressed on; ``reach`` m: how
     far from a layer its grid finds points (default ``LAYER_REACH``). Only the triangles within ``reach`` of the
     other layer's box are binned (a shirt's hem over trousers: the trousers' hips, not their legs). Returns how
-    many points were pushed."""
+    many points were pushed. ``on_body``: per layer (k_i,) bool, its points on the body (with a contact plane):
+    the inner layer's such points do not give way to an outer one (the body is under them), the outer one takes
+    the whole move; pushed in, they would be pushed back out along the body's normal, up a slope."""
     reach = LAYER_REACH if reach is None else reach
 
     def push(mover: int, under: int, sign: float, keep_planes: bool) -> int:
+        mover_mass, under_mass = inv_mass[mover], inv_mass[under]
+        if on_body is not None:  # the layer nearer the body gives way only where the body is not under it
+            if sign > 0.0:
+                under_mass = np.where(on_body[under], 0.0, under_mass)
+            else:
+                mover_mass = np.where(on_body[mover], 0.0, mover_mass)
         active, close = overlap(points[mover], points[under], faces[under], reach)
         if not active.any():
             return 0
         tris = np.ascontiguousarray(faces[under][close])
         normals = signed_face_normals(points[under], tris, sign * sides[under][close])
         grid = build_tri_grid(points[under], tris, LAYER_CELL, reach)
-        return push_layer(points[mover], prev[mover], inv_mass[mover], active, points[under], prev[under],
-                          inv_mass[under], tris, normals, grid, gap, reach, near,
+        return push_layer(points[mover], prev[mover], mover_mass, active, points[under], prev[under],
+                          under_mass, tris, normals, grid, gap, reach, near,
                           planes[mover] if keep_planes and planes is not None else None, max_push,
                           pressed[under] if keep_planes and pressed is not None else None)
 
@@ -307,7 +315,7 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
             collide_layers([d.state.x for d in drapes], [d.state.x_prev for d in drapes],
                            [d.state.inv_mass for d in drapes], faces, sides(), LAYER_GAP, 0.0,
                            [d.state.layer_planes for d in drapes], LAYER_MAX_PUSH, pressed,
-                           both_ways=True)
+                           both_ways=True, on_body=[d.state.has_plane for d in drapes])
             for k, d in enumerate(drapes):
                 gather(d, pressed[k], compression[k])
                 # pushed: awake (the push's move counts in its next step's rest test)
@@ -326,7 +334,8 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
     if len(drapes) > 1:
         for _ in range(FINAL_LAYER_ROUNDS):
             collide_layers([d.state.x for d in drapes], [d.state.x_prev for d in drapes],
-                           [d.state.inv_mass for d in drapes], faces, sides(), LAYER_GAP, both_ways=True)
+                           [d.state.inv_mass for d in drapes], faces, sides(), LAYER_GAP, both_ways=True,
+                           on_body=[d.state.has_plane for d in drapes])
             for d in drapes:
                 collide_all(d)
                 cap_stretch(d.state.x, d.state.inv_mass, d.springs, d.rest, FINAL_CAP, d.tuning.tear_passes)

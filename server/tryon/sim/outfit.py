@@ -5,7 +5,9 @@ its own start-up), stepped in lockstep; after each step the layers collide, inne
 of an outer garment that lies less than ``LAYER_GAP`` outside an inner garment's current coarse surface (or inside
 it) is moved to ``LAYER_GAP`` outside it, and every point of the inner garment through the outer one's surface back
 under it; the triangle takes its share of each move by inverse mass (``collision.cloth.push_outside_layer``: the
-point-triangle constraint of position-based dynamics), so a waistband under a shirt's hem carries the hem's weight.
+point-triangle constraint of position-based dynamics), but the inner garment's points on the body do not give way
+(the body is under them; pushed in, the body would push them back out along its normal, up the hips' slope: a
+skirt's band under a long-sleeve's hem climbed that way), so the outer garment takes the whole move there.
 An outer point pushed gets a contact plane on the inner garment (``DrapeState.layer_planes``), which the next step
 takes instead of the body's where it asks more (``contacts.take_stricter_planes``): the substeps keep the point on
 the garment under it, not on the body it would fall back to between two layer collisions (a T-shirt under a

@@ -414,10 +414,11 @@ def _unused_fraction(data: bytes, ext: str, vertices: np.ndarray, faces: np.ndar
 
 # One number of a v/vt/vn line: a decimal with an optional exponent, or nan/inf (refused later, in
 # ``_read``, as non-finite). Atomic groups and possessive quantifiers keep the search linear, even on a
-# line of a million digits.
-_NUMBER = rb"(?>[-+]?+(?:\d++(?:\.\d*+)?+|\.\d++)(?:[eE][-+]?+\d++)?+|[-+]?+(?i:nan|inf(?:inity)?+))"
+# line of a million digits. An optional group is greedy, not possessive (inside the atomic group it is as
+# linear): Python 3.11.2's re (Debian 12's) matches "1e" and "3/" whole with a possessive optional group.
+_NUMBER = rb"(?>[-+]?+(?:\d++(?:\.\d*+)?|\.\d++)(?:[eE][-+]?+\d++)?|[-+]?+(?i:nan|inf(?:inity)?))"
 # One corner of a face: v, v/vt, v//vn or v/vt/vn, each a whole number (negative: counted back).
-_CORNER = rb"(?>[-+]?+\d++(?:/[-+]?+\d*+/[-+]?+\d++|/[-+]?+\d++)?+)"
+_CORNER = rb"(?>[-+]?+\d++(?:/[-+]?+\d*+/[-+]?+\d++|/[-+]?+\d++)?)"
 # After a keyword: a blank (a longer word such as "vp" or "fo" is another keyword).
 _KEYWORD_END = rb"(?![^ \t\r\n])"
 # The end of a good line: blanks and the line break (trimesh reads no comment after data on a line).

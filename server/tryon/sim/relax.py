@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tryon.sim.collision.contacts import take_stricter_planes
 from tryon.sim.constraints import cap_stretch, spring_lengths
 from tryon.sim.integrate import verlet_step
 from tryon.sim.limbs import openings_on_limbs
@@ -45,32 +46,16 @@ def complete_body(d: Drape) -> None:
 def relax(d: Drape) -> Relaxation:
     """Relax ``d``'s garment in place (see the module doc)."""
     complete_body(d)
-    s, tu, st, collider = d.settings, d.tuning, d.state, d.collider
+    tu, st = d.tuning, d.state
     x, x_prev, inv_mass = st.x, st.x_prev, st.inv_mass
     target = allowed_length(d.rest, d.limits[d.kind])
     rounds = 0
     x_prev[:] = x
     x_loop = x.copy()
-    stretch_only = d.table.copy()
-    # only the over-long springs act: no compression pushes cloth off the body (and with l0 = 0 too a
-    # compressed spring is not even visited for a zero correction: same result, the relaxation's passes skip
-    # the buckled cloth on the body)
-    stretch_only[:, 1:] = 0.0
     fewest_over, best_round = len(d.springs) + 1, 0
-    springs = Springs(d.ends, stretch_only, d.blocks)
-    # gravity and friction off, light drag (``tuning.relax_drag``)
-    run = Substeps(float(d.h), int(d.n_sub), int(d.per_sub), 0, 0.0, float(tu.relax_drag), float(s.max_speed), 0.0,
-                   0.0, False, False, float(d.floor_y))
+    springs, run = relaxation_passes(d)
     for rounds in range(1, tu.max_polish_rounds + 1):
-        # the first substep's prediction and collision here, the rest of the round in one kernel
-        verlet_step(x, x_prev, inv_mass, d.h, 0.0, tu.relax_drag, s.max_speed)
-        st.active[:] = True
-        collider.collide(x, x_prev, inv_mass, st.active, d.parts, s.contact_offset, 0.0, 0.0, st.contact,
-                         near=tu.near, planes=st.planes, two=bool(d.blocks[2]))
-        touching = np.flatnonzero(st.has_plane)
-        finish_relaxation_round(x, x_prev, inv_mass, springs, Planes(touching, st.plane_point, st.plane_normal,
-                                                                      st.has_plane, st.push), run)
-        cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
+        relaxation_round(d, springs, run)
         if rounds >= tu.min_polish_rounds:
             # judged after the final collision the result gets (between two collision tests a point may
             # slide past its contact plane, over a sharp edge, and be pushed back out, stretching springs)
@@ -108,6 +93,36 @@ def relax(d: Drape) -> Relaxation:
     # body would leave it with springs pushed past the guard (the loop's guard ran before it)
     cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
     return Relaxation(rounds=rounds, relax_move=relax_move, piece_move=piece_move, relaxed=relaxed)
+
+
+def relaxation_passes(d: Drape) -> tuple[Springs, Substeps]:
+    """The springs and substeps of a relaxation round of ``d``: only the over-long springs act (no compression
+    pushes cloth off the body; with l0 = 0 too a compressed spring is not even visited, so the passes skip the
+    buckled cloth on the body); gravity and friction off, light drag (``tuning.relax_drag``)."""
+    stretch_only = d.table.copy()
+    stretch_only[:, 1:] = 0.0
+    run = Substeps(float(d.h), int(d.n_sub), int(d.per_sub), 0, 0.0, float(d.tuning.relax_drag),
+                   float(d.settings.max_speed), 0.0, 0.0, False, False, float(d.floor_y))
+    return Springs(d.ends, stretch_only, d.blocks), run
+
+
+def relaxation_round(d: Drape, springs: Springs, run: Substeps) -> None:
+    """One round of the relaxation of ``d`` in place (``springs``, ``run``: ``relaxation_passes``): the first
+    substep's prediction and collision here (every point tested; a point an outfit's layer collision pushed keeps
+    that layer's plane where it asks more, as in ``step``), the rest of the round in one kernel, then the tear
+    guard."""
+    s, tu, st = d.settings, d.tuning, d.state
+    x, x_prev, inv_mass = st.x, st.x_prev, st.inv_mass
+    verlet_step(x, x_prev, inv_mass, d.h, 0.0, tu.relax_drag, s.max_speed)
+    st.active[:] = True
+    d.collider.collide(x, x_prev, inv_mass, st.active, d.parts, s.contact_offset, 0.0, 0.0, st.contact,
+                       near=tu.near, planes=st.planes, two=bool(d.blocks[2]))
+    if st.layer_has.any():
+        take_stricter_planes(x, *st.planes, *st.layer_planes)
+    touching = np.flatnonzero(st.has_plane)
+    finish_relaxation_round(x, x_prev, inv_mass, springs, Planes(touching, st.plane_point, st.plane_normal,
+                                                                  st.has_plane, st.push), run)
+    cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
 
 
 def collide_all(d: Drape) -> None:

@@ -419,15 +419,18 @@ def test_a_guessed_units_top_with_sleeves_is_sized_whole_at_the_chest(body, kind
 def test_shorts_far_too_small_are_stretched_no_further_than_the_tear_guard(catalogue):
     """Shorts S (waist 72 cm) on a 100 cm waist: collision wins over the springs during the drape, and the
     tear guard keeps every spring under tear_guard x its natural length, also after the last collision
-    (it left one at 2.75 x, max strain 1.75). The springs held over on the body say where: the waist."""
+    (it left one at 2.75 x, max strain 1.75). The springs held over on the body say where: the waist. The legs'
+    cloth pinched between the thighs is held in the relaxation as in the steps: flipping between them there,
+    585 of the shown mesh's edges crossed its own triangles (257 held)."""
     from tryon.sim.tuning import TUNING
 
     large = build_body(Measurements(height=185, chest=112, waist=100, hips=112), Pose())
     model = _model(catalogue, "shorts-s.obj", "bottom")
     m = drape(large, model, SimSettings()).metrics
     assert np.isfinite(m["max_strain"]) and m["max_strain"] <= TUNING.tear_guard - 1.0 + 1e-6
-    assert m["max_strain"] > 1.0  # far too small: it is stretched, not fitted
+    assert m["max_strain"] > 0.5  # far too small (5 x its 10 % limit): it is stretched, not fitted
     assert "torso waist" in m["too_tight"]
+    assert m["self_crossings"] < 400, m["self_crossings"]
 
 
 def test_trousers_on_legs_spread_20_degrees(catalogue):

@@ -108,15 +108,21 @@ def relaxation_passes(d: Drape) -> tuple[Springs, Substeps]:
 
 def relaxation_round(d: Drape, springs: Springs, run: Substeps) -> None:
     """One round of the relaxation of ``d`` in place (``springs``, ``run``: ``relaxation_passes``): the first
-    substep's prediction and collision here (every point tested; a point an outfit's layer collision pushed keeps
-    that layer's plane where it asks more, as in ``step``), the rest of the round in one kernel, then the tear
-    guard."""
+    substep's prediction and collision here (every point tested, a pinched one held; a point an outfit's layer
+    collision pushed keeps that layer's plane where it asks more, as in ``step``), the rest of the round in one
+    kernel, then the tear guard."""
     s, tu, st = d.settings, d.tuning, d.state
     x, x_prev, inv_mass = st.x, st.x_prev, st.inv_mass
     verlet_step(x, x_prev, inv_mass, d.h, 0.0, tu.relax_drag, s.max_speed)
     st.active[:] = True
+    # a point pinched between two parts (pushed out of each into the other) does not flip between them: it is
+    # held where the round began or, if that is deeper than the collision's reach, put where the pushes leave
+    # it least deep (as a re-posed drape's steps do; the body is whole here, nothing grows into it). Flipping,
+    # the trouser legs between the large body's thighs crossed each other: over the fit bench's 90 drapes
+    # self-crossings 4,727 -> 3,634 held so, 4,504 held wherever they were
     d.collider.collide(x, x_prev, inv_mass, st.active, d.parts, s.contact_offset, 0.0, 0.0, st.contact,
-                       near=tu.near, planes=st.planes, two=bool(d.blocks[2]))
+                       near=tu.near, planes=st.planes, hold_pinched=True, held=st.held,
+                       hold_depth=s.collision_margin + tu.frame_depth, two=bool(d.blocks[2]))
     if st.layer_has.any():
         take_stricter_planes(x, *st.planes, *st.layer_planes)
     touching = np.flatnonzero(st.has_plane)

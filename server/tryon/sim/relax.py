@@ -117,9 +117,8 @@ def relaxation_round(d: Drape, springs: Springs, run: Substeps) -> None:
     st.active[:] = True
     # a point pinched between two parts (pushed out of each into the other) does not flip between them: it is
     # held where the round began or, if that is deeper than the collision's reach, put where the pushes leave
-    # it least deep (as a re-posed drape's steps do; the body is whole here, nothing grows into it). Flipping,
-    # the trouser legs between the large body's thighs crossed each other: over the fit bench's 90 drapes
-    # self-crossings 4,727 -> 3,634 held so, 4,504 held wherever they were
+    # it least deep (as a re-posed drape's steps do; the body is whole here, nothing grows into it). Flipping
+    # between the thighs, the legs of trousers on a larger body crossed each other
     d.collider.collide(x, x_prev, inv_mass, st.active, d.parts, s.contact_offset, 0.0, 0.0, st.contact,
                        near=tu.near, planes=st.planes, hold_pinched=True, held=st.held,
                        hold_depth=s.collision_margin + tu.frame_depth, two=bool(d.blocks[2]))

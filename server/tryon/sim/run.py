@@ -49,23 +49,23 @@ Points at rest cost almost nothing: a point that moved less than ``rest_move`` s
 outside the (static) body, and is not in contact, cannot be inside it by more than that, so its
 collision test is skipped; a contact at rest only re-projects onto its plane.
 
-After the loop, a relaxation: the same substeps with gravity and friction off and light drag, from rest, until
-every spring meets the strain target (or progress stalls, or ``max_polish_rounds`` steps). At rest under
-gravity the Gauss-Seidel passes leave the springs that hold the garment up (a waistband on the hips, cloth
-over the shoulders) a few % over their limits, and a band that sagged too low cannot shorten without climbing
-back up the body, a coordinated motion that damped passes make only a little of per round (hundreds of
-rounds). Without gravity the over-long springs are the only force left (and only they act: stretch-only, so no
-compression pushes cloth up off the body); with little drag the motion they start is kept (momentum: the
-heavy-ball acceleration of an iterative solver), so the band climbs to where it fits in 10-40 rounds. The
-garment moves only as far as its over-stretch asks: on the medium body a median 1-6 mm per point and up to 1-3
-cm, but up to 7-10 cm where a long sleeve or a trouser hem was stretched along the limb and shortens up it.
-A garment far too small for the body has no such place nearby, and the relaxation carries it off (a blouse up
-around the neck, trousers down to the knees): for each piece of the file of which it moved a tenth of the
-points more than ``relax_max_move`` it is dropped, and the loop's result for that piece is kept with its
-springs over the target reported (metrics ``relaxed``, ``relax_move_mm``: the largest piece's 90th
-percentile move, the largest move). Then the full mesh is rebuilt from the coarse one (``full_mesh``: the
-re-attachment, a few stretch passes over the full mesh's own springs, and its vertices pushed out of the
-offset body too), so the displayed mesh neither stretches beyond the cloth nor penetrates.
+After the loop, a relaxation: the same substeps with gravity and friction off and light drag, from rest (a point
+pinched between two parts held, as in the steps), until every spring meets the strain target (or progress stalls, or
+``max_polish_rounds`` steps). At rest under gravity the Gauss-Seidel passes leave the springs that hold the garment
+up (a waistband on the hips, cloth over the shoulders) a few % over their limits, and a band that sagged too low
+cannot shorten without climbing back up the body, a coordinated motion that damped passes make only a little of per
+round (hundreds of rounds). Without gravity the over-long springs are the only force left (and only they act:
+stretch-only, so no compression pushes cloth up off the body); with little drag the motion they start is kept
+(momentum: the heavy-ball acceleration of an iterative solver), so the band climbs to where it fits in 10-40 rounds.
+The garment moves only as far as its over-stretch asks: on the medium body a median 1-6 mm per point and up to 1-3
+cm, but up to 7-10 cm where a long sleeve or a trouser hem was stretched along the limb and shortens up it. A
+garment far too small for the body has no such place nearby, and the relaxation carries it off (a blouse up around
+the neck, trousers down to the knees): for each piece of the file of which it moved a tenth of the points more than
+``relax_max_move`` it is dropped, and the loop's result for that piece is kept with its springs over the target
+reported (metrics ``relaxed``, ``relax_move_mm``: the largest piece's 90th percentile move, the largest move). Then
+the full mesh is rebuilt from the coarse one (``full_mesh``: the re-attachment, a few stretch passes over the full
+mesh's own springs, and its vertices pushed out of the offset body too), so the displayed mesh neither stretches
+beyond the cloth nor penetrates.
 
 The floor (y = ``floor_y``) is put under the offset body's soles, so a trouser hem on the floor beside a
 foot is not caught between the floor and the sole's offset rim.

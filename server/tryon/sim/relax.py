@@ -121,7 +121,7 @@ def relaxation_round(d: Drape, springs: Springs, run: Substeps) -> None:
     # between the thighs, the legs of trousers on a larger body crossed each other
     d.collider.collide(x, x_prev, inv_mass, st.active, d.parts, s.contact_offset, 0.0, 0.0, st.contact,
                        near=tu.near, planes=st.planes, hold_pinched=True, held=st.held,
-                       hold_depth=s.collision_margin + tu.frame_depth, two=bool(d.blocks[2]))
+                       hold_depth=d.reach, two=bool(d.blocks[2]))
     if st.layer_has.any():
         take_stricter_planes(x, *st.planes, *st.layer_planes)
     touching = np.flatnonzero(st.has_plane)

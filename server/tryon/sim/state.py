@@ -154,3 +154,9 @@ class Drape:
     moving: bool = False
     motion_depth: float = 0.0
     shown_from: int = 0
+
+    @property
+    def reach(self) -> float:
+        """m: the collision's margin plus ``tuning.frame_depth``: how far a point may move between two of its
+        collision tests, and how deep in the body a pinched point may be left (``collide_points``' hold_depth)."""
+        return self.settings.collision_margin + self.tuning.frame_depth

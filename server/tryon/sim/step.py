@@ -51,7 +51,7 @@ def step(d: Drape) -> bool:
     verlet_step(x, x_prev, inv_mass, d.h, gravity, s.air_drag, s.max_speed)
     # a re-posed drape does not leave a pinched point deeper in the body than the collision's reach within a
     # step (``collide_points``' hold_depth); a drape from scratch holds it wherever it is
-    hold_depth = s.collision_margin + tu.frame_depth if d.moving else 1e9
+    hold_depth = d.reach if d.moving else 1e9
     # collision (paper 3.3-3.4) on the predicted positions, leaving a contact plane for every point pushed
     # out or lying within ``near`` of the body; the substeps keep to those planes
     if changing:
@@ -98,7 +98,7 @@ def step(d: Drape) -> bool:
     run = Substeps(float(d.h), int(d.n_sub), int(d.per_sub), int(contact_passes), float(gravity), float(s.air_drag),
                    float(s.max_speed), float(mu_s), float(mu_k), not changing, bool(tu.sweep_every_substep),
                    float(d.floor_y))
-    movers = d.collider.movers(st, d.parts, s.contact_offset, tu.near, s.collision_margin + tu.frame_depth,
+    movers = d.collider.movers(st, d.parts, s.contact_offset, tu.near, d.reach,
                                hold_pinched=not changing, retest_planes=d.moving, hold_depth=hold_depth,
                                two=bool(d.blocks[2]))
     finish_step(x, x_prev, step_mass, w_eff, Springs(d.ends, d.table, d.blocks),
@@ -147,7 +147,7 @@ def _out_of_the_body(d: Drape) -> None:
     st.active[deep] = True
     d.collider.collide(st.x, st.x_prev, st.inv_mass, st.active, d.parts, d.settings.contact_offset, 0.0, 0.0,
                        st.contact, near=tu.near, planes=st.planes, held=np.zeros(len(st.x), dtype=np.bool_),
-                       hold_depth=d.settings.collision_margin + tu.frame_depth)
+                       hold_depth=d.reach)
     st.x_checked[deep] = st.x[deep]
 
 

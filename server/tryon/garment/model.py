@@ -105,6 +105,23 @@ class GarmentModel:
         return mesh_edges(np.asarray(self.faces, dtype=np.int64))
 
     @cached_property
+    def coarse_edge_faces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The coarse mesh's triangles (g, 3) int64, its edges (e, 2) int64 and the triangles on each edge (e, 2)
+        int64, -1 for none (``topology.edge_faces``): what the untangling of the simulated mesh walks."""
+        from tryon.garment.topology import edge_faces
+
+        faces = np.ascontiguousarray(self.coarse_faces, dtype=np.int64)
+        return (faces, *edge_faces(faces))
+
+    @cached_property
+    def edge_faces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``coarse_edge_faces`` of the full (shown) mesh."""
+        from tryon.garment.topology import edge_faces
+
+        faces = np.ascontiguousarray(self.faces, dtype=np.int64)
+        return (faces, *edge_faces(faces))
+
+    @cached_property
     def display_springs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The full mesh's structural and shear springs (``springs.spring_model`` without bending): pairs
         (m, 2) int64, natural lengths (m,) m, kinds (m,) int8. What keeps the displayed mesh's triangles

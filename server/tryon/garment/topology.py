@@ -54,3 +54,20 @@ def face_edge_ids(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ends = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
     edges, ids = np.unique(ends.astype(np.int64), axis=0, return_inverse=True)
     return edges, ids.reshape(-1, 3)
+
+
+def edge_faces(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(edges (e, 2) int64, adjacent (e, 2) int64): the unique undirected edges of the triangles ``faces``
+    (f, 3) and the (at most two) triangles on each, -1 where an edge has one (an opening's rim); where three
+    triangles meet on an edge (a seam), the first two."""
+    edges, ids = face_edge_ids(np.asarray(faces, dtype=np.int64))
+    adjacent = np.full((len(edges), 2), -1, dtype=np.int64)
+    flat = ids.ravel()
+    owner = np.repeat(np.arange(len(ids)), 3)
+    order = np.argsort(flat, kind="stable")
+    flat, owner = flat[order], owner[order]
+    first = np.r_[True, flat[1:] != flat[:-1]]
+    adjacent[flat[first], 0] = owner[first]
+    second = np.r_[False, (flat[1:] == flat[:-1]) & first[:-1]]
+    adjacent[flat[second], 1] = owner[second]
+    return edges, adjacent

@@ -32,6 +32,7 @@ import numpy as np
 from tryon.garment.model import GarmentModel
 from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.collision.collider import relevant_parts
+from tryon.sim.collision.untangle import untangle_round
 from tryon.sim.constraints import pack_springs, satisfy_springs, spring_strain
 from tryon.sim.show_through import lift_over_skin
 
@@ -53,7 +54,8 @@ SKIN_DEEPEST = 0.01
 
 def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollider, limits: np.ndarray,
                   contact_offset: float, floor_y: float = 0.0,
-                  also_collide: Callable[[np.ndarray, np.ndarray], int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  also_collide: Callable[[np.ndarray, np.ndarray], int] | None = None,
+                  untangle_step: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """The full mesh (n, 3) m on the draped coarse positions ``coarse`` (k, 3), see the module doc, and the
     body parts (int64 indices) it was collided with. ``limits`` (3,): strain limits by spring kind (the
     full mesh's springs are structural and shear); ``contact_offset`` m: lambda of eq. 4; nothing goes
@@ -67,10 +69,16 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
     ones = np.ones(len(full))
     active = np.ones(len(full), dtype=np.bool_)
     parts = relevant_parts(collider.body.maps, full.min(axis=0), full.max(axis=0), 0.01)
+    no_plane, no_plane_normal = np.zeros(len(full), dtype=np.bool_), np.zeros((len(full), 3))
     pairs, rest, kind = model.display_springs
     ends, table = pack_springs(pairs, rest, kind, limits, np.zeros(3))
     table[:, 1] = 0.0  # stretch only: the full mesh may buckle as the coarse one does (l0 = 0: not visited)
     for r in range(DISPLAY_ROUNDS):
+        if untangle_step and r < DISPLAY_ROUNDS - 1:
+            faces, edges, adjacent = model.edge_faces
+            # the shown mesh's own crossings where its triangles, following the coarse ones, cut into each other
+            # in a fold; the stretch passes and the collision after it have the last word
+            untangle_round(full, full_prev, ones, faces, edges, adjacent, untangle_step, no_plane, no_plane_normal)
         satisfy_springs(full, ones, ends, table, DISPLAY_PASSES)
         active[:] = True
         collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tryon.sim.collision.contacts import take_stricter_planes
+from tryon.sim.collision.untangle import untangle as untangle_drape
 from tryon.sim.constraints import cap_stretch, spring_lengths
 from tryon.sim.integrate import verlet_step
 from tryon.sim.limbs import openings_on_limbs
@@ -55,7 +56,9 @@ def relax(d: Drape) -> Relaxation:
     fewest_over, best_round = len(d.springs) + 1, 0
     springs, run = relaxation_passes(d)
     for rounds in range(1, tu.max_polish_rounds + 1):
-        relaxation_round(d, springs, run)
+        # the untangling in the first rounds only: where it cannot undo a crossing (cloth pinched between two
+        # parts, on the floor) it fights the springs, and the rounds after it are theirs
+        relaxation_round(d, springs, run, untangle=rounds <= tu.polish_stall_rounds)
         if rounds >= tu.min_polish_rounds:
             # judged after the final collision the result gets (between two collision tests a point may
             # slide past its contact plane, over a sharp edge, and be pushed back out, stretching springs)
@@ -106,7 +109,7 @@ def relaxation_passes(d: Drape) -> tuple[Springs, Substeps]:
     return Springs(d.ends, stretch_only, d.blocks), run
 
 
-def relaxation_round(d: Drape, springs: Springs, run: Substeps) -> None:
+def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool = True) -> None:
     """One round of the relaxation of ``d`` in place (``springs``, ``run``: ``relaxation_passes``): the first
     substep's prediction and collision here (every point tested, a pinched one held; a point an outfit's layer
     collision pushed keeps that layer's plane where it asks more, as in ``step``), the rest of the round in one
@@ -127,6 +130,8 @@ def relaxation_round(d: Drape, springs: Springs, run: Substeps) -> None:
     touching = np.flatnonzero(st.has_plane)
     finish_relaxation_round(x, x_prev, inv_mass, springs, Planes(touching, st.plane_point, st.plane_normal,
                                                                   st.has_plane, st.push), run)
+    if untangle and tu.untangle_step:
+        untangle_drape(d)
     cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
 
 

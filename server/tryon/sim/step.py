@@ -14,6 +14,7 @@ from tryon.sim.blocks import block_order
 from tryon.sim.collision.contacts import (
     flipped, points_to_test, project_listed, reuse_planes, take_stricter_planes,
 )
+from tryon.sim.collision.untangle import untangle
 from tryon.sim.constraints import (
     cap_stretch, contact_springs, pack_sweep, solve_listed, sweep_springs, top_down_order,
 )
@@ -106,6 +107,8 @@ def step(d: Drape) -> bool:
                 planes, run, movers)
     if s.projection_steps and not changing:
         _project(d, w_eff)
+    if tu.untangle_step and n % tu.untangle_every == 0 and not changing:
+        untangle(d)
     if not changing or d.moving:  # a re-pose's start-up is the body's motion, shown: its frames too
         _out_of_the_body(d)
     # guard: collision wins over the springs within the step, so a garment far too small for its body (a

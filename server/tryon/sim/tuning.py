@@ -88,6 +88,10 @@ class Tuning:
         a garment up; with one pass of the whole cloth per substep it stretched 15-25 % before friction held
         it, so bottoms came to rest 1-2 cm too low. One pass rather than two: as accurate, with fewer steps
         to rest; none: 3-7 % more steps and springs left over on the large body.
+    untangle_step: m, the most a round of contour minimisation (``collision/untangle.py``) moves a point of a
+        crossing of the cloth through itself; 0 = none.
+    untangle_every: steps between two rounds of it in the step loop (the relaxation runs one every round): its
+        search for crossings costs about half a step of a catalogue garment.
     """
 
     rest_move: float = 1e-4
@@ -114,6 +118,8 @@ class Tuning:
     contact_weight: float = 0.2
     contact_passes: int = 1
     unfold_per_pass: float = 0.0005
+    untangle_step: float = 0.002
+    untangle_every: int = 2
 
 
 TUNING = Tuning()

@@ -9,4 +9,6 @@
 - ``contacts``: the planes a collision leaves, projection onto them with Coulomb friction, reusing them
   while a contact rests, which points to test again, pinches.
 - ``inside``: is a point of a triangle's plane inside the triangle (three tests, SPEC section 4).
+- ``crossings``: where cloth went through cloth, measured; ``untangle``: a garment's own crossings taken back
+  out (intersection-contour minimisation).
 """

@@ -69,8 +69,19 @@ def _crosses(r):
 
 
 @njit(cache=True, nogil=True)
-def _count_crossings(x, edges, faces, grid_lo, grid_cell, grid_shape, cell_start, cell_tris):
+def _find_crossings(x, edges, faces, grid_lo, grid_cell, grid_shape, cell_start, cell_tris, hits):
+    """How many (edge, triangle) pairs cross; the first ``len(hits)`` of them written to ``hits`` (c, 2) int64."""
     seen = np.full(faces.shape[0], -1, dtype=np.int64)
+    # each triangle's plane (unnormalised normal, offset): an edge with both ends on one side of it is passed over
+    # before the full test
+    plane = np.empty((faces.shape[0], 4))
+    for f in range(faces.shape[0]):
+        a, b, cc = faces[f, 0], faces[f, 1], faces[f, 2]
+        e1x, e1y, e1z = x[b, 0] - x[a, 0], x[b, 1] - x[a, 1], x[b, 2] - x[a, 2]
+        e2x, e2y, e2z = x[cc, 0] - x[a, 0], x[cc, 1] - x[a, 1], x[cc, 2] - x[a, 2]
+        nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+        plane[f, 0], plane[f, 1], plane[f, 2] = nx, ny, nz
+        plane[f, 3] = nx * x[a, 0] + ny * x[a, 1] + nz * x[a, 2]
     count = 0
     r = np.empty(6, dtype=np.int64)
     for e in range(edges.shape[0]):
@@ -91,10 +102,29 @@ def _count_crossings(x, edges, faces, grid_lo, grid_cell, grid_shape, cell_start
                         a, b, cc = faces[f, 0], faces[f, 1], faces[f, 2]
                         if i == a or i == b or i == cc or j == a or j == b or j == cc:
                             continue
+                        si = plane[f, 0] * x[i, 0] + plane[f, 1] * x[i, 1] + plane[f, 2] * x[i, 2] - plane[f, 3]
+                        sj = plane[f, 0] * x[j, 0] + plane[f, 1] * x[j, 1] + plane[f, 2] * x[j, 2] - plane[f, 3]
+                        if si * sj >= 0.0:
+                            continue
                         if _crosses((x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2], x[a, 0], x[a, 1],
                                      x[a, 2], x[b, 0], x[b, 1], x[b, 2], x[cc, 0], x[cc, 1], x[cc, 2])):
+                            if count < hits.shape[0]:
+                                hits[count, 0] = e
+                                hits[count, 1] = f
                             count += 1
     return count
+
+
+def find_crossings(x: np.ndarray, edges: np.ndarray, faces: np.ndarray, grid, capacity: int = 0) -> np.ndarray:
+    """(c, 2) int64: every (edge, triangle) pair of one mesh (``x`` (n, 3) m float64, ``edges`` (e, 2) int64,
+    ``faces`` (f, 3) int64, ``grid`` their ``build_tri_grid``) that crosses, the edge sharing no corner with the
+    triangle; ``capacity``: the expected number at most (a second search if there are more)."""
+    hits = np.empty((max(0, capacity), 2), dtype=np.int64)
+    n = _find_crossings(x, edges, faces, grid.lo, grid.cell, grid.shape, grid.cell_start, grid.cell_tris, hits)
+    if n > len(hits):
+        hits = np.empty((n, 2), dtype=np.int64)
+        _find_crossings(x, edges, faces, grid.lo, grid.cell, grid.shape, grid.cell_start, grid.cell_tris, hits)
+    return hits[:n]
 
 
 def self_intersections(vertices: np.ndarray, faces: np.ndarray, cell: float = 0.02,
@@ -108,4 +138,5 @@ def self_intersections(vertices: np.ndarray, faces: np.ndarray, cell: float = 0.
     if edges is None:
         edges = mesh_edges(f)
     grid = build_tri_grid(x, f, cell, 0.0)
-    return int(_count_crossings(x, edges, f, grid.lo, grid.cell, grid.shape, grid.cell_start, grid.cell_tris))
+    return int(_find_crossings(x, edges, f, grid.lo, grid.cell, grid.shape, grid.cell_start, grid.cell_tris,
+                               np.empty((0, 2), dtype=np.int64)))

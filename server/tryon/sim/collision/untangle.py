@@ -1,0 +1,140 @@
+"""Cloth that passed through itself taken back out: intersection-contour minimisation (Volino and
+Magnenat-Thalmann 2006, "Resolving surface collisions through intersection contour minimization").
+
+Where a garment's surface passes through itself, its triangles meet along closed or open curves, the
+intersection contours. Shrinking a contour to nothing separates the two sheets, whichever sheet was on which
+side before: no history is needed, so cloth that arrives tangled (a fold the step's moves pushed through, the
+two legs of wide trousers meeting below the crotch) comes apart over a few rounds instead of staying locked in.
+Each crossing of an edge through a triangle is a point of a contour; the contour there shortens fastest when the
+edge moves against the triangle along ``contour_gradient``. A round (``untangle_round``) finds every crossing on a
+grid of the triangles (``crossings.find_crossings``: the cost follows the mesh, ~1.5 ms for a catalogue
+garment's coarse mesh) and moves each crossing edge's ends at most ``Tuning.untangle_step`` along it, the
+triangle's corners the opposite way, shared by inverse mass; x_prev moves with x (no velocity from the move).
+
+Where it runs: every ``Tuning.untangle_every`` steps once the start-up is over (during it the arms' turn carries
+sleeves through the torso's cloth on purpose), in the first ``Tuning.polish_stall_rounds`` rounds of the
+relaxation, and in each round of the shown mesh's rebuild (``full_mesh.follow_coarse``, before its stretch
+passes). In each the springs and the body act after it: a point held pinched between two body parts does not move,
+nor does a point on the body move into it. What it cannot undo is cloth the body holds crossed (pressed between
+the thighs, on the floor): there it fights the springs, which is why the relaxation's last rounds are left to them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from tryon.sim.collision.cloth import build_tri_grid
+from tryon.sim.collision.crossings import find_crossings
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _unit_normal(x, a, b, c):
+    e1 = x[b] - x[a]
+    e2 = x[c] - x[a]
+    n = np.cross(e1, e2)
+    ln = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+    return n / ln if ln > 1e-18 else n
+
+
+@njit(cache=True, nogil=True)
+def contour_gradient(x, i, j, face, adjacent, faces):
+    """(3,): the direction the edge ``i``-``j`` should move relative to triangle ``face`` (its corners moving the
+    other way) to shorten their intersection contour fastest, summed over the edge's triangles ``adjacent``
+    (2,) int64 (-1: none). For the contour segment in an adjacent triangle, from the crossing point P along
+    the line the two triangles' planes share (unit R, into that triangle): moving the edge by d moves P by
+    d - (N.d) / (N.E) E (N the crossed triangle's normal, E = x_j - x_i), which shortens the segment by
+    R.d - (R.E)(N.d) / (N.E); the gradient of that is R - (R.E) / (N.E) N."""
+    nt = _unit_normal(x, faces[face, 0], faces[face, 1], faces[face, 2])
+    e = x[j] - x[i]
+    en = e[0] * nt[0] + e[1] * nt[1] + e[2] * nt[2]
+    g = np.zeros(3)
+    if abs(en) < 1e-12:
+        return g
+    for k in range(2):
+        t = adjacent[k]
+        if t < 0:
+            continue
+        ni = _unit_normal(x, faces[t, 0], faces[t, 1], faces[t, 2])
+        r = np.cross(nt, ni)
+        lr = math.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
+        if lr < 1e-9:
+            continue
+        r /= lr
+        # into triangle t: toward its corner off the edge, across the edge
+        o = faces[t, 0] + faces[t, 1] + faces[t, 2] - i - j
+        into = x[o] - x[i]
+        into -= ((into[0] * e[0] + into[1] * e[1] + into[2] * e[2]) / (e[0] * e[0] + e[1] * e[1] + e[2] * e[2])) * e
+        if r[0] * into[0] + r[1] * into[1] + r[2] * into[2] < 0.0:
+            r = -r
+        re = r[0] * e[0] + r[1] * e[1] + r[2] * e[2]
+        g += r - (re / en) * nt
+    return g
+
+
+@njit(cache=True, nogil=True)
+def _contour_moves(x, inv_mass, edges, adjacent, faces, hits, n_hits, step, move, weight):
+    """Each crossing's bounded move (``step`` m, less where its gradient is small) summed into ``move`` (k, 3)
+    and the number of crossings a point takes part in into ``weight`` (k,). Serial."""
+    for h in range(n_hits):
+        e, f = hits[h, 0], hits[h, 1]
+        i, j = edges[e, 0], edges[e, 1]
+        g = contour_gradient(x, i, j, f, adjacent[e], faces)
+        lg = math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
+        if lg < 1e-12:
+            continue
+        g *= step / math.sqrt(lg * lg + 1.0)
+        w_edge = inv_mass[i] + inv_mass[j]
+        w_face = inv_mass[faces[f, 0]] + inv_mass[faces[f, 1]] + inv_mass[faces[f, 2]]
+        if w_edge + w_face <= 0.0:
+            continue
+        # the relative move 2 g shared by inverse mass: the edge takes w_edge / total of it
+        s_edge = 2.0 * w_edge / (w_edge + w_face)
+        s_face = 2.0 * w_face / (w_edge + w_face)
+        for v in (i, j):
+            if inv_mass[v] > 0.0:
+                move[v] += s_edge * g
+                weight[v] += 1.0
+        for c in range(3):
+            v = faces[f, c]
+            if inv_mass[v] > 0.0:
+                move[v] -= s_face * g
+                weight[v] += 1.0
+
+
+def untangle_round(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, faces: np.ndarray, edges: np.ndarray,
+                   adjacent: np.ndarray, step: float, has_plane: np.ndarray, plane_normal: np.ndarray,
+                   cell: float = 0.03) -> int:
+    """One round of contour minimisation of the mesh ``x`` (k, 3) m, triangles ``faces`` (f, 3) int64, ``edges``
+    (e, 2) int64 with their triangles ``adjacent`` (``topology.edge_faces``), in place: every point of a crossing
+    moves at most ``step`` m (the mean of its crossings' moves), ``x_prev`` with it (no velocity from the move);
+    points of zero ``inv_mass`` stay, and a point on the body (``has_plane`` (k,) bool, outward unit
+    ``plane_normal`` (k, 3)) does not move into it: the body is under it. Returns the number of crossings found
+    before the move."""
+    grid = build_tri_grid(x, faces, cell, 0.0)
+    hits = find_crossings(x, edges, faces, grid, capacity=max(64, len(edges) // 4))
+    if len(hits) == 0:
+        return 0
+    move = np.zeros_like(x)
+    weight = np.zeros(len(x))
+    _contour_moves(x, inv_mass, edges, adjacent, faces, hits, len(hits), float(step), move, weight)
+    moved = weight > 0
+    move[moved] /= weight[moved, None]
+    on_body = np.flatnonzero(moved & has_plane)
+    inward = np.minimum(0.0, np.einsum("ij,ij->i", move[on_body], plane_normal[on_body]))
+    move[on_body] -= inward[:, None] * plane_normal[on_body]
+    x += move
+    x_prev += move
+    return len(hits)
+
+
+def untangle(d) -> int:
+    """One round of ``untangle_round`` on drape ``d``'s simulated mesh, ``d.tuning.untangle_step`` m at most."""
+    st = d.state
+    faces, edges, adjacent = d.model.coarse_edge_faces
+    # a point held in a pinch between two body parts stays where the pinch holds it
+    w = np.where(st.held | st.has_plane, 0.0, st.inv_mass)
+    return untangle_round(st.x, st.x_prev, w, faces, edges, adjacent, d.tuning.untangle_step, st.has_plane,
+                          st.plane_normal)

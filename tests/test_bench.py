@@ -206,15 +206,40 @@ def test_the_equal_quality_search_does_not_start_a_try_it_cannot_finish():
     target = {"target": "taichi (2 threads)", "stretch": 0.11, "penetration_mm": 2.0, "frame_ms": 100.0}
     runs = []
 
-    def run(settings):
-        runs.append(settings.substeps)
-        return row(0.2, 1000.0 * settings.substeps / 16)  # 300 frames of 1 s: 300 s a try at 16 substeps
+    def run(settings, steps):
+        runs.append((steps, settings.substeps))
+        # 300 frames of 1 s: 300 s a try at 16 substeps and 4 steps a frame; fewer steps stretch more
+        return row(0.2 + 0.1 / steps, 1000.0 * settings.substeps / 16 * steps / 4)
 
-    out = at_equal_quality(200, row(0.3, 500.0), target, run, threads=2, max_seconds=400.0)
-    # the default took 150 s; the projection at 16 substeps ~150 s: run; 32 substeps ~600 s: not started
-    assert runs == [16] and not out["met"] and out["threads"] == 2
+    out = at_equal_quality(200, row(0.3, 500.0), target, run, threads=2, max_seconds=400.0, steps=4)
+    # one and two steps a frame first (cheaper, not met); the default took 150 s; the projection at 16 substeps
+    # ~150 s: run; 32 substeps ~600 s: not started
+    assert runs == [(1, 16), (2, 16), (4, 16)] and not out["met"] and out["threads"] == 2
     assert out["stopped"].startswith("32 substeps a step + 4 projection steps would run ~600 s")
-    assert [t[:2] for t in out["tried"]] == [[16, 0], [16, 4]]
+    assert [t[:2] for t in out["tried"]] == [[16, 4], [16, 4], [16, 0], [16, 4]]
+    assert [t[4] for t in out["tried"]] == [1, 2, 4, 4]
+
+
+def test_the_equal_quality_search_takes_fewer_steps_a_frame_where_they_meet_the_target():
+    """Where one step a frame with the projection meets the target, it is the answer: cheaper than the default's
+    two, and nothing dearer is run."""
+    from tryon.bench.equal_quality import at_equal_quality
+
+    def row(stretch, frame_ms):
+        return {"frames": 300, "max_stretch": stretch, "max_penetration_mm": 0.5, "frame_ms_median": frame_ms,
+                "final_stretch": stretch}
+
+    target = {"target": "taichi (1 thread)", "stretch": 0.18, "penetration_mm": 2.0, "frame_ms": 26.0}
+    runs = []
+
+    def run(settings, steps):
+        runs.append((steps, settings.substeps, settings.projection_steps))
+        return row(0.16, 13.0)
+
+    out = at_equal_quality(100, row(0.26, 26.0), target, run, steps=2)
+    assert runs == [(1, 16, 4)]
+    assert out["met"] and out["steps_per_frame"] == 1 and out["projection_steps"] == 4
+    assert out["speedup"] == pytest.approx(2.0)
 
 
 def test_bad_out_or_section_is_refused_before_running(tmp_path, capsys):

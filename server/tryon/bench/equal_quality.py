@@ -47,28 +47,40 @@ def meets(row: dict, target: dict) -> bool:
             and row["max_penetration_mm"] <= target["penetration_mm"] + 1e-9)
 
 
-def at_equal_quality(n: int, default: dict, target: dict, run, threads: int = 1, max_seconds: float = 1e9) -> dict:
+def at_equal_quality(n: int, default: dict, target: dict, run, threads: int = 1, max_seconds: float = 1e9,
+                     steps: int = 1) -> dict:
     """Our cheapest settings meeting ``target`` on the n x n cloth at ``threads`` threads, ``default`` being our run
-    at the default settings and ``run(settings)`` another of ours, each cut at ``max_seconds`` of wall time: a
-    summary (the last run tried if none met it). ``tried``: [substeps, projection steps, max stretch, ms / frame]
-    per run; ``stopped``: why the search ended before meeting the target, if it did."""
-    tried = [(SimSettings().substeps, 0, default)]
+    at the default settings (``steps`` time steps a frame) and ``run(settings, steps_per_frame)`` another of ours,
+    each cut at ``max_seconds`` of wall time: a summary (the last run tried if none met it). First, where the
+    default takes more than one step a frame, fewer steps a frame with the projection (cheaper than the default:
+    the cost follows the steps; the projection takes back the stretch the longer step leaves), then the default,
+    then more substeps. ``tried``: [substeps, projection steps, max stretch, ms / frame, steps a frame] per run;
+    ``stopped``: why the search ended before meeting the target, if it did."""
+    tried = []
+    fewer = 1
+    while fewer < steps and not (tried and meets(tried[-1][2], target)):
+        tried.append((SimSettings().substeps, QUALITY_PROJECTION,
+                      run(SimSettings(projection_steps=QUALITY_PROJECTION), fewer), fewer))
+        fewer *= 2
+    if not (tried and meets(tried[-1][2], target)):
+        tried.append((SimSettings().substeps, 0, default, steps))
     stopped = None
-    while not meets(tried[-1][2], target) and len(tried) <= len(QUALITY_SUBSTEPS):
-        k = QUALITY_SUBSTEPS[len(tried) - 1]
-        last_k, _, last = tried[-1]
+    more = iter(QUALITY_SUBSTEPS)
+    while not meets(tried[-1][2], target) and (k := next(more, None)) is not None:
+        last_k, _, last, _ = tried[-1]
         estimate = FRAMES * last["frame_ms_median"] / 1000.0 * k / last_k
         if estimate > max_seconds:
-            stopped = f"{_setting(k, QUALITY_PROJECTION)} would run ~{estimate:.0f} s, over the {max_seconds:.0f} s cap"
+            stopped = (f"{_setting(k, QUALITY_PROJECTION)} would run ~{estimate:.0f} s, over the "
+                       f"{max_seconds:.0f} s cap")
             break
         tried.append((k, QUALITY_PROJECTION, run(SimSettings(substeps=k, passes=k,
-                                                             projection_steps=QUALITY_PROJECTION))))
-    k, projection, row = tried[-1]
+                                                             projection_steps=QUALITY_PROJECTION), steps), steps))
+    k, projection, row, per_frame = tried[-1]
     out = {"particles": n * n, "threads": threads, "substeps": k, "projection_steps": projection,
-           "met": meets(row, target), "stopped": stopped,
+           "steps_per_frame": per_frame, "met": meets(row, target), "stopped": stopped,
            "frame_ms": row["frame_ms_median"], "max_stretch": row["max_stretch"], "final_stretch": row["final_stretch"],
            "max_penetration_mm": row["max_penetration_mm"], "frames": row["frames"],
-           "tried": [[k, p, r["max_stretch"], r["frame_ms_median"]] for k, p, r in tried], **{
+           "tried": [[k, p, r["max_stretch"], r["frame_ms_median"], f] for k, p, r, f in tried], **{
                f"target_{key}": value for key, value in target.items()}}
     if target["frame_ms"]:
         out["speedup"] = target["frame_ms"] / row["frame_ms_median"]
@@ -79,11 +91,12 @@ def quality_table(results: list[dict]) -> Table:
     """The section's table of ``at_equal_quality`` summaries."""
     rows = [[r["particles"], r.get("threads", 1), r["target_target"], fmt(r["target_stretch"]),
              fmt(r["target_penetration_mm"]),
-             _setting(r["substeps"], r.get("projection_steps", 0)), fmt(r["met"]), fmt(r["frame_ms"]),
+             _setting(r["substeps"], r.get("projection_steps", 0), r.get("steps_per_frame")), fmt(r["met"]),
+             fmt(r["frame_ms"]),
              fmt(r["target_frame_ms"]),
              fmt(r.get("speedup")), fmt(r["max_stretch"]), fmt(r["final_stretch"]),
-             fmt(r["max_penetration_mm"]), "; ".join(f"{_setting(k, p)}: {fmt(s)} in {fmt(ms)} ms"
-                                                    for k, p, s, ms in r["tried"])
+             fmt(r["max_penetration_mm"]), "; ".join(f"{_setting(k, p, *f)}: {fmt(s)} in {fmt(ms)} ms"
+                                                    for k, p, s, ms, *f in r["tried"])
              + (f"; stopped: {r['stopped']}" if r.get("stopped") else "")]
             for r in results]
     return Table(
@@ -97,11 +110,13 @@ def quality_table(results: list[dict]) -> Table:
               "than the "
               f"structural limit + {BOUND_OVER_LIMIT:g} and {BOUND_PENETRATION_MM:g} mm (our cloth is made to stretch "
               "up to its limit). "
-              f"Our drape with the default {SimSettings().substeps} substeps a step, then with "
-              f"{QUALITY_PROJECTION} Newton steps of the fast projection of the strain limits (``sim/projection.py``) "
+              "Where our default takes more than one time step a frame (the table above), first 1, 2, ... steps a "
+              f"frame (cheaper: the cost follows the steps) with {QUALITY_PROJECTION} Newton steps of the fast "
+              "projection of the strain limits (``sim/projection.py``) taking back the longer step's stretch; then "
+              f"our drape with the default {SimSettings().substeps} substeps a step, then with that projection "
               f"and {', '.join(map(str, QUALITY_SUBSTEPS))} substeps (as many passes), until the stretch over all "
               "frames and the deepest penetration are no worse than the target's; a try that would run longer than "
-              "a run's wall-time cap is not started. Steps a frame as in the table above."),
+              "a run's wall-time cap is not started."),
     )
 
 
@@ -110,7 +125,7 @@ def quality_headline(r: dict) -> str:
     threads = r.get("threads", 1)
     ours = f"ours ({threads} thread{'s' if threads > 1 else ''})"
     text = f"cloth on ball, {r['particles']} particles, at {r['target_target']}'s quality: "
-    setting = _setting(r["substeps"], r.get("projection_steps", 0))
+    setting = _setting(r["substeps"], r.get("projection_steps", 0), r.get("steps_per_frame"))
     if not r["met"]:
         return text + (f"{ours} not there with up to {setting} (max stretch {fmt(r['max_stretch'])} "
                        f"vs {fmt(r['target_stretch'])}, penetration {fmt(r['max_penetration_mm'])} vs "
@@ -122,6 +137,9 @@ def quality_headline(r: dict) -> str:
     return text + f" (max stretch {fmt(r['max_stretch'])} vs {fmt(r['target_stretch'])})"
 
 
-def _setting(substeps: int, projection: int) -> str:
-    """One of our tries in words: "64 substeps a step + 4 projection steps"."""
-    return f"{substeps} substeps a step" + (f" + {projection} projection steps" if projection else "")
+def _setting(substeps: int, projection: int, steps_per_frame: int | None = None) -> str:
+    """One of our tries in words: "64 substeps a step + 4 projection steps" ("1 step a frame, ..." if given)."""
+    text = f"{substeps} substeps a step" + (f" + {projection} projection steps" if projection else "")
+    if steps_per_frame is not None:
+        text = f"{steps_per_frame} step{'s' if steps_per_frame > 1 else ''} a frame, " + text
+    return text

@@ -204,7 +204,9 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
               "answer': what the engine returns, for ours the last frame after the relaxation every try-on ends "
               "with (sim/relax.py: gravity off, over-long springs only), for the peers their last frame); "
               "penetration = deepest particle inside the true ball. Taichi's example has a frictionless ball (the "
-              "cloth slides off); ours uses the default SimSettings friction, Newton's examples mu = 1. Threads: "
+              "cloth slides off); ours uses the default SimSettings friction, Newton's examples mu = 1. No engine "
+              "here takes the cloth's crossings of itself out (ours untangles them in a try-on, "
+              "``collision/untangle.py``, not on the ball). Threads: "
               "Taichi and ours with 1 and with 2 (ours: the same figures on both, only the time differs; a cloth "
               f"under {MIN_SPLIT_SPRINGS:,} springs keeps one block and runs on one), Warp's CPU kernels one. "
               "Newton runs within a wall-time budget, so "
@@ -222,10 +224,10 @@ def cloth_on_ball(ctx: Context, sec: Section) -> None:
             ctx.log(f"[bench]   cloth on ball, {n * n} particles: ours at {peer}'s quality")
             use_threads(threads)
             quality.append(at_equal_quality(n, default, quality_target(rows, peer),
-                                            lambda settings, n=n: run_sphere(n, FRAMES, settings,
-                                                                             substeps=our_substeps(n),
-                                                                             max_seconds=budget * 4),
-                                            threads, budget * 4))
+                                            lambda settings, steps, n=n: run_sphere(n, FRAMES, settings,
+                                                                                    substeps=steps,
+                                                                                    max_seconds=budget * 4),
+                                            threads, budget * 4, steps=our_substeps(n)))
         use_threads(machine_threads())
     sec.data["equal_quality"] = quality
     if quality:

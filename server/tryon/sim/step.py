@@ -107,7 +107,7 @@ def step(d: Drape) -> bool:
                 planes, run, movers)
     if s.projection_steps and not changing:
         _project(d, w_eff)
-    if tu.untangle_step and n % tu.untangle_every == 0 and not changing:
+    if tu.untangle_step and tu.untangle_every and n % tu.untangle_every == 0 and not changing:
         untangle(d)
     if not changing or d.moving:  # a re-pose's start-up is the body's motion, shown: its frames too
         _out_of_the_body(d)

@@ -90,8 +90,8 @@ class Tuning:
         to rest; none: 3-7 % more steps and springs left over on the large body.
     untangle_step: m, the most a round of contour minimisation (``collision/untangle.py``) moves a point of a
         crossing of the cloth through itself; 0 = none.
-    untangle_every: steps between two rounds of it in the step loop (the relaxation runs one every round): its
-        search for crossings costs about half a step of a catalogue garment.
+    untangle_every: steps between two rounds of it in the step loop (0: none there; the relaxation runs one every
+        round): its search for crossings costs about half a step of a catalogue garment.
     """
 
     rest_move: float = 1e-4

@@ -134,7 +134,8 @@ def untangle(d) -> int:
     """One round of ``untangle_round`` on drape ``d``'s simulated mesh, ``d.tuning.untangle_step`` m at most."""
     st = d.state
     faces, edges, adjacent = d.model.coarse_edge_faces
-    # a point held in a pinch between two body parts stays where the pinch holds it
-    w = np.where(st.held | st.has_plane, 0.0, st.inv_mass)
+    # a point on the body or on the garment under it (an outfit's layer) stays where they hold it, as does one held
+    # in a pinch between two body parts
+    w = np.where(st.held | st.has_plane | st.layer_has, 0.0, st.inv_mass)
     return untangle_round(st.x, st.x_prev, w, faces, edges, adjacent, d.tuning.untangle_step, st.has_plane,
                           st.plane_normal)

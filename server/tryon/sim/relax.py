@@ -113,7 +113,7 @@ def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool =
     """One round of the relaxation of ``d`` in place (``springs``, ``run``: ``relaxation_passes``): the first
     substep's prediction and collision here (every point tested, a pinched one held; a point an outfit's layer
     collision pushed keeps that layer's plane where it asks more, as in ``step``), the rest of the round in one
-    kernel, then the tear guard."""
+    kernel, a round of the untangling if ``untangle`` (``collision/untangle.py``), then the tear guard."""
     s, tu, st = d.settings, d.tuning, d.state
     x, x_prev, inv_mass = st.x, st.x_prev, st.inv_mass
     verlet_step(x, x_prev, inv_mass, d.h, 0.0, tu.relax_drag, s.max_speed)

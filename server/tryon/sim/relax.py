@@ -55,10 +55,16 @@ def relax(d: Drape) -> Relaxation:
     x_loop = x.copy()
     fewest_over, best_round = len(d.springs) + 1, 0
     springs, run = relaxation_passes(d)
+    # the untangling while it makes progress, and in the first rounds only: where it cannot undo a crossing (cloth
+    # pinched between two parts, on the floor) it fights the springs, and the rounds after it are theirs
+    untangling, fewest_crossings, best_untangle = bool(tu.untangle_step), np.inf, 0
     for rounds in range(1, tu.max_polish_rounds + 1):
-        # the untangling in the first rounds only: where it cannot undo a crossing (cloth pinched between two
-        # parts, on the floor) it fights the springs, and the rounds after it are theirs
-        relaxation_round(d, springs, run, untangle=rounds <= tu.polish_stall_rounds)
+        crossings = relaxation_round(d, springs, run, untangle=untangling)
+        if untangling:
+            if crossings < fewest_crossings:
+                fewest_crossings, best_untangle = crossings, rounds
+            untangling = (crossings > 0 and rounds - best_untangle < tu.min_polish_rounds
+                          and rounds < tu.polish_stall_rounds)
         if rounds >= tu.min_polish_rounds:
             # judged after the final collision the result gets (between two collision tests a point may
             # slide past its contact plane, over a sharp edge, and be pushed back out, stretching springs)
@@ -109,11 +115,12 @@ def relaxation_passes(d: Drape) -> tuple[Springs, Substeps]:
     return Springs(d.ends, stretch_only, d.blocks), run
 
 
-def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool = True) -> None:
+def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool = True) -> int:
     """One round of the relaxation of ``d`` in place (``springs``, ``run``: ``relaxation_passes``): the first
     substep's prediction and collision here (every point tested, a pinched one held; a point an outfit's layer
     collision pushed keeps that layer's plane where it asks more, as in ``step``), the rest of the round in one
-    kernel, a round of the untangling if ``untangle`` (``collision/untangle.py``), then the tear guard."""
+    kernel, a round of the untangling if ``untangle`` (``collision/untangle.py``), then the tear guard. Returns the
+    crossings that round found (-1: none looked for)."""
     s, tu, st = d.settings, d.tuning, d.state
     x, x_prev, inv_mass = st.x, st.x_prev, st.inv_mass
     verlet_step(x, x_prev, inv_mass, d.h, 0.0, tu.relax_drag, s.max_speed)
@@ -130,9 +137,9 @@ def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool =
     touching = np.flatnonzero(st.has_plane)
     finish_relaxation_round(x, x_prev, inv_mass, springs, Planes(touching, st.plane_point, st.plane_normal,
                                                                   st.has_plane, st.push), run)
-    if untangle and tu.untangle_step:
-        untangle_drape(d)
+    crossings = untangle_drape(d) if untangle and tu.untangle_step else -1
     cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
+    return crossings
 
 
 def collide_all(d: Drape) -> None:

@@ -305,8 +305,8 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
     # an outfit's garments are not untangled (``collision/untangle.py``): a point moved out of its own garment's
     # fold goes through the garment under it as readily, where the layers' sides are the layer collision's (a
     # long-sleeve M over an A-line skirt on the small body, untangled in its steps, pushed the skirt into folds of
-    # 1,500 crossings and never came to rest; untangled in the relaxation or the shown mesh only, a long-sleeve S
-    # over a T-shirt M ended with a shown vertex 2-6 mm into the torso at an armpit)
+    # 1,500 crossings and never came to rest; with the shown mesh alone untangled, a long-sleeve S over a T-shirt M
+    # ended with a shown vertex 5 mm into the torso at an armpit)
     drapes = [start(body, models[i], settings, replace(tuning, untangle_step=0.0)) for i in order]
     faces = [np.ascontiguousarray(d.model.coarse_faces, dtype=np.int64) for d in drapes]
 

@@ -57,7 +57,7 @@ def relax(d: Drape) -> Relaxation:
     springs, run = relaxation_passes(d)
     # the untangling while it makes progress, and in the first rounds only: where it cannot undo a crossing (cloth
     # pinched between two parts, on the floor) it fights the springs, and the rounds after it are theirs
-    untangling, fewest_crossings, best_untangle = bool(tu.untangle_step), np.inf, 0
+    untangling, fewest_crossings, best_untangle = bool(tu.untangle_step and tu.untangle_every), np.inf, 0
     for rounds in range(1, tu.max_polish_rounds + 1):
         crossings = relaxation_round(d, springs, run, untangle=untangling)
         if untangling:

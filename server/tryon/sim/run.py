@@ -30,9 +30,9 @@ substeps converge much further than the same passes on one step). Each substep:
    Coulomb friction from the summed contact pushes (a band's hoop tension on the hips is what holds a
    skirt up) and the floor.
 After the step a guard keeps every spring under ``tear_guard`` x its natural length (never active in a
-normal drape; it keeps a garment far too small for its body from being stretched without bound). Every
-``untangle_every`` steps once the body is complete, cloth that went through its own folds is taken back out
-(``collision/untangle.py``; so too in the relaxation while that makes progress, and in the shown mesh's rebuild).
+normal drape; it keeps a garment far too small for its body from being stretched without bound). Where the
+shown mesh's triangles went through its own folds they are taken back out as it is rebuilt
+(``collision/untangle.py``; on the simulated mesh too if ``Tuning.untangle_every`` asks).
 
 Start-up, for garments that begin tangled with the body (sleeves at another angle than the arms, a
 garment modelled on another body):

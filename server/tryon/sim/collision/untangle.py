@@ -11,12 +11,12 @@ grid of the triangles (``crossings.find_crossings``: the cost follows the mesh, 
 garment's coarse mesh) and moves each crossing edge's ends at most ``Tuning.untangle_step`` along it, the
 triangle's corners the opposite way, shared by inverse mass; x_prev moves with x (no velocity from the move).
 
-Where it runs: every ``Tuning.untangle_every`` steps once the start-up is over (during it the arms' turn carries
-sleeves through the torso's cloth on purpose), in the first ``Tuning.polish_stall_rounds`` rounds of the
-relaxation, and in each round of the shown mesh's rebuild (``full_mesh.follow_coarse``, before its stretch
-passes). In each the springs and the body act after it: a point held pinched between two body parts does not move,
-nor does a point on the body move into it. What it cannot undo is cloth the body holds crossed (pressed between
-the thighs, on the floor): there it fights the springs, which is why the relaxation's last rounds are left to them.
+Where it runs: in the rounds of the shown mesh's rebuild but the last (``full_mesh.follow_coarse``, before their
+stretch passes and collision). On the simulated mesh too if ``Tuning.untangle_every`` asks (every so many steps
+once the body is complete, and in the relaxation while it makes progress; see ``Tuning`` for why not by
+default), a point held pinched between two body parts or on the body (or on an outfit's layer) staying where it
+is. What it cannot undo is cloth the body holds crossed (pressed between the thighs, on the floor): there it
+fights the springs.
 """
 
 from __future__ import annotations

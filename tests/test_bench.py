@@ -194,14 +194,16 @@ def test_a_missing_peer_is_a_note_not_a_failure(bench, monkeypatch, tmp_path):
     assert quality["met"] and quality["max_stretch"] <= 0.11 + 1e-9 and quality["frames"] == 300
 
 
+def ball_row(stretch, frame_ms):
+    """One of our ball runs, as ``run_sphere`` summarises it (300 frames run)."""
+    return {"frames": 300, "max_stretch": stretch, "max_penetration_mm": 0.5, "frame_ms_median": frame_ms,
+            "final_stretch": stretch}
+
+
 def test_the_equal_quality_search_does_not_start_a_try_it_cannot_finish():
     """A try whose run would last longer than the cap (estimated from the last one, its cost growing with the
     substeps) is not started: the search ends there, not met, and says why; at two threads the summary says so."""
     from tryon.bench.equal_quality import at_equal_quality
-
-    def row(stretch, frame_ms):
-        return {"frames": 300, "max_stretch": stretch, "max_penetration_mm": 0.5, "frame_ms_median": frame_ms,
-                "final_stretch": stretch}
 
     target = {"target": "taichi (2 threads)", "stretch": 0.11, "penetration_mm": 2.0, "frame_ms": 100.0}
     runs = []
@@ -209,9 +211,9 @@ def test_the_equal_quality_search_does_not_start_a_try_it_cannot_finish():
     def run(settings, steps):
         runs.append((steps, settings.substeps))
         # 300 frames of 1 s: 300 s a try at 16 substeps and 4 steps a frame; fewer steps stretch more
-        return row(0.2 + 0.1 / steps, 1000.0 * settings.substeps / 16 * steps / 4)
+        return ball_row(0.2 + 0.1 / steps, 1000.0 * settings.substeps / 16 * steps / 4)
 
-    out = at_equal_quality(200, row(0.3, 500.0), target, run, threads=2, max_seconds=400.0, steps=4)
+    out = at_equal_quality(200, ball_row(0.3, 500.0), target, run, threads=2, max_seconds=400.0, steps=4)
     # one and two steps a frame first (cheaper, not met); the default took 150 s; the projection at 16 substeps
     # ~150 s: run; 32 substeps ~600 s: not started
     assert runs == [(1, 16), (2, 16), (4, 16)] and not out["met"] and out["threads"] == 2
@@ -225,18 +227,14 @@ def test_the_equal_quality_search_takes_fewer_steps_a_frame_where_they_meet_the_
     two, and nothing dearer is run."""
     from tryon.bench.equal_quality import at_equal_quality
 
-    def row(stretch, frame_ms):
-        return {"frames": 300, "max_stretch": stretch, "max_penetration_mm": 0.5, "frame_ms_median": frame_ms,
-                "final_stretch": stretch}
-
     target = {"target": "taichi (1 thread)", "stretch": 0.18, "penetration_mm": 2.0, "frame_ms": 26.0}
     runs = []
 
     def run(settings, steps):
         runs.append((steps, settings.substeps, settings.projection_steps))
-        return row(0.16, 13.0)
+        return ball_row(0.16, 13.0)
 
-    out = at_equal_quality(100, row(0.26, 26.0), target, run, steps=2)
+    out = at_equal_quality(100, ball_row(0.26, 26.0), target, run, steps=2)
     assert runs == [(1, 16, 4)]
     assert out["met"] and out["steps_per_frame"] == 1 and out["projection_steps"] == 4
     assert out["speedup"] == pytest.approx(2.0)

@@ -107,8 +107,9 @@ def step(d: Drape) -> bool:
                 planes, run, movers)
     if s.projection_steps and not changing:
         _project(d, w_eff)
-    # not while the body changes (the start-up's growth and arms' turn, a re-pose's motion: a bending elbow crushes
-    # the sleeve in its crook, where the moves tore it)
+    # not while the body changes: the start-up's arms' turn carries sleeves through the torso's cloth on purpose
+    # (untangled then, the hanging-sleeve long-sleeve's cuffs ended round the upper arms), a re-pose's motion
+    # crushes cloth in a bending elbow's crook
     if tu.untangle_step and tu.untangle_every and n % tu.untangle_every == 0 and not (changing or d.moving):
         untangle(d)
     if not changing or d.moving:  # a re-pose's start-up is the body's motion, shown: its frames too

@@ -85,7 +85,7 @@ def run(ctx: Context, sec: Section) -> None:
              "``slid_cm``: a waistband wider than the hips slides off them, meeting every target where it "
              "lands); self-crossings: edges of the shown mesh through one of its own triangles "
              "(metrics ``self_crossings``, ``collision.crossings.self_intersections``: cloth through its own folds; "
-             "the shown mesh's taken back out by ``collision/untangle.py`` as it is built); deepest frame: the deepest simulated point inside the body in any step a caller "
+             "the shown mesh's own crossings taken back out by ``collision/untangle.py`` as it is built); deepest frame: the deepest simulated point inside the body in any step a caller "
              "is shown (``run.settle``: all but the start-up, where the body is grown into the garment and the arms "
              "turned from the sleeves; issue 26: at most 2 mm in every streamed frame, not only the answer); "
              "fabric: what the garment is made of (``garment/fabric.py``); hang stretch: the median stretch of the "

@@ -69,7 +69,6 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
     ones = np.ones(len(full))
     active = np.ones(len(full), dtype=np.bool_)
     parts = relevant_parts(collider.body.maps, full.min(axis=0), full.max(axis=0), 0.01)
-    no_plane, no_plane_normal = np.zeros(len(full), dtype=np.bool_), np.zeros((len(full), 3))
     pairs, rest, kind = model.display_springs
     ends, table = pack_springs(pairs, rest, kind, limits, np.zeros(3))
     table[:, 1] = 0.0  # stretch only: the full mesh may buckle as the coarse one does (l0 = 0: not visited)
@@ -78,7 +77,7 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
             faces, edges, adjacent = model.edge_faces
             # the shown mesh's own crossings where its triangles, following the coarse ones, cut into each other
             # in a fold; the stretch passes and the collision after it have the last word
-            untangle_round(full, full_prev, ones, faces, edges, adjacent, untangle_step, no_plane, no_plane_normal)
+            untangle_round(full, full_prev, ones, faces, edges, adjacent, untangle_step)
         satisfy_springs(full, ones, ends, table, DISPLAY_PASSES)
         active[:] = True
         collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact)

@@ -105,14 +105,11 @@ def _contour_moves(x, inv_mass, edges, adjacent, faces, hits, n_hits, step, move
 
 
 def untangle_round(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, faces: np.ndarray, edges: np.ndarray,
-                   adjacent: np.ndarray, step: float, has_plane: np.ndarray, plane_normal: np.ndarray,
-                   cell: float = 0.03) -> int:
+                   adjacent: np.ndarray, step: float, cell: float = 0.03) -> int:
     """One round of contour minimisation of the mesh ``x`` (k, 3) m, triangles ``faces`` (f, 3) int64, ``edges``
     (e, 2) int64 with their triangles ``adjacent`` (``topology.edge_faces``), in place: every point of a crossing
     moves at most ``step`` m (the mean of its crossings' moves), ``x_prev`` with it (no velocity from the move);
-    points of zero ``inv_mass`` stay, and a point on the body (``has_plane`` (k,) bool, outward unit
-    ``plane_normal`` (k, 3)) does not move into it: the body is under it. Returns the number of crossings found
-    before the move."""
+    points of zero ``inv_mass`` stay. Returns the number of crossings found before the move."""
     grid = build_tri_grid(x, faces, cell, 0.0)
     hits = find_crossings(x, edges, faces, grid, capacity=max(64, len(edges) // 4))
     if len(hits) == 0:
@@ -122,9 +119,6 @@ def untangle_round(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, face
     _contour_moves(x, inv_mass, edges, adjacent, faces, hits, len(hits), float(step), move, weight)
     moved = weight > 0
     move[moved] /= weight[moved, None]
-    on_body = np.flatnonzero(moved & has_plane)
-    inward = np.minimum(0.0, np.einsum("ij,ij->i", move[on_body], plane_normal[on_body]))
-    move[on_body] -= inward[:, None] * plane_normal[on_body]
     x += move
     x_prev += move
     return len(hits)
@@ -137,5 +131,4 @@ def untangle(d) -> int:
     # a point on the body or on the garment under it (an outfit's layer) stays where they hold it, as does one held
     # in a pinch between two body parts
     w = np.where(st.held | st.has_plane | st.layer_has, 0.0, st.inv_mass)
-    return untangle_round(st.x, st.x_prev, w, faces, edges, adjacent, d.tuning.untangle_step, st.has_plane,
-                          st.plane_normal)
+    return untangle_round(st.x, st.x_prev, w, faces, edges, adjacent, d.tuning.untangle_step)

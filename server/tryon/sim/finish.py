@@ -44,7 +44,7 @@ def full_mesh(d: Drape, also_collide: Callable[[np.ndarray, np.ndarray], int] | 
     pushed out of the offset body (and out of whatever ``also_collide`` keeps it from, ``follow_coarse``);
     and the body parts (q,) int64 it can touch."""
     return follow_coarse(d.model, d.state.x, d.collider, d.limits, d.settings.contact_offset, d.floor_y,
-                         also_collide, d.tuning.untangle_step)
+                         also_collide, d.tuning.untangle_step, d.tuning.shown_untangle_rounds)
 
 
 def result(d: Drape, relaxation: Relaxation, full: np.ndarray, full_parts: np.ndarray,

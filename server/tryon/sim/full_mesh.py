@@ -55,13 +55,15 @@ SKIN_DEEPEST = 0.01
 def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollider, limits: np.ndarray,
                   contact_offset: float, floor_y: float = 0.0,
                   also_collide: Callable[[np.ndarray, np.ndarray], int] | None = None,
-                  untangle_step: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                  untangle_step: float = 0.0, untangle_rounds: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """The full mesh (n, 3) m on the draped coarse positions ``coarse`` (k, 3), see the module doc, and the
     body parts (int64 indices) it was collided with. ``limits`` (3,): strain limits by spring kind (the
     full mesh's springs are structural and shear); ``contact_offset`` m: lambda of eq. 4; nothing goes
     below ``floor_y`` m. ``also_collide(full, full_prev)``: another collider (an outfit's shown garments under
     this one), called after the body collision of every round and once more at the end, so that the stretch
-    passes spread its pushes to the neighbours as they spread the body's."""
+    passes spread its pushes to the neighbours as they spread the body's. ``untangle_step`` m, ``untangle_rounds``:
+    before the stretch passes of every round but the last, rounds of contour minimisation (at most
+    ``untangle_rounds``, until none finds a crossing), each moving a point at most ``untangle_step``."""
     full = np.ascontiguousarray(model.expand(coarse))
     np.maximum(full[:, 1], floor_y, out=full[:, 1])
     full_prev = full.copy()
@@ -77,7 +79,9 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
             faces, edges, adjacent = model.edge_faces
             # the shown mesh's own crossings where its triangles, following the coarse ones, cut into each other
             # in a fold; the stretch passes and the collision after it have the last word
-            untangle_round(full, full_prev, ones, faces, edges, adjacent, untangle_step)
+            for _ in range(untangle_rounds):
+                if untangle_round(full, full_prev, ones, faces, edges, adjacent, untangle_step) == 0:
+                    break
         satisfy_springs(full, ones, ends, table, DISPLAY_PASSES)
         active[:] = True
         collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact)

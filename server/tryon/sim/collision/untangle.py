@@ -12,7 +12,7 @@ garment's coarse mesh) and moves each crossing edge's ends at most ``Tuning.unta
 triangle's corners the opposite way, shared by inverse mass; x_prev moves with x (no velocity from the move).
 
 Where it runs: in the rounds of the shown mesh's rebuild but the last (``full_mesh.follow_coarse``, before their
-stretch passes and collision). On the simulated mesh too if ``Tuning.untangle_every`` asks (every so many steps
+stretch passes and collision), up to ``Tuning.shown_untangle_rounds`` rounds each, until none finds a crossing. On the simulated mesh too if ``Tuning.untangle_every`` asks (every so many steps
 once the body is complete, and in the relaxation while it makes progress; see ``Tuning`` for why not by
 default), a point held pinched between two body parts or on the body (or on an outfit's layer) staying where it
 is. What it cannot undo is cloth the body holds crossed (pressed between the thighs, on the floor): there it

@@ -63,7 +63,8 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
     this one), called after the body collision of every round and once more at the end, so that the stretch
     passes spread its pushes to the neighbours as they spread the body's. ``untangle_step`` m, ``untangle_rounds``:
     before the stretch passes of every round but the last, rounds of contour minimisation (at most
-    ``untangle_rounds``, until none finds a crossing), each moving a point at most ``untangle_step``."""
+    ``untangle_rounds``, until none finds a crossing), each moving a point at most ``untangle_step`` and followed
+    by ``also_collide``."""
     full = np.ascontiguousarray(model.expand(coarse))
     np.maximum(full[:, 1], floor_y, out=full[:, 1])
     full_prev = full.copy()
@@ -78,10 +79,14 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
         if untangle_step and r < DISPLAY_ROUNDS - 1:
             faces, edges, adjacent = model.edge_faces
             # the shown mesh's own crossings where its triangles, following the coarse ones, cut into each other
-            # in a fold; the stretch passes and the collision after it have the last word
+            # in a fold; the stretch passes and the collision after it have the last word. An outer garment is
+            # pushed off the ones under it after each round: a point moved out of its own fold goes through the
+            # layer under it as readily
             for _ in range(untangle_rounds):
                 if untangle_round(full, full_prev, ones, faces, edges, adjacent, untangle_step) == 0:
                     break
+                if also_collide is not None:
+                    also_collide(full, full_prev)
         satisfy_springs(full, ones, ends, table, DISPLAY_PASSES)
         active[:] = True
         collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact)

@@ -302,12 +302,13 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
     if not 1 <= len(models) <= MAX_GARMENTS:
         raise ValueError(f"an outfit has 1 to {MAX_GARMENTS} garments, not {len(models)}")
     order = layer_order([m.meta.category for m in models], tuck)
-    # an outfit's garments are not untangled (``collision/untangle.py``): a point moved out of its own garment's
-    # fold goes through the garment under it as readily, where the layers' sides are the layer collision's (a
-    # long-sleeve M over an A-line skirt on the small body, untangled in its steps, pushed the skirt into folds of
-    # 1,500 crossings and never came to rest; with the shown mesh alone untangled, a long-sleeve S over a T-shirt M
-    # ended with a shown vertex 5 mm into the torso at an armpit)
-    drapes = [start(body, models[i], settings, replace(tuning, untangle_step=0.0)) for i in order]
+    # an outfit's simulated meshes are not untangled (``collision/untangle.py``): a point moved out of its own
+    # garment's fold goes through the garment under it as readily, where the layers' sides are the layer
+    # collision's (a long-sleeve M over an A-line skirt on the small body, untangled in its steps, pushed the skirt
+    # into folds of 1,500 crossings and never came to rest). Their shown meshes are, each round of it followed by
+    # the push off the shown meshes under it (``full_mesh.follow_coarse``'s ``also_collide``): untangled without
+    # that push, a long-sleeve S over a T-shirt M ended with a shown vertex 5 mm into the torso at an armpit
+    drapes = [start(body, models[i], settings, replace(tuning, untangle_every=0)) for i in order]
     faces = [np.ascontiguousarray(d.model.coarse_faces, dtype=np.int64) for d in drapes]
 
     def sides():

@@ -115,7 +115,7 @@ def relaxation_passes(d: Drape) -> tuple[Springs, Substeps]:
     return Springs(d.ends, stretch_only, d.blocks), run
 
 
-def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool = True) -> int:
+def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool = False) -> int:
     """One round of the relaxation of ``d`` in place (``springs``, ``run``: ``relaxation_passes``): the first
     substep's prediction and collision here (every point tested, a pinched one held; a point an outfit's layer
     collision pushed keeps that layer's plane where it asks more, as in ``step``), the rest of the round in one

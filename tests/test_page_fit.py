@@ -91,6 +91,14 @@ def test_find_my_size(browser, fit_shop, width, height):
         page.select_option("#fit-preference", "regular")
         page.wait_for_function("window.tryon.advice && window.tryon.advice.preference === 'regular'", timeout=60_000)
         page.wait_for_function(f"window.tryon.garmentId === '{rows[1]['id']}' && ({DONE})", timeout=60_000)
+        # changed twice at once: the second change's advice (asked once the first's is in) and its size (shown
+        # once the first's drape, if still on its way, ends)
+        page.select_option("#fit-preference", "slim")
+        page.select_option("#fit-preference", "regular")
+        page.wait_for_function("window.tryon.advice && window.tryon.advice.preference === 'regular' && !window.tryon.fitting "
+                               f"&& window.tryon.garmentId === '{rows[1]['id']}' && ({DONE}) && !window.tryon.showNext",
+                               timeout=60_000)
+        assert [r["recommended"] for r in page.evaluate(ADVICE)] == [False, True, False, False, False]
 
         assert page.evaluate(LAYOUT_PROBLEMS) == []
         page.evaluate("document.querySelector('#fit-card').scrollIntoView({block: 'start'})")

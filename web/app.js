@@ -20,6 +20,8 @@ const state = {
   companionId: null,    // a garment of the other kind worn with it (an outfit), or null
   advice: null,         // the last POST /api/fit answer shown, or null
   fitting: false,
+  showNext: null,       // a garment to show when the drape on the way ends (advice that came during it)
+  refit: false,         // the advice asked for again while one was on its way
   init: null,
   done: null,
   lastError: null,
@@ -305,7 +307,7 @@ function finishProgress(text) {
 }
 
 async function tryOn() {
-  if (state.state === 'draping') { live?.cancel(); return; }
+  if (state.state === 'draping') { state.showNext = null; live?.cancel(); return; }
   clearNotice();
   closeLive();
   // the try-on brings its own body: a body preview still waiting or on its way would land after it and
@@ -390,6 +392,9 @@ async function tryOn() {
     live = null;
     updateTryOnButton();
   }
+  const next = state.showNext;
+  state.showNext = null;
+  if (next) showSize(next);
 }
 
 /** A done message's strain on the fit map and its metrics in the summary. */
@@ -567,7 +572,8 @@ function showSize(garmentId) {
 
 async function findSize() {
   const style = chosenStyle();
-  if (!style || state.fitting) return;
+  if (!style) return;
+  if (state.fitting) { state.refit = true; return; }  // asked again meanwhile (another fit): once this one ends
   clearNotice();
   clearAdvice();
   state.fitting = true;
@@ -581,7 +587,9 @@ async function findSize() {
     state.advice = await response.json();
     renderAdvice(state.advice);
     const recommended = state.advice.sizes.find((z) => z.size === state.advice.recommended);
-    if (recommended && state.state !== 'draping') showSize(recommended.garment_id);
+    // a drape on its way (the last advice's size, still streaming): the new one's size follows it
+    if (recommended && state.state === 'draping') state.showNext = recommended.garment_id;
+    else if (recommended) showSize(recommended.garment_id);
   } catch (error) {
     $('fit-summary').textContent = '';
     showError(error);
@@ -590,10 +598,14 @@ async function findSize() {
     $('fit-button').textContent = 'Find my size';
     updateTryOnButton();
   }
+  if (state.refit) {
+    state.refit = false;
+    findSize();
+  }
 }
 $('fit-button').addEventListener('click', findSize);
 // another fit asked for: the advice again (its drapes come from the server's result cache)
-$('fit-preference').addEventListener('change', () => { if (state.advice) findSize(); });
+$('fit-preference').addEventListener('change', () => { if (state.advice || state.fitting) findSize(); });
 
 // ---- layout -------------------------------------------------------------------------------------
 // On a narrow screen (the breakpoint of style.css) the fit summary is the first card of the controls,

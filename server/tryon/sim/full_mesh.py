@@ -32,7 +32,7 @@ import numpy as np
 from tryon.garment.model import GarmentModel
 from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.collision.collider import relevant_parts
-from tryon.sim.collision.untangle import untangle_round
+from tryon.sim.collision.untangle import untangle_mesh
 from tryon.sim.constraints import pack_springs, satisfy_springs, spring_strain
 from tryon.sim.show_through import lift_over_skin
 
@@ -60,11 +60,12 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
     body parts (int64 indices) it was collided with. ``limits`` (3,): strain limits by spring kind (the
     full mesh's springs are structural and shear); ``contact_offset`` m: lambda of eq. 4; nothing goes
     below ``floor_y`` m. ``also_collide(full, full_prev)``: another collider (an outfit's shown garments under
-    this one), called after the body collision of every round and once more at the end, so that the stretch
-    passes spread its pushes to the neighbours as they spread the body's. ``untangle_step`` m, ``untangle_rounds``:
-    before the stretch passes of every round but the last, rounds of contour minimisation (at most
-    ``untangle_rounds``, until none finds a crossing), each moving a point at most ``untangle_step`` and followed
-    by ``also_collide``."""
+    this one), called after the body collision of every round, so that the stretch passes spread its pushes to
+    the neighbours as they spread the body's, and once more before the last body collisions (the body has the
+    last word: pushed off an inner layer folded at an armpit, a long-sleeve's shown vertex went 3 mm into the
+    torso). ``untangle_step`` m, ``untangle_rounds``: before the stretch passes of every round but the last,
+    rounds of contour minimisation (at most ``untangle_rounds``, until one finds no crossing), each moving a
+    point at most ``untangle_step`` and followed by ``also_collide``."""
     full = np.ascontiguousarray(model.expand(coarse))
     np.maximum(full[:, 1], floor_y, out=full[:, 1])
     full_prev = full.copy()
@@ -82,11 +83,8 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
             # in a fold; the stretch passes and the collision after it have the last word. An outer garment is
             # pushed off the ones under it after each round: a point moved out of its own fold goes through the
             # layer under it as readily
-            for _ in range(untangle_rounds):
-                if untangle_round(full, full_prev, ones, faces, edges, adjacent, untangle_step) == 0:
-                    break
-                if also_collide is not None:
-                    also_collide(full, full_prev)
+            untangle_mesh(full, full_prev, ones, faces, edges, adjacent, untangle_step, untangle_rounds,
+                          after=also_collide)
         satisfy_springs(full, ones, ends, table, DISPLAY_PASSES)
         active[:] = True
         collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact)
@@ -95,7 +93,10 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
             lift_over_skin(collider, parts, full, model.faces, collider.margin, SKIN_DEEPEST)
         if also_collide is not None:
             also_collide(full, full_prev)
-    if DISPLAY_ROUNDS:
+    if also_collide is not None:
+        also_collide(full, full_prev)
+        active[:] = True  # pushed off the layers under it, anywhere
+    elif DISPLAY_ROUNDS:
         active[:] = contact  # the last round's collision tested every point: only those it pushed can be inside
     for _ in range(FULL_COLLIDE_CALLS):
         # the later calls test only the points the last one moved (the others were outside every part)
@@ -103,8 +104,6 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
                                 hold_depth=PINCHED_LEAST_DEEP):
             break
         active[:] = contact
-    if also_collide is not None:
-        also_collide(full, full_prev)
     return full, parts
 
 

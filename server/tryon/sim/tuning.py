@@ -95,7 +95,9 @@ class Tuning:
         (``full_mesh.follow_coarse``), stopping at the first that finds no crossing. The fit bench's shown
         crossings: one round 2,921 (39 drapes with none), 5 rounds 1,798, 10 rounds 1,269 (63 with none), 15
         1,163; what is left follows the simulated mesh's own crossings, centimetres deep. A drape's shown mesh
-        takes 16 ms (median) with one round, 30 ms with ten (90 ms at the 90th percentile: the tangled ones).
+        takes 8 ms (median of the 90, one thread) without the untangling, 16 ms with one round, 21 ms with up to
+        ten (45 ms at the 90th percentile: the tangled ones; a round after the first looks only where points
+        moved, ``untangle.untangle_mesh``).
     untangle_every: steps between two rounds of it on the simulated mesh in the step loop (then the relaxation runs
         one a round while it makes progress); 0 = the shown mesh's rebuild only. Only there by default: on the
         simulated mesh it took the fit bench's crossings from 3,634 to 2,083 (2 mm, one round on the shown mesh;

@@ -12,16 +12,18 @@ garment's coarse mesh) and moves each crossing edge's ends at most ``Tuning.unta
 triangle's corners the opposite way, shared by inverse mass; x_prev moves with x (no velocity from the move).
 
 Where it runs: in the rounds of the shown mesh's rebuild but the last (``full_mesh.follow_coarse``, before their
-stretch passes and collision), up to ``Tuning.shown_untangle_rounds`` rounds each, until none finds a crossing. On the simulated mesh too if ``Tuning.untangle_every`` asks (every so many steps
-once the body is complete, and in the relaxation while it makes progress; see ``Tuning`` for why not by
-default), a point held pinched between two body parts or on the body (or on an outfit's layer) staying where it
-is. What it cannot undo is cloth the body holds crossed (pressed between the thighs, on the floor): there it
-fights the springs.
+stretch passes and collision), up to ``Tuning.shown_untangle_rounds`` rounds each until one finds no crossing
+(``untangle_mesh``: after the first, a round looks only where points moved). On the simulated mesh too if
+``Tuning.untangle_every`` asks (every so many steps once the body is complete, and in the relaxation while it
+makes progress; see ``Tuning`` for why not by default), a point held pinched between two body parts or on the
+body (or on an outfit's layer) staying where it is. What it cannot undo is cloth the body holds crossed (pressed
+between the thighs, on the floor): there it fights the springs.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 from numba import njit
@@ -110,10 +112,16 @@ def untangle_round(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, face
     (e, 2) int64 with their triangles ``adjacent`` (``topology.edge_faces``), in place: every point of a crossing
     moves at most ``step`` m (the mean of its crossings' moves), ``x_prev`` with it (no velocity from the move);
     points of zero ``inv_mass`` stay. Returns the number of crossings found before the move."""
-    grid = build_tri_grid(x, faces, cell, 0.0)
-    hits = find_crossings(x, edges, faces, grid, capacity=max(64, len(edges) // 4))
-    if len(hits) == 0:
-        return 0
+    hits = _all_crossings(x, faces, edges, cell)
+    if len(hits):
+        _move(x, x_prev, inv_mass, faces, edges, adjacent, hits, step)
+    return len(hits)
+
+
+def _move(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, faces: np.ndarray, edges: np.ndarray,
+          adjacent: np.ndarray, hits: np.ndarray, step: float) -> None:
+    """Move the points of the crossings ``hits`` (c, 2) (edge, triangle), each by the mean of its crossings'
+    moves, x_prev with x."""
     move = np.zeros_like(x)
     weight = np.zeros(len(x))
     _contour_moves(x, inv_mass, edges, adjacent, faces, hits, len(hits), float(step), move, weight)
@@ -121,7 +129,56 @@ def untangle_round(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, face
     move[moved] /= weight[moved, None]
     x += move
     x_prev += move
+
+
+def untangle_mesh(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, faces: np.ndarray, edges: np.ndarray,
+                  adjacent: np.ndarray, step: float, rounds: int, cell: float = 0.03,
+                  after: Callable[[np.ndarray, np.ndarray], object] | None = None) -> int:
+    """Rounds of ``untangle_round`` on the mesh ``x`` (k, 3) m in place, at most ``rounds``, until one finds no
+    crossing; ``after(x, x_prev)`` after each round's move (an outfit's push off the layers under it). After the
+    first, a round looks for crossings only where a point moved since the last look (``_crossings_after``): the
+    same pairs as a whole search, for a fraction of its cost. Returns the crossings the last look found."""
+    hits = _all_crossings(x, faces, edges, cell)
+    for r in range(rounds):
+        if len(hits) == 0:
+            return 0
+        before = x.copy()
+        _move(x, x_prev, inv_mass, faces, edges, adjacent, hits, step)
+        if after is not None:
+            after(x, x_prev)
+        if r < rounds - 1:
+            hits = _crossings_after(x, faces, edges, cell, np.any(x != before, axis=1), hits)
     return len(hits)
+
+
+def _all_crossings(x: np.ndarray, faces: np.ndarray, edges: np.ndarray, cell: float) -> np.ndarray:
+    """(c, 2) int64 (edge, triangle): every crossing of the mesh, found on a grid of all its triangles."""
+    return find_crossings(x, edges, faces, build_tri_grid(x, faces, cell, 0.0), capacity=max(64, len(edges) // 4))
+
+
+def _crossings_after(x: np.ndarray, faces: np.ndarray, edges: np.ndarray, cell: float, moved: np.ndarray,
+                     previous: np.ndarray) -> np.ndarray:
+    """The crossings of the mesh ``x`` after its points ``moved`` (k,) bool did, ``previous`` (c, 2) the ones
+    before: whether an edge crosses a triangle changes only if one of their five points moved, so the previous
+    pairs with none moved stay, the moved edges are tested against every triangle and the others against the
+    triangles with a moved corner. The three sets are disjoint: no pair is counted twice."""
+    edge_moved = moved[edges].any(axis=1)
+    face_moved = moved[faces].any(axis=1)
+    found = [previous[~edge_moved[previous[:, 0]] & ~face_moved[previous[:, 1]]]]
+    moved_edges = np.flatnonzero(edge_moved)
+    if len(moved_edges):
+        hits = _all_crossings(x, faces, np.ascontiguousarray(edges[moved_edges]), cell)
+        hits[:, 0] = moved_edges[hits[:, 0]]
+        found.append(hits)
+    moved_faces = np.flatnonzero(face_moved)
+    still_edges = np.flatnonzero(~edge_moved)
+    if len(moved_faces) and len(still_edges):
+        hits = _all_crossings(x, np.ascontiguousarray(faces[moved_faces]), np.ascontiguousarray(edges[still_edges]),
+                              cell)
+        hits[:, 0] = still_edges[hits[:, 0]]
+        hits[:, 1] = moved_faces[hits[:, 1]]
+        found.append(hits)
+    return np.concatenate(found)
 
 
 def untangle(d) -> int:

@@ -90,7 +90,8 @@ class Tuning:
         to rest; none: 3-7 % more steps and springs left over on the large body.
     untangle_step: m, the most a round of contour minimisation (``collision/untangle.py``) moves a point of a
         crossing of the cloth through itself; 0 = none. On the shown mesh (below) 2 mm left 1,515 crossings over
-        the fit bench's 90 drapes, 3 mm 1,269, 4 mm 1,180 with more shown strain at folds' creases.
+        the fit bench's 90 drapes, 3 mm 1,269, 4 mm 1,180, the shown mesh then 4.5 and 4.6 mm from where the
+        simulated one puts it (99th percentile of its vertices; 4.0 without the untangling).
     shown_untangle_rounds: at most this many rounds of it in each of the shown mesh's rounds but the last
         (``full_mesh.follow_coarse``), stopping at the first that finds no crossing. The fit bench's shown
         crossings: one round 2,921 (39 drapes with none), 5 rounds 1,798, 10 rounds 1,269 (63 with none), 15
@@ -99,12 +100,11 @@ class Tuning:
         ten (45 ms at the 90th percentile: the tangled ones; a round after the first looks only where points
         moved, ``untangle.untangle_mesh``).
     untangle_every: steps between two rounds of it on the simulated mesh in the step loop (then the relaxation runs
-        one a round while it makes progress); 0 = the shown mesh's rebuild only. Only there by default: on the
-        simulated mesh it took the fit bench's crossings from 3,634 to 2,083 (2 mm, one round on the shown mesh;
-        the shown mesh alone: 2,921), but
-        on a garment that arrives crossed through itself in hundreds of places (a long-sleeve made with its
-        sleeves inside the torso) where its cuffs end (forearm or upper arm) flipped with a 5 % change of
-        ``untangle_step``.
+        one a round while it makes progress); 0 = the shown mesh's rebuild only. Only there by default: with the
+        shown mesh's rounds it takes the fit bench's crossings only from 1,269 to 1,043 (body through 31 -> 35;
+        much of what is left is cloth on the body, which it does not move), and on a garment that arrives crossed
+        through itself in hundreds of places (a long-sleeve made with its sleeves inside the torso) where its
+        cuffs end (forearm or upper arm) flips with a 5 % change of ``untangle_step``.
     """
 
     rest_move: float = 1e-4

@@ -134,8 +134,8 @@ def _move(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, faces: np.nda
 def untangle_mesh(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, faces: np.ndarray, edges: np.ndarray,
                   adjacent: np.ndarray, step: float, rounds: int, cell: float = 0.03,
                   after: Callable[[np.ndarray, np.ndarray], object] | None = None) -> int:
-    """Rounds of ``untangle_round`` on the mesh ``x`` (k, 3) m in place, at most ``rounds``, until one finds no
-    crossing; ``after(x, x_prev)`` after each round's move (an outfit's push off the layers under it). After the
+    """Rounds of contour minimisation (each as ``untangle_round``) on the mesh ``x`` (k, 3) m in place, at most
+    ``rounds``, until one finds no crossing; ``after(x, x_prev)`` after each round's move (an outfit's push off the layers under it). After the
     first, a round looks for crossings only where a point moved since the last look (``_crossings_after``): the
     same pairs as a whole search, for a fraction of its cost. Returns the crossings the last look found."""
     hits = _all_crossings(x, faces, edges, cell)

@@ -38,7 +38,7 @@ def finish(d: Drape, relaxation: Relaxation, stopped: bool = False) -> TryOnResu
     return result(d, relaxation, full, full_parts, stopped)
 
 
-def full_mesh(d: Drape, also_collide: Callable[[np.ndarray, np.ndarray], int] | None = None
+def full_mesh(d: Drape, also_collide: Callable[..., int] | None = None
               ) -> tuple[np.ndarray, np.ndarray]:
     """The shown mesh (n, 3) m of ``d``'s garment: it follows the coarse one, its stretch held to the limits,
     pushed out of the offset body (and out of whatever ``also_collide`` keeps it from, ``follow_coarse``);

@@ -54,13 +54,14 @@ SKIN_DEEPEST = 0.01
 
 def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollider, limits: np.ndarray,
                   contact_offset: float, floor_y: float = 0.0,
-                  also_collide: Callable[[np.ndarray, np.ndarray], int] | None = None,
+                  also_collide: Callable[..., int] | None = None,
                   untangle_step: float = 0.0, untangle_rounds: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """The full mesh (n, 3) m on the draped coarse positions ``coarse`` (k, 3), see the module doc, and the
     body parts (int64 indices) it was collided with. ``limits`` (3,): strain limits by spring kind (the
     full mesh's springs are structural and shear); ``contact_offset`` m: lambda of eq. 4; nothing goes
-    below ``floor_y`` m. ``also_collide(full, full_prev)``: another collider (an outfit's shown garments under
-    this one), called after the body collision of every round, so that the stretch passes spread its pushes to
+    below ``floor_y`` m. ``also_collide(full, full_prev, moved=None)``: another collider (an outfit's shown
+    garments under this one; ``moved`` (n,) bool: only these points moved since its last call), called after the
+    body collision of every round, so that the stretch passes spread its pushes to
     the neighbours as they spread the body's, and once more before the last body collisions (the body has the
     last word: pushed off an inner layer folded at an armpit, a long-sleeve's shown vertex went 3 mm into the
     torso). ``untangle_step`` m, ``untangle_rounds``: before the stretch passes of every round but the last,

@@ -267,8 +267,8 @@ def off_shown(under: list[np.ndarray], faces: list[np.ndarray], body: Body) -> C
     fixed = OverFixed([(v, f, face_sides(v, f, outward_from_body(v, body))) for v, f in zip(under, faces)],
                       faces[-1], SHOWN_LAYER_GAP, SHOWN_MAX_PUSH, SHOWN_LAYER_ROUNDS, LAYER_REACH, LAYER_CELL)
 
-    def collide(x: np.ndarray, x_prev: np.ndarray) -> int:
-        return fixed.push(x, x_prev, face_sides(x, faces[-1], outward_from_body(x, body)))
+    def collide(x: np.ndarray, x_prev: np.ndarray, moved: np.ndarray | None = None) -> int:
+        return fixed.push(x, x_prev, face_sides(x, faces[-1], outward_from_body(x, body)), moved)
     return collide
 
 

@@ -59,12 +59,19 @@ class OverFixed:
         self.gap, self.max_push, self.rounds, self.reach, self.cell = gap, max_push, rounds, reach, cell
         self._fixed = np.zeros(len(self.x))
 
-    def push(self, x: np.ndarray, x_prev: np.ndarray, sides: np.ndarray) -> int:
+    def push(self, x: np.ndarray, x_prev: np.ndarray, sides: np.ndarray, moved: np.ndarray | None = None) -> int:
         """Push the outer mesh ``x`` (n, 3) m in place (``x_prev`` moved with it), its triangles turned outward
-        by ``sides`` (f,) +-1; up to ``rounds`` rounds, until none pushes. Returns how many pushes there were."""
+        by ``sides`` (f,) +-1; up to ``rounds`` rounds, until none pushes. ``moved`` (n,) bool: the only outer
+        points that moved since the mesh was last pushed (a round of its untangling): the first round then tests
+        what a later round would. Returns how many pushes there were."""
         ones = np.ones(len(x))
         outer_active = overlap(x, self.x, self.faces, self.reach)[0]
         inner_active = overlap(self.x, x, self.outer_faces, self.reach)[0]
+        if moved is not None:
+            if not moved.any():
+                return 0
+            outer_active &= moved
+            inner_active &= self._near(x, moved)
         inner_prev = self.x.copy()  # never moved: the inner side's inverse masses are 0
         total = 0
         for _ in range(self.rounds):
@@ -84,7 +91,11 @@ class OverFixed:
             # next round: the outer points that moved in this one (pushed, or a corner of a triangle an inner point
             # pushed), and the inner points near a triangle that moved
             outer_active = moved
-            near = build_tri_grid(x, np.ascontiguousarray(self.outer_faces[moved[self.outer_faces].any(axis=1)]),
-                                  self.cell, self.reach)
-            inner_active &= in_filled_cells(self.x, near.lo, near.cell, near.shape, near.cell_start)
+            inner_active &= self._near(x, moved)
         return total
+
+    def _near(self, x: np.ndarray, moved: np.ndarray) -> np.ndarray:
+        """(n_inner,) bool: the inner points within reach of an outer triangle with a corner in ``moved`` (n,)."""
+        near = build_tri_grid(x, np.ascontiguousarray(self.outer_faces[moved[self.outer_faces].any(axis=1)]),
+                              self.cell, self.reach)
+        return in_filled_cells(self.x, near.lo, near.cell, near.shape, near.cell_start)

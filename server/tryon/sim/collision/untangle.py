@@ -133,11 +133,12 @@ def _move(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, faces: np.nda
 
 def untangle_mesh(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, faces: np.ndarray, edges: np.ndarray,
                   adjacent: np.ndarray, step: float, rounds: int, cell: float = 0.03,
-                  after: Callable[[np.ndarray, np.ndarray], object] | None = None) -> int:
+                  after: Callable[[np.ndarray, np.ndarray, np.ndarray], object] | None = None) -> int:
     """Rounds of contour minimisation (each as ``untangle_round``) on the mesh ``x`` (k, 3) m in place, at most
-    ``rounds``, until one finds no crossing; ``after(x, x_prev)`` after each round's move (an outfit's push off the layers under it). After the
-    first, a round looks for crossings only where a point moved since the last look (``_crossings_after``): the
-    same pairs as a whole search, for a fraction of its cost. Returns the crossings the last look found."""
+    ``rounds``, until one finds no crossing; ``after(x, x_prev, moved)`` after each round's move, ``moved`` (k,)
+    bool the points it moved (an outfit's push off the layers under it). After the first, a round looks for
+    crossings only where a point moved since the last look (``_crossings_after``): the same pairs as a whole
+    search, for a fraction of its cost. Returns the crossings the last look found."""
     hits = _all_crossings(x, faces, edges, cell)
     for r in range(rounds):
         if len(hits) == 0:
@@ -145,7 +146,7 @@ def untangle_mesh(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, faces
         before = x.copy()
         _move(x, x_prev, inv_mass, faces, edges, adjacent, hits, step)
         if after is not None:
-            after(x, x_prev)
+            after(x, x_prev, np.any(x != before, axis=1))
         if r < rounds - 1:
             hits = _crossings_after(x, faces, edges, cell, np.any(x != before, axis=1), hits)
     return len(hits)

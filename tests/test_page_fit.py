@@ -95,9 +95,9 @@ def test_find_my_size(browser, fit_shop, width, height):
         # once the first's drape, if still on its way, ends)
         page.select_option("#fit-preference", "slim")
         page.select_option("#fit-preference", "regular")
-        page.wait_for_function("window.tryon.advice && window.tryon.advice.preference === 'regular' && !window.tryon.fitting "
-                               f"&& window.tryon.garmentId === '{rows[1]['id']}' && ({DONE}) && !window.tryon.showNext",
-                               timeout=60_000)
+        page.wait_for_function("window.tryon.advice && window.tryon.advice.preference === 'regular' "
+                               f"&& !window.tryon.fitting && window.tryon.garmentId === '{rows[1]['id']}' "
+                               f"&& ({DONE}) && !window.tryon.showNext", timeout=60_000)
         assert [r["recommended"] for r in page.evaluate(ADVICE)] == [False, True, False, False, False]
 
         assert page.evaluate(LAYOUT_PROBLEMS) == []

@@ -7,7 +7,8 @@ import numpy as np
 
 from tryon.garment.topology import edge_faces
 from tryon.sim.collision.crossings import self_intersections
-from tryon.sim.collision.untangle import _all_crossings, _crossings_after, contour_gradient, untangle_mesh, untangle_round
+from tryon.sim.collision.untangle import (_all_crossings, _crossings_after, contour_gradient, untangle_mesh,
+                                         untangle_round)
 
 
 def grid_sheet(n: int, size: float, height, shift=(0.0, 0.0)):

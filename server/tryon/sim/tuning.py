@@ -101,10 +101,10 @@ class Tuning:
         moved, ``untangle.untangle_mesh``).
     untangle_every: steps between two rounds of it on the simulated mesh in the step loop (then the relaxation runs
         one a round while it makes progress); 0 = the shown mesh's rebuild only. Only there by default: with the
-        shown mesh's rounds it takes the fit bench's crossings only from 1,269 to 1,043 (body through 31 -> 35;
-        much of what is left is cloth on the body, which it does not move), and on a garment that arrives crossed
-        through itself in hundreds of places (a long-sleeve made with its sleeves inside the torso) where its
-        cuffs end (forearm or upper arm) flips with a 5 % change of ``untangle_step``.
+        shown mesh's rounds it takes the fit bench's crossings only from 1,269 to 1,043 (body through 31 -> 35),
+        and on a garment that arrives crossed through itself in hundreds of places (a long-sleeve made with its
+        sleeves inside the torso) where its cuffs end (forearm or upper arm) flips with a 5 % change of
+        ``untangle_step``.
     """
 
     rest_move: float = 1e-4

@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 
-from tryon.body.measure import mesh_edges
 from tryon.garment.fabric import Fabric, fabric_named, spring_stiffness
 from tryon.garment.springs import BENDING, spring_model
 
@@ -99,27 +98,22 @@ class GarmentModel:
         """(s,) N/m: each spring's stiffness in this garment's fabric (``fabric.spring_stiffness``)."""
         return spring_stiffness(self.kind, self.fabric)
 
-    @cached_property
+    @property
     def edges(self) -> np.ndarray:
-        """(e, 2) int64: the full mesh's edges, each once, smaller id first (what ``self_crossings`` tests)."""
-        return mesh_edges(np.asarray(self.faces, dtype=np.int64))
+        """(e, 2) int64: the full mesh's edges, each once, smaller id first, sorted (what ``self_crossings`` tests;
+        ``edge_faces``' own list)."""
+        return self.edge_faces[1]
 
     @cached_property
     def coarse_edge_faces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The coarse mesh's triangles (g, 3) int64, its edges (e, 2) int64 and the triangles on each edge (e, 2)
         int64, -1 for none (``topology.edge_faces``): what the untangling of the simulated mesh walks."""
-        from tryon.garment.topology import edge_faces
-
-        faces = np.ascontiguousarray(self.coarse_faces, dtype=np.int64)
-        return (faces, *edge_faces(faces))
+        return _with_edge_faces(self.coarse_faces)
 
     @cached_property
     def edge_faces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``coarse_edge_faces`` of the full (shown) mesh."""
-        from tryon.garment.topology import edge_faces
-
-        faces = np.ascontiguousarray(self.faces, dtype=np.int64)
-        return (faces, *edge_faces(faces))
+        return _with_edge_faces(self.faces)
 
     @cached_property
     def display_springs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -195,3 +189,11 @@ class GarmentModel:
         with np.load(directory / "model.npz") as z:
             arrays = {k: z[k] for k in cls.ARRAYS}
         return cls(meta=meta, **arrays)
+
+
+def _with_edge_faces(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(faces (f, 3) int64 contiguous, *``topology.edge_faces(faces)``)."""
+    from tryon.garment.topology import edge_faces
+
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    return (faces, *edge_faces(faces))

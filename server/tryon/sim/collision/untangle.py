@@ -112,10 +112,7 @@ def untangle_round(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, face
     (e, 2) int64 with their triangles ``adjacent`` (``topology.edge_faces``), in place: every point of a crossing
     moves at most ``step`` m (the mean of its crossings' moves), ``x_prev`` with it (no velocity from the move);
     points of zero ``inv_mass`` stay. Returns the number of crossings found before the move."""
-    hits = _all_crossings(x, faces, edges, cell)
-    if len(hits):
-        _move(x, x_prev, inv_mass, faces, edges, adjacent, hits, step)
-    return len(hits)
+    return untangle_mesh(x, x_prev, inv_mass, faces, edges, adjacent, step, 1, cell)
 
 
 def _move(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, faces: np.ndarray, edges: np.ndarray,
@@ -143,11 +140,12 @@ def untangle_mesh(x: np.ndarray, x_prev: np.ndarray, inv_mass: np.ndarray, faces
     for r in range(rounds):
         if len(hits) == 0:
             return 0
-        before = x.copy()
+        last = r == rounds - 1
+        before = x.copy() if after is not None or not last else None
         _move(x, x_prev, inv_mass, faces, edges, adjacent, hits, step)
         if after is not None:
             after(x, x_prev, np.any(x != before, axis=1))
-        if r < rounds - 1:
+        if not last:
             hits = _crossings_after(x, faces, edges, cell, np.any(x != before, axis=1), hits)
     return len(hits)
 

@@ -59,6 +59,24 @@ def test_the_shown_mesh_is_untangled_where_it_crosses_itself(catalogue, body):
     assert untangled.metrics["display_max_strain"] <= tangled.metrics["display_max_strain"] + 0.01
 
 
+def test_self_contact_keeps_the_wide_legs_of_shorts_out_of_each_other(catalogue, body):
+    """The shorts XXL on the medium body: their wide legs meet below the crotch and, without self-contact, pass
+    through each other (91 crossings in the simulated mesh, 137 shown); with it (``Tuning.self_thickness``,
+    ``collision/self_contact.py``) none in either, at rest, nothing in the body."""
+    from tryon.sim.collision.crossings import self_intersections
+    from tryon.sim.tuning import TUNING
+
+    model = _model(catalogue, "shorts-xxl.obj", "bottom")
+    crossed = drape(body, model, SimSettings())
+    kept = drape(body, model, SimSettings(), tuning=replace(TUNING, self_thickness=0.003))
+    assert self_intersections(crossed.coarse, model.coarse_faces) > 40
+    assert crossed.metrics["self_crossings"] > 40
+    assert self_intersections(kept.coarse, model.coarse_faces) == 0
+    assert kept.metrics["self_crossings"] == 0
+    assert kept.metrics["rest_reached"]
+    assert kept.metrics["penetrating_vertices"] == 0
+
+
 def test_tshirt_drapes_on_the_shoulders_with_sleeves_around_the_arms(catalogue, body):
     model = _model(catalogue, "tshirt-m.obj", "top")
     result = drape(body, model, SimSettings())

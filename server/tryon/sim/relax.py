@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tryon.sim.collision.contacts import take_stricter_planes
+from tryon.sim.collision.self_contact import keep_drape_sides
 from tryon.sim.collision.untangle import untangle as untangle_drape
 from tryon.sim.constraints import cap_stretch, spring_lengths
 from tryon.sim.integrate import verlet_step
@@ -123,6 +124,7 @@ def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool =
     crossings that round found (-1: none looked for)."""
     s, tu, st = d.settings, d.tuning, d.state
     x, x_prev, inv_mass = st.x, st.x_prev, st.inv_mass
+    x_start = x.copy() if tu.self_thickness else x
     verlet_step(x, x_prev, inv_mass, d.h, 0.0, tu.relax_drag, s.max_speed)
     st.active[:] = True
     # a point pinched between two parts (pushed out of each into the other) does not flip between them: it is
@@ -137,6 +139,9 @@ def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool =
     touching = np.flatnonzero(st.has_plane)
     finish_relaxation_round(x, x_prev, inv_mass, springs, Planes(touching, st.plane_point, st.plane_normal,
                                                                   st.has_plane, st.push), run)
+    if tu.self_thickness:
+        w = np.where(st.held, 0.0, np.where(st.has_plane, inv_mass * tu.contact_weight, inv_mass))
+        keep_drape_sides(d, x_start, w)
     crossings = untangle_drape(d) if untangle and tu.untangle_step else -1
     cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
     return crossings

@@ -154,6 +154,7 @@ class Drape:
     moving: bool = False
     motion_depth: float = 0.0
     shown_from: int = 0
+    self_contact: object | None = None
 
     @property
     def reach(self) -> float:

@@ -14,6 +14,7 @@ from tryon.sim.blocks import block_order
 from tryon.sim.collision.contacts import (
     flipped, points_to_test, project_listed, reuse_planes, take_stricter_planes,
 )
+from tryon.sim.collision.self_contact import keep_drape_sides
 from tryon.sim.collision.untangle import untangle
 from tryon.sim.constraints import (
     cap_stretch, contact_springs, pack_sweep, solve_listed, sweep_springs, top_down_order,
@@ -107,6 +108,8 @@ def step(d: Drape) -> bool:
                 planes, run, movers)
     if s.projection_steps and not changing:
         _project(d, w_eff)
+    if tu.self_thickness:
+        keep_drape_sides(d, st.x_step, np.where(st.held, 0.0, w_eff))
     # not while the body changes: the start-up's arms' turn carries sleeves through the torso's cloth on purpose
     # (untangled then, the hanging-sleeve long-sleeve's cuffs ended round the upper arms), a re-pose's motion
     # crushes cloth in a bending elbow's crook

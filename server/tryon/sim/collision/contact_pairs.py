@@ -1,0 +1,216 @@
+"""The pairs of a mesh near enough to touch itself within a step (issue 53 item 1's broad phase): a uniform grid of
+the triangles' swept boxes (``swept_grid``), the (point, triangle) and (edge, edge) pairs whose paths come within
+a reach of each other, and ``SelfContact``, which keeps them while no point has moved far enough to bring a pair
+not on the list within a thickness.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from tryon.sim.collision.ccd import far_from_edge, far_from_triangle, paths_apart
+from tryon.sim.collision.cloth import MAX_CELLS_PER_AXIS, TriGrid
+
+
+@njit(cache=True, nogil=True)
+def _boxes(x, x0, ids):
+    """(m, 6) m: the box (lo x, lo y, lo z, hi x, hi y, hi z) of each row of points ``ids`` (m, k) int64 over their
+    paths from x0 to x."""
+    out = np.empty((ids.shape[0], 6))
+    for r in range(ids.shape[0]):
+        for ax in range(3):
+            lo = np.inf
+            hi = -np.inf
+            for k in range(ids.shape[1]):
+                v = ids[r, k]
+                lo = min(lo, min(x[v, ax], x0[v, ax]))
+                hi = max(hi, max(x[v, ax], x0[v, ax]))
+            out[r, ax] = lo
+            out[r, 3 + ax] = hi
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _boxes_apart(box_a, a, box_b, b, pad):
+    """Whether box a of ``box_a`` and box b of ``box_b`` (``_boxes``) lie more than ``pad`` m apart on an axis."""
+    for ax in range(3):
+        if box_a[a, ax] > box_b[b, 3 + ax] + pad or box_b[b, ax] > box_a[a, 3 + ax] + pad:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _edge_pairs(x, x0, edges, faces, face_edges, lo, cell, shape, cell_start, cell_tris, reach, seen, seen_edges,
+                out):
+    """The pairs of edges (e, k), e < k, sharing no end, whose paths from x0 to x come within ``reach`` m of each
+    other (``far_from_edge``), into ``out`` (c, 2) int64 as far as it holds; returns how many there are.
+    ``seen`` (f,) and ``seen_edges`` (e,) int64 work space. A triangle whose box is out of reach is passed over with
+    its three edges."""
+    count = 0
+    edge_box = _boxes(x, x0, edges)
+    tri_box = _boxes(x, x0, faces)
+    r = np.empty(6, dtype=np.int64)
+    for e in range(edges.shape[0]):
+        p1, p2 = edges[e, 0], edges[e, 1]
+        for ax in range(3):
+            r[2 * ax] = max(0, min(shape[ax] - 1, int(math.floor((edge_box[e, ax] - lo[ax]) / cell))))
+            r[2 * ax + 1] = max(0, min(shape[ax] - 1, int(math.floor((edge_box[e, 3 + ax] - lo[ax]) / cell))))
+        for ix in range(r[0], r[1] + 1):
+            for iy in range(r[2], r[3] + 1):
+                for iz in range(r[4], r[5] + 1):
+                    cc = (ix * shape[1] + iy) * shape[2] + iz
+                    for q in range(cell_start[cc], cell_start[cc + 1]):
+                        f = cell_tris[q]
+                        if seen[f] == e:
+                            continue
+                        seen[f] = e
+                        if _boxes_apart(edge_box, e, tri_box, f, reach):
+                            continue
+                        for k3 in range(3):
+                            k = face_edges[f, k3]
+                            if k <= e or seen_edges[k] == e:
+                                continue  # each pair once, from its lower edge
+                            seen_edges[k] = e
+                            q1, q2 = edges[k, 0], edges[k, 1]
+                            if q1 == p1 or q1 == p2 or q2 == p1 or q2 == p2:
+                                continue
+                            if _boxes_apart(edge_box, e, edge_box, k, reach) or \
+                                    far_from_edge(p1, p2, q1, q2, x, x0, reach):
+                                continue
+                            if count < out.shape[0]:
+                                out[count, 0] = e
+                                out[count, 1] = k
+                            count += 1
+    return count
+
+
+@njit(cache=True, nogil=True)
+def _point_pairs(x, x0, faces, lo, cell, shape, cell_start, cell_tris, reach, seen, out):
+    """The (point, triangle) pairs, the point not a corner, whose paths from x0 to x come within ``reach`` m of
+    each other (``far_from_triangle``), into ``out`` (c, 2) int64 as far as it holds; returns how many there are.
+    ``seen`` (f,) int64 work space."""
+    count = 0
+    r = np.empty(6, dtype=np.int64)
+    for i in range(x.shape[0]):
+        for ax in range(3):
+            mn = min(x0[i, ax], x[i, ax])
+            mx = max(x0[i, ax], x[i, ax])
+            r[2 * ax] = max(0, min(shape[ax] - 1, int(math.floor((mn - lo[ax]) / cell))))
+            r[2 * ax + 1] = max(0, min(shape[ax] - 1, int(math.floor((mx - lo[ax]) / cell))))
+        for ix in range(r[0], r[1] + 1):
+            for iy in range(r[2], r[3] + 1):
+                for iz in range(r[4], r[5] + 1):
+                    cc = (ix * shape[1] + iy) * shape[2] + iz
+                    for q in range(cell_start[cc], cell_start[cc + 1]):
+                        f = cell_tris[q]
+                        if seen[f] == i:
+                            continue
+                        seen[f] = i
+                        if faces[f, 0] == i or faces[f, 1] == i or faces[f, 2] == i:
+                            continue
+                        if paths_apart(x, x0, i, i, i, faces[f, 0], faces[f, 1], faces[f, 2], reach) or \
+                                far_from_triangle(i, f, x, x0, faces, reach):
+                            continue
+                        if count < out.shape[0]:
+                            out[count, 0] = i
+                            out[count, 1] = f
+                        count += 1
+    return count
+
+
+@njit(cache=True, nogil=True)
+def _swept_cells(x, x0, faces, lo, cell, shape, pad):
+    """(f, 6) int64: each triangle's inclusive cell ranges (ix0, ix1, iy0, iy1, iz0, iz1) of the box of its corners
+    at x0 and at x, grown by ``pad`` m."""
+    out = np.empty((faces.shape[0], 6), dtype=np.int64)
+    for f in range(faces.shape[0]):
+        for a in range(3):
+            mn = np.inf
+            mx = -np.inf
+            for k in range(3):
+                v = faces[f, k]
+                mn = min(mn, min(x[v, a], x0[v, a]))
+                mx = max(mx, max(x[v, a], x0[v, a]))
+            out[f, 2 * a] = max(0, min(shape[a] - 1, int((mn - pad - lo[a]) / cell)))
+            out[f, 2 * a + 1] = max(0, min(shape[a] - 1, int((mx + pad - lo[a]) / cell)))
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _fill(ranges, n_cells, shape):
+    """CSR (cell_start, cell_tris) of the triangles in the cells of their ``ranges`` (``_swept_cells``)."""
+    count = np.zeros(n_cells + 1, dtype=np.int64)
+    for f in range(ranges.shape[0]):
+        for ix in range(ranges[f, 0], ranges[f, 1] + 1):
+            for iy in range(ranges[f, 2], ranges[f, 3] + 1):
+                for iz in range(ranges[f, 4], ranges[f, 5] + 1):
+                    count[(ix * shape[1] + iy) * shape[2] + iz + 1] += 1
+    start = np.cumsum(count)
+    fill = start[:-1].copy()
+    tris = np.empty(start[-1], dtype=np.int64)
+    for f in range(ranges.shape[0]):
+        for ix in range(ranges[f, 0], ranges[f, 1] + 1):
+            for iy in range(ranges[f, 2], ranges[f, 3] + 1):
+                for iz in range(ranges[f, 4], ranges[f, 5] + 1):
+                    c = (ix * shape[1] + iy) * shape[2] + iz
+                    tris[fill[c]] = f
+                    fill[c] += 1
+    return start, tris
+
+
+def swept_grid(x: np.ndarray, x0: np.ndarray, faces: np.ndarray, cell: float, pad: float) -> TriGrid:
+    """A ``TriGrid`` of the triangles ``faces`` (f, 3) int64 by the boxes they sweep from x0 (n, 3) m to x (n, 3) m,
+    grown by ``pad`` m: a point whose path's box lies in a cell finds there every triangle it can meet."""
+    lo = np.minimum(x.min(axis=0), x0.min(axis=0)) - pad
+    extent = np.maximum(x.max(axis=0), x0.max(axis=0)) + pad - lo
+    size = max(float(cell), float(extent.max()) / MAX_CELLS_PER_AXIS)
+    shape = np.maximum(1, np.ceil(extent / size)).astype(np.int64)
+    start, tris = _fill(_swept_cells(x, x0, faces, lo, size, shape, float(pad)), int(np.prod(shape)), shape)
+    return TriGrid(lo, size, shape, start, tris)
+
+
+class SelfContact:
+    """The pairs of a garment's simulated mesh near enough to touch within a step: every (point, triangle) and
+    (edge, edge) pair whose paths came within ``margin`` m of each other (``build``, from the step's paths;
+    ``positions``: where the points were then). A pair not on it was at least ``margin`` apart along its paths,
+    so the pushes may move points up to (margin - thickness) / 2 before the list must be made again (``stale``).
+
+    faces (f, 3) int64, edges (e, 2) int64 and face_edges (f, 3) int64 (``topology.face_edge_ids``): the mesh,
+    kept with the drape; thickness, margin m."""
+
+    def __init__(self, faces: np.ndarray, edges: np.ndarray, face_edges: np.ndarray, thickness: float,
+                 margin: float, cell: float = 0.03):
+        self.faces, self.edges, self.face_edges = faces, edges, face_edges
+        self.thickness, self.margin, self.cell = float(thickness), float(margin), float(cell)
+        self.positions = None
+        self.points = np.zeros((0, 2), dtype=np.int64)
+        self.edge_pairs = np.zeros((0, 2), dtype=np.int64)
+
+    def stale(self, x: np.ndarray) -> bool:
+        """Whether a point of x (n, 3) m is more than (margin - thickness) / 2 from where it was when the list was
+        made: the pairs' paths from where the step began are then no longer within the list's reach."""
+        if self.positions is None:
+            return True
+        return 2.0 * np.sqrt(float(((x - self.positions) ** 2).sum(axis=1).max())) + self.thickness > self.margin
+
+    def build(self, x: np.ndarray, x0: np.ndarray) -> None:
+        """The list from the paths x0 -> x (n, 3) m."""
+        grid = swept_grid(x, x0, self.faces, self.cell, self.margin)
+        args = (grid.lo, grid.cell, grid.shape, grid.cell_start, grid.cell_tris, self.margin)
+        self.points = _collect(_point_pairs, (x, x0, self.faces, *args), len(self.faces))
+        self.edge_pairs = _collect(_edge_pairs, (x, x0, self.edges, self.faces, self.face_edges, *args,
+                                                 np.full(len(self.faces), -1, dtype=np.int64)), len(self.edges))
+        self.positions = x.copy()
+
+
+def _collect(kernel, args, n_seen: int) -> np.ndarray:
+    """(c, 2) int64: what a pair-collecting ``kernel(*args, seen, out)`` finds, however many."""
+    out = np.empty((8 * n_seen, 2), dtype=np.int64)
+    n = kernel(*args, np.full(n_seen, -1, dtype=np.int64), out)
+    if n > len(out):
+        out = np.empty((n, 2), dtype=np.int64)
+        kernel(*args, np.full(n_seen, -1, dtype=np.int64), out)
+    return out[:n]

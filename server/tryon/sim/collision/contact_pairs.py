@@ -176,7 +176,8 @@ class SelfContact:
     """The pairs of a garment's simulated mesh near enough to touch within a step: every (point, triangle) and
     (edge, edge) pair whose paths came within ``margin`` m of each other (``build``, from the step's paths;
     ``positions``: where the points were then). A pair not on it was at least ``margin`` apart along its paths,
-    so the pushes may move points up to (margin - thickness) / 2 before the list must be made again (``stale``).
+    so the points may move up to (margin - thickness) / 2 from there, in the passes' pushes and the steps after,
+    before the list must be made again (``stale``).
 
     faces (f, 3) int64, edges (e, 2) int64 and face_edges (f, 3) int64 (``topology.face_edge_ids``): the mesh,
     kept with the drape; thickness, margin m."""
@@ -189,12 +190,16 @@ class SelfContact:
         self.points = np.zeros((0, 2), dtype=np.int64)
         self.edge_pairs = np.zeros((0, 2), dtype=np.int64)
 
-    def stale(self, x: np.ndarray) -> bool:
-        """Whether a point of x (n, 3) m is more than (margin - thickness) / 2 from where it was when the list was
-        made: the pairs' paths from where the step began are then no longer within the list's reach."""
+    def stale(self, x: np.ndarray, x0: np.ndarray | None = None) -> bool:
+        """Whether a point of x (n, 3) m (or of x0, where the step began) is more than (margin - thickness) / 2 from
+        where it was when the list was made: a point of a straight path from x0 to x is no further than its ends,
+        so a pair not on the list may then come within ``thickness`` of each other."""
         if self.positions is None:
             return True
-        return 2.0 * np.sqrt(float(((x - self.positions) ** 2).sum(axis=1).max())) + self.thickness > self.margin
+        far = float(((x - self.positions) ** 2).sum(axis=1).max())
+        if x0 is not None:
+            far = max(far, float(((x0 - self.positions) ** 2).sum(axis=1).max()))
+        return 2.0 * np.sqrt(far) + self.thickness > self.margin
 
     def build(self, x: np.ndarray, x0: np.ndarray) -> None:
         """The list from the paths x0 -> x (n, 3) m."""

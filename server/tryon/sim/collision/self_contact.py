@@ -23,7 +23,7 @@ from numba import njit
 
 from tryon.garment.topology import face_edge_ids
 from tryon.sim.collision.ccd import (
-    closest_on_segments, event_side, far_from_edge, far_from_triangle, over_triangle, unit_normal,
+    closest_on_segments, event_side, far_from_edge, far_from_triangle, over_triangle, paths_apart, unit_normal,
 )
 from tryon.sim.collision.contact_pairs import SelfContact
 
@@ -141,7 +141,8 @@ def _contact_pass(x, x_prev, x0, w, faces, edges, points, edge_pairs, thickness,
     marking = len(crossed) > 0
     for k in range(points.shape[0]):
         i, f = points[k, 0], points[k, 1]
-        if far_from_triangle(i, f, x, x0, faces, thickness):
+        if paths_apart(x, x0, i, i, i, faces[f, 0], faces[f, 1], faces[f, 2], thickness) or \
+                far_from_triangle(i, f, x, x0, faces, thickness):
             continue
         nx, ny, nz, depth, u, v, through = _contact(i, f, x, x0, faces, thickness)
         if marking:
@@ -153,7 +154,7 @@ def _contact_pass(x, x_prev, x0, w, faces, edges, points, edge_pairs, thickness,
     for k in range(edge_pairs.shape[0]):
         p1, p2 = edges[edge_pairs[k, 0], 0], edges[edge_pairs[k, 0], 1]
         q1, q2 = edges[edge_pairs[k, 1], 0], edges[edge_pairs[k, 1], 1]
-        if far_from_edge(p1, p2, q1, q2, x, x0, thickness):
+        if paths_apart(x, x0, p1, p2, p2, q1, q2, q2, thickness) or far_from_edge(p1, p2, q1, q2, x, x0, thickness):
             continue
         nx, ny, nz, depth, s, t, through = _edge_contact(p1, p2, q1, q2, x, x0, thickness)
         if marking:
@@ -175,7 +176,8 @@ def keep_sides(contacts: SelfContact, x: np.ndarray, x_prev: np.ndarray, x0: np.
     total = 0
     no_marks = np.zeros(0, dtype=np.bool_)
     crossed = np.zeros(len(x), dtype=np.bool_)
-    contacts.build(x, x0)
+    if contacts.stale(x, x0):
+        contacts.build(x, x0)
     for _ in range(passes):
         pushed = _contact_pass(x, x_prev, x0, w, contacts.faces, contacts.edges, contacts.points,
                                contacts.edge_pairs, float(thickness), no_marks)

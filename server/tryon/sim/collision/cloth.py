@@ -67,10 +67,16 @@ def fill_grid(vertices, faces, lo, cell, shape, pad):
     id ``(ix * shape[1] + iy) * shape[2] + iz``) that their boxes grown by ``pad`` m overlap. Serial. Each
     triangle's cells are found once for both passes (the count and the fill): twice, each with a small array
     of its own, they were half of an outfit step's grid building."""
+    return fill_ranges(_cell_ranges(lo, cell, shape, vertices, faces, pad), shape)
+
+
+@njit(cache=True, nogil=True)
+def fill_ranges(r, shape):
+    """CSR (cell_start (C + 1,) int64, cell_tris (K,) int64) of triangles in the cells of their inclusive cell
+    ranges r (f, 6) int64 (ix0, ix1, iy0, iy1, iz0, iz1) in a grid of ``shape`` (3,) int64 cells."""
     n_cells = shape[0] * shape[1] * shape[2]
-    r = _cell_ranges(lo, cell, shape, vertices, faces, pad)
     count = np.zeros(n_cells + 1, dtype=np.int64)
-    for f in range(faces.shape[0]):
+    for f in range(r.shape[0]):
         for ix in range(r[f, 0], r[f, 1] + 1):
             for iy in range(r[f, 2], r[f, 3] + 1):
                 for iz in range(r[f, 4], r[f, 5] + 1):
@@ -78,7 +84,7 @@ def fill_grid(vertices, faces, lo, cell, shape, pad):
     start = np.cumsum(count)
     fill = start[:-1].copy()
     tris = np.empty(start[-1], dtype=np.int64)
-    for f in range(faces.shape[0]):
+    for f in range(r.shape[0]):
         for ix in range(r[f, 0], r[f, 1] + 1):
             for iy in range(r[f, 2], r[f, 3] + 1):
                 for iz in range(r[f, 4], r[f, 5] + 1):

@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from tryon.sim.collision.ccd import far_from_edge, far_from_triangle, paths_apart
-from tryon.sim.collision.cloth import MAX_CELLS_PER_AXIS, TriGrid
+from tryon.sim.collision.cloth import MAX_CELLS_PER_AXIS, TriGrid, fill_ranges
 
 
 @njit(cache=True, nogil=True)
@@ -43,6 +43,33 @@ def _boxes_apart(box_a, a, box_b, b, pad):
 
 
 @njit(cache=True, nogil=True)
+def _cells_of(box, row, lo, cell, shape, r):
+    """Fill r (6,) int64 with the inclusive cell ranges (ix0, ix1, iy0, iy1, iz0, iz1) of box ``row`` of ``box``
+    (``_boxes``) in the grid (corner ``lo`` (3,) m, cells ``cell`` m, ``shape`` (3,) int64)."""
+    for ax in range(3):
+        r[2 * ax] = max(0, min(shape[ax] - 1, int(math.floor((box[row, ax] - lo[ax]) / cell))))
+        r[2 * ax + 1] = max(0, min(shape[ax] - 1, int(math.floor((box[row, 3 + ax] - lo[ax]) / cell))))
+
+
+@njit(cache=True, nogil=True)
+def _tris_in_cells(r, shape, cell_start, cell_tris, seen, stamp, out):
+    """How many triangles the cells of ranges r (``_cells_of``) hold, each once: their ids into ``out`` (f,) int64.
+    ``seen`` (f,) int64: a triangle already marked with ``stamp`` is passed over; the ones found are marked."""
+    n = 0
+    for ix in range(r[0], r[1] + 1):
+        for iy in range(r[2], r[3] + 1):
+            for iz in range(r[4], r[5] + 1):
+                c = (ix * shape[1] + iy) * shape[2] + iz
+                for q in range(cell_start[c], cell_start[c + 1]):
+                    f = cell_tris[q]
+                    if seen[f] != stamp:
+                        seen[f] = stamp
+                        out[n] = f
+                        n += 1
+    return n
+
+
+@njit(cache=True, nogil=True)
 def _edge_pairs(x, x0, edges, faces, face_edges, lo, cell, shape, cell_start, cell_tris, reach, seen, seen_edges,
                 out):
     """The pairs of edges (e, k), e < k, sharing no end, whose paths from x0 to x come within ``reach`` m of each
@@ -53,37 +80,28 @@ def _edge_pairs(x, x0, edges, faces, face_edges, lo, cell, shape, cell_start, ce
     edge_box = _boxes(x, x0, edges)
     tri_box = _boxes(x, x0, faces)
     r = np.empty(6, dtype=np.int64)
+    near = np.empty(faces.shape[0], dtype=np.int64)
     for e in range(edges.shape[0]):
         p1, p2 = edges[e, 0], edges[e, 1]
-        for ax in range(3):
-            r[2 * ax] = max(0, min(shape[ax] - 1, int(math.floor((edge_box[e, ax] - lo[ax]) / cell))))
-            r[2 * ax + 1] = max(0, min(shape[ax] - 1, int(math.floor((edge_box[e, 3 + ax] - lo[ax]) / cell))))
-        for ix in range(r[0], r[1] + 1):
-            for iy in range(r[2], r[3] + 1):
-                for iz in range(r[4], r[5] + 1):
-                    cc = (ix * shape[1] + iy) * shape[2] + iz
-                    for q in range(cell_start[cc], cell_start[cc + 1]):
-                        f = cell_tris[q]
-                        if seen[f] == e:
-                            continue
-                        seen[f] = e
-                        if _boxes_apart(edge_box, e, tri_box, f, reach):
-                            continue
-                        for k3 in range(3):
-                            k = face_edges[f, k3]
-                            if k <= e or seen_edges[k] == e:
-                                continue  # each pair once, from its lower edge
-                            seen_edges[k] = e
-                            q1, q2 = edges[k, 0], edges[k, 1]
-                            if q1 == p1 or q1 == p2 or q2 == p1 or q2 == p2:
-                                continue
-                            if _boxes_apart(edge_box, e, edge_box, k, reach) or \
-                                    far_from_edge(p1, p2, q1, q2, x, x0, reach):
-                                continue
-                            if count < out.shape[0]:
-                                out[count, 0] = e
-                                out[count, 1] = k
-                            count += 1
+        _cells_of(edge_box, e, lo, cell, shape, r)
+        for m in range(_tris_in_cells(r, shape, cell_start, cell_tris, seen, e, near)):
+            f = near[m]
+            if _boxes_apart(edge_box, e, tri_box, f, reach):
+                continue
+            for k3 in range(3):
+                k = face_edges[f, k3]
+                if k <= e or seen_edges[k] == e:
+                    continue  # each pair once, from its lower edge
+                seen_edges[k] = e
+                q1, q2 = edges[k, 0], edges[k, 1]
+                if q1 == p1 or q1 == p2 or q2 == p1 or q2 == p2:
+                    continue
+                if _boxes_apart(edge_box, e, edge_box, k, reach) or far_from_edge(p1, p2, q1, q2, x, x0, reach):
+                    continue
+                if count < out.shape[0]:
+                    out[count, 0] = e
+                    out[count, 1] = k
+                count += 1
     return count
 
 
@@ -93,31 +111,22 @@ def _point_pairs(x, x0, faces, lo, cell, shape, cell_start, cell_tris, reach, se
     each other (``far_from_triangle``), into ``out`` (c, 2) int64 as far as it holds; returns how many there are.
     ``seen`` (f,) int64 work space."""
     count = 0
+    point_box = _boxes(x, x0, np.arange(x.shape[0]).reshape(-1, 1))
     r = np.empty(6, dtype=np.int64)
+    near = np.empty(faces.shape[0], dtype=np.int64)
     for i in range(x.shape[0]):
-        for ax in range(3):
-            mn = min(x0[i, ax], x[i, ax])
-            mx = max(x0[i, ax], x[i, ax])
-            r[2 * ax] = max(0, min(shape[ax] - 1, int(math.floor((mn - lo[ax]) / cell))))
-            r[2 * ax + 1] = max(0, min(shape[ax] - 1, int(math.floor((mx - lo[ax]) / cell))))
-        for ix in range(r[0], r[1] + 1):
-            for iy in range(r[2], r[3] + 1):
-                for iz in range(r[4], r[5] + 1):
-                    cc = (ix * shape[1] + iy) * shape[2] + iz
-                    for q in range(cell_start[cc], cell_start[cc + 1]):
-                        f = cell_tris[q]
-                        if seen[f] == i:
-                            continue
-                        seen[f] = i
-                        if faces[f, 0] == i or faces[f, 1] == i or faces[f, 2] == i:
-                            continue
-                        if paths_apart(x, x0, i, i, i, faces[f, 0], faces[f, 1], faces[f, 2], reach) or \
-                                far_from_triangle(i, f, x, x0, faces, reach):
-                            continue
-                        if count < out.shape[0]:
-                            out[count, 0] = i
-                            out[count, 1] = f
-                        count += 1
+        _cells_of(point_box, i, lo, cell, shape, r)
+        for m in range(_tris_in_cells(r, shape, cell_start, cell_tris, seen, i, near)):
+            f = near[m]
+            if faces[f, 0] == i or faces[f, 1] == i or faces[f, 2] == i:
+                continue
+            if paths_apart(x, x0, i, i, i, faces[f, 0], faces[f, 1], faces[f, 2], reach) or \
+                    far_from_triangle(i, f, x, x0, faces, reach):
+                continue
+            if count < out.shape[0]:
+                out[count, 0] = i
+                out[count, 1] = f
+            count += 1
     return count
 
 
@@ -139,28 +148,6 @@ def _swept_cells(x, x0, faces, lo, cell, shape, pad):
     return out
 
 
-@njit(cache=True, nogil=True)
-def _fill(ranges, n_cells, shape):
-    """CSR (cell_start, cell_tris) of the triangles in the cells of their ``ranges`` (``_swept_cells``)."""
-    count = np.zeros(n_cells + 1, dtype=np.int64)
-    for f in range(ranges.shape[0]):
-        for ix in range(ranges[f, 0], ranges[f, 1] + 1):
-            for iy in range(ranges[f, 2], ranges[f, 3] + 1):
-                for iz in range(ranges[f, 4], ranges[f, 5] + 1):
-                    count[(ix * shape[1] + iy) * shape[2] + iz + 1] += 1
-    start = np.cumsum(count)
-    fill = start[:-1].copy()
-    tris = np.empty(start[-1], dtype=np.int64)
-    for f in range(ranges.shape[0]):
-        for ix in range(ranges[f, 0], ranges[f, 1] + 1):
-            for iy in range(ranges[f, 2], ranges[f, 3] + 1):
-                for iz in range(ranges[f, 4], ranges[f, 5] + 1):
-                    c = (ix * shape[1] + iy) * shape[2] + iz
-                    tris[fill[c]] = f
-                    fill[c] += 1
-    return start, tris
-
-
 def swept_grid(x: np.ndarray, x0: np.ndarray, faces: np.ndarray, cell: float, pad: float) -> TriGrid:
     """A ``TriGrid`` of the triangles ``faces`` (f, 3) int64 by the boxes they sweep from x0 (n, 3) m to x (n, 3) m,
     grown by ``pad`` m: a point whose path's box lies in a cell finds there every triangle it can meet."""
@@ -168,7 +155,7 @@ def swept_grid(x: np.ndarray, x0: np.ndarray, faces: np.ndarray, cell: float, pa
     extent = np.maximum(x.max(axis=0), x0.max(axis=0)) + pad - lo
     size = max(float(cell), float(extent.max()) / MAX_CELLS_PER_AXIS)
     shape = np.maximum(1, np.ceil(extent / size)).astype(np.int64)
-    start, tris = _fill(_swept_cells(x, x0, faces, lo, size, shape, float(pad)), int(np.prod(shape)), shape)
+    start, tris = fill_ranges(_swept_cells(x, x0, faces, lo, size, shape, float(pad)), shape)
     return TriGrid(lo, size, shape, start, tris)
 
 

@@ -34,10 +34,10 @@ ROLLBACK_ROUNDS = 50
 
 @njit(cache=True, nogil=True)
 def _contact(i, f, x, x0, faces, thickness):
-    """The push point i needs against triangle f: (normal, depth m > 0, u, v of the closest point, whether it
-    passed through it within the step), depth 0 when none. A contact is a point that passed through the triangle within the step (``_crossed``) or lies over it,
-    on the side it began on, less than ``thickness`` off it; the normal is the triangle's winding normal at the
-    step's end, turned to the side the point began on (x0 (n, 3) m: where the step began)."""
+    """The push point i needs against triangle f as every point moved from x0 to x (n, 3) m: (unit normal, depth
+    m > 0, u, v of the closest point, whether it passed through the triangle), depth 0 when none. A contact is a
+    point that passed through the triangle (``ccd.event_side``) or lies over it less than ``thickness`` off it;
+    the normal is the triangle's winding normal at the end, turned to the side the point belongs on."""
     a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
     nx, ny, nz, ok = unit_normal(x, a, b, c)
     if not ok:
@@ -86,11 +86,11 @@ def _push(i, f, x, x_prev, w, faces, nx, ny, nz, depth, u, v):
 
 @njit(cache=True, nogil=True)
 def _edge_contact(p1, p2, q1, q2, x, x0, thickness):
-    """The push edges (p1, p2) and (q1, q2) of x (n, 3) m need: (unit normal toward q's side, depth m > 0, s, t the
-    closest points' parameters, whether they passed through each other within the step), depth 0 when none. A contact is a pair that passed through each other within
-    the step (continuous collision: ``_volume`` changes sign and where it is zero the segments meet) or whose
-    closest points, both inside their segments (at an end, the point-triangle test has it), are less than
-    ``thickness`` apart on the side they began on; the normal is the two edges' common normal at the end."""
+    """The push edges (p1, p2) and (q1, q2) need as every point moved from x0 to x (n, 3) m: (unit normal toward q's
+    side, depth m > 0, s, t the closest points' parameters, whether they passed through each other), depth 0 when
+    none. A contact is a pair that passed through each other (``ccd.event_side``) or whose closest points, both
+    inside their segments (at an end, the point-triangle test has it), are less than ``thickness`` apart on their
+    side; the normal is the two edges' common normal at the end."""
     d1x, d1y, d1z = x[p2, 0] - x[p1, 0], x[p2, 1] - x[p1, 1], x[p2, 2] - x[p1, 2]
     d2x, d2y, d2z = x[q2, 0] - x[q1, 0], x[q2, 1] - x[q1, 1], x[q2, 2] - x[q1, 2]
     nx, ny, nz = d1y * d2z - d1z * d2y, d1z * d2x - d1x * d2z, d1x * d2y - d1y * d2x

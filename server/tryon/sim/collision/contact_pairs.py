@@ -12,7 +12,8 @@ import numpy as np
 from numba import njit
 
 from tryon.sim.collision.ccd import far_from_edge, far_from_triangle, paths_apart
-from tryon.sim.collision.cloth import MAX_CELLS_PER_AXIS, TriGrid, fill_ranges
+from tryon.sim.collision.cloth import MAX_CELLS_PER_AXIS, TriGrid, build_tri_grid, fill_ranges
+from tryon.sim.collision.crossings import find_crossings
 
 
 @njit(cache=True, nogil=True)
@@ -195,6 +196,17 @@ class SelfContact:
         self.points = _collect(_point_pairs, (x, x0, self.faces, *args), len(self.faces))
         self.edge_pairs = _collect(_edge_pairs, (x, x0, self.edges, self.faces, self.face_edges, *args,
                                                  np.full(len(self.faces), -1, dtype=np.int64)), len(self.edges))
+        # where the mesh is already crossed through itself no side is right: its pairs are left to the untangling
+        # (held to the sides they happen to be on, a garment aligned with its legs through each other fought to
+        # the step limit)
+        hits = find_crossings(x0, self.edges, self.faces, build_tri_grid(x0, self.faces, self.cell, 0.0))
+        if len(hits):
+            tangled = np.zeros(len(x), dtype=np.bool_)
+            tangled[self.edges[hits[:, 0]].ravel()] = True
+            tangled[self.faces[hits[:, 1]].ravel()] = True
+            self.points = self.points[~(tangled[self.points[:, 0]] | tangled[self.faces[self.points[:, 1]]].any(axis=1))]
+            ends = self.edges[self.edge_pairs]  # (q, 2, 2)
+            self.edge_pairs = self.edge_pairs[~tangled[ends.reshape(len(ends), 4)].any(axis=1)]
         self.positions = x.copy()
 
 

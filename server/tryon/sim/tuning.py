@@ -108,9 +108,8 @@ class Tuning:
     self_thickness: m, the cloth's thickness for its contact with itself (``collision/self_contact.py``): each
         point-triangle and edge-edge pair of the simulated mesh that passed through each other within a step goes
         back to its side, and one nearer than this is pushed apart to it; 0 = none. Off by default: it takes the
-        free cloth's crossings away (the small body's shorts XXL 112 -> 0 shown, long-sleeve XL 61 -> 0) but
-        costs 3.0-6.5x a drape's time to rest, and a garment that starts crossed through itself (the trousers XL
-        and XXL on the small and medium bodies) is held where it is crossed until the step limit
+        fit bench's crossings 1,269 -> 690 (the free cloth's to none: shorts and trousers L-XXL, long-sleeves) but
+        costs 3.0-6.5x a drape's time to rest, and cloth the body holds pinched gains crossings
         (``docs/limits.md``).
     self_passes: at most this many Gauss-Seidel passes of it at a step's end (fewer once one pushes nothing).
     self_margin: m, how much further than ``self_thickness`` apart the pairs it lists may be

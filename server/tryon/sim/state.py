@@ -110,6 +110,8 @@ class Drape:
     on); for these ``run.settle`` measures after every step how deep the garment's coarse points are inside
     the body as it is at that step, and ``motion_depth`` (m) keeps the deepest (``motion_max_penetration_mm``).
     shown_from: the first step of a fresh drape shown to a caller (``run.showing``), 0 before it.
+    self_contact: the pairs the cloth's contact with itself tests (``contact_pairs.SelfContact``), made at its
+    first call when ``tuning.self_thickness`` asks for it; None otherwise.
     """
 
     body: Body

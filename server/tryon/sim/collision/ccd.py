@@ -94,49 +94,54 @@ def event_side(i, a, b, c, d, x, x0, point):
     or the segments meet is a crossing; crossed when there is an odd number of them, and side the sign of the
     volume just before the first (where they must go back to), else its sign at the end (the side they are on:
     a point that went round the triangle's edge is on its other side rightly)."""
-    v = np.empty(4)
-    for k in range(4):
-        v[k] = _volume(i, a, b, c, d, x, x0, k / 3.0)
+    v0 = _volume(i, a, b, c, d, x, x0, 0.0)
+    v1 = _volume(i, a, b, c, d, x, x0, 1.0 / 3.0)
+    v2 = _volume(i, a, b, c, d, x, x0, 2.0 / 3.0)
+    v3 = _volume(i, a, b, c, d, x, x0, 1.0)
     if _still(x, x0, i) and _still(x, x0, a) and _still(x, x0, b) and _still(x, x0, c) and _still(x, x0, d):
-        return (1.0 if v[3] > 0.0 else -1.0), False  # nothing moved: rounding in the in-between points is no event
-    # the cubic through the four values, and the zeros of its derivative 3 c3 t^2 + 2 c2 t + c1 in (0, 1)
-    c1 = -5.5 * v[0] + 9.0 * v[1] - 4.5 * v[2] + v[3]
-    c2 = 9.0 * v[0] - 22.5 * v[1] + 18.0 * v[2] - 4.5 * v[3]
-    c3 = -4.5 * v[0] + 13.5 * v[1] - 13.5 * v[2] + 4.5 * v[3]
-    cuts = np.array([0.0, 1.0, 1.0, 1.0])
-    n_cuts = 1
+        return (1.0 if v3 > 0.0 else -1.0), False  # nothing moved: rounding in the in-between points is no event
+    # the cubic through the four values, and the zeros of its derivative 3 c3 t^2 + 2 c2 t + c1 in (0, 1): the
+    # step is cut there into at most three pieces, on each of which the cubic is monotone (scalars, not arrays:
+    # this runs for every listed pair in every pass)
+    c1 = -5.5 * v0 + 9.0 * v1 - 4.5 * v2 + v3
+    c2 = 9.0 * v0 - 22.5 * v1 + 18.0 * v2 - 4.5 * v3
+    c3 = -4.5 * v0 + 13.5 * v1 - 13.5 * v2 + 4.5 * v3
+    cut1, cut2 = 1.0, 1.0
     qa, qb, qc = 3.0 * c3, 2.0 * c2, c1
     if abs(qa) > 1e-30:
         disc = qb * qb - 4.0 * qa * qc
         if disc > 0.0:
             r = math.sqrt(disc)
             t1, t2 = (-qb - r) / (2.0 * qa), (-qb + r) / (2.0 * qa)
-            for t in (min(t1, t2), max(t1, t2)):
-                if 0.0 < t < 1.0:
-                    cuts[n_cuts] = t
-                    n_cuts += 1
+            t1, t2 = min(t1, t2), max(t1, t2)
+            if 0.0 < t1 < 1.0:
+                cut1 = t1
+                if t2 < 1.0:
+                    cut2 = t2
+            elif 0.0 < t2 < 1.0:
+                cut1 = t2
     elif abs(qb) > 1e-30:
         t = -qc / qb
         if 0.0 < t < 1.0:
-            cuts[n_cuts] = t
-            n_cuts += 1
-    cuts[n_cuts] = 1.0
+            cut1 = t
     crossings = 0
     side = 0.0
-    v_lo = v[0]
-    for k in range(n_cuts):
-        lo, hi = cuts[k], cuts[k + 1]
-        v_hi = v[3] if k == n_cuts - 1 else _volume(i, a, b, c, d, x, x0, hi)
+    lo, v_lo = 0.0, v0
+    for k in range(3):
+        hi = cut1 if k == 0 else (cut2 if k == 1 else 1.0)
+        if hi <= lo:
+            continue
+        v_hi = v3 if hi == 1.0 else _volume(i, a, b, c, d, x, x0, hi)
         if (v_lo > 0.0) != (v_hi > 0.0):
             t = _bisect(i, a, b, c, d, x, x0, lo, hi, v_lo)
             if _meets(i, a, b, c, d, x, x0, t, point):
                 if crossings == 0:
                     side = 1.0 if v_lo > 0.0 else -1.0
                 crossings += 1
-        v_lo = v_hi
+        lo, v_lo = hi, v_hi
     if crossings % 2 == 1:
         return side, True
-    return (1.0 if v[3] > 0.0 else -1.0), False
+    return (1.0 if v3 > 0.0 else -1.0), False
 
 
 @njit(cache=True, nogil=True)

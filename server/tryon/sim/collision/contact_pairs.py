@@ -11,9 +11,10 @@ import math
 import numpy as np
 from numba import njit
 
+from tryon.garment.topology import edge_faces
 from tryon.sim.collision.ccd import far_from_edge, far_from_triangle, paths_apart
-from tryon.sim.collision.cloth import MAX_CELLS_PER_AXIS, TriGrid, build_tri_grid, fill_ranges
-from tryon.sim.collision.crossings import find_crossings
+from tryon.sim.collision.cloth import MAX_CELLS_PER_AXIS, TriGrid, fill_ranges
+from tryon.sim.collision.crossings import crosses
 
 
 @njit(cache=True, nogil=True)
@@ -75,8 +76,8 @@ def _edge_pairs(x, x0, edges, faces, face_edges, lo, cell, shape, cell_start, ce
                 out):
     """The pairs of edges (e, k), e < k, sharing no end, whose paths from x0 to x come within ``reach`` m of each
     other (``far_from_edge``), into ``out`` (c, 2) int64 as far as it holds; returns how many there are.
-    ``seen`` (f,) and ``seen_edges`` (e,) int64 work space. A triangle whose box is out of reach is passed over with
-    its three edges."""
+    ``seen`` (f,) and ``seen_edges`` (e,) int64 work space. A triangle whose box is out of reach, or none of whose
+    edges is above e, is passed over with its three edges."""
     count = 0
     edge_box = _boxes(x, x0, edges)
     tri_box = _boxes(x, x0, faces)
@@ -87,7 +88,8 @@ def _edge_pairs(x, x0, edges, faces, face_edges, lo, cell, shape, cell_start, ce
         _cells_of(edge_box, e, lo, cell, shape, r)
         for m in range(_tris_in_cells(r, shape, cell_start, cell_tris, seen, e, near)):
             f = near[m]
-            if _boxes_apart(edge_box, e, tri_box, f, reach):
+            if max(face_edges[f, 0], max(face_edges[f, 1], face_edges[f, 2])) <= e or \
+                    _boxes_apart(edge_box, e, tri_box, f, reach):
                 continue
             for k3 in range(3):
                 k = face_edges[f, k3]
@@ -128,6 +130,30 @@ def _point_pairs(x, x0, faces, lo, cell, shape, cell_start, cell_tris, reach, se
                 out[count, 0] = i
                 out[count, 1] = f
             count += 1
+    return count
+
+
+@njit(cache=True, nogil=True)
+def _crossed_in_pairs(x, edges, faces, edge_pairs, edge_tris, tangled):
+    """Mark in ``tangled`` (n,) bool the ends of every edge of an edge pair (``edge_pairs`` (q, 2) int64) that
+    crosses a triangle on the other edge (``edge_tris`` (e, 2) int64, -1 for none) at x (n, 3) m, sharing no corner
+    with it (``crossings.crosses``), and that triangle's corners; returns how many crossings it met (one may be
+    met more than once)."""
+    count = 0
+    for k in range(edge_pairs.shape[0]):
+        for side in range(2):
+            i, j = edges[edge_pairs[k, side], 0], edges[edge_pairs[k, side], 1]
+            for s in range(2):
+                f = edge_tris[edge_pairs[k, 1 - side], s]
+                if f < 0:
+                    continue
+                a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+                if i == a or i == b or i == c or j == a or j == b or j == c:
+                    continue
+                if crosses((x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2], x[a, 0], x[a, 1], x[a, 2],
+                            x[b, 0], x[b, 1], x[b, 2], x[c, 0], x[c, 1], x[c, 2])):
+                    tangled[i] = tangled[j] = tangled[a] = tangled[b] = tangled[c] = True
+                    count += 1
     return count
 
 
@@ -175,6 +201,7 @@ class SelfContact:
         self.faces, self.edges, self.face_edges = faces, edges, face_edges
         self.thickness, self.margin, self.cell = float(thickness), float(margin), float(cell)
         self.positions = None
+        self.edge_tris = edge_faces(faces)[1]  # the (at most two) triangles on each edge, -1 for none
         self.points = np.zeros((0, 2), dtype=np.int64)
         self.edge_pairs = np.zeros((0, 2), dtype=np.int64)
 
@@ -198,12 +225,10 @@ class SelfContact:
                                                  np.full(len(self.faces), -1, dtype=np.int64)), len(self.edges))
         # where the mesh is already crossed through itself no side is right: its pairs are left to the untangling
         # (held to the sides they happen to be on, a garment aligned with its legs through each other fought to
-        # the step limit)
-        hits = find_crossings(x0, self.edges, self.faces, build_tri_grid(x0, self.faces, self.cell, 0.0))
-        if len(hits):
-            tangled = np.zeros(len(x), dtype=np.bool_)
-            tangled[self.edges[hits[:, 0]].ravel()] = True
-            tangled[self.faces[hits[:, 1]].ravel()] = True
+        # the step limit). An edge through a triangle passes within the triangle's inradius (1 cm on a mesh of 3 cm
+        # edges) of one of its edges, so the crossings are looked for among the listed edge pairs only.
+        tangled = np.zeros(len(x), dtype=np.bool_)
+        if _crossed_in_pairs(x0, self.edges, self.faces, self.edge_pairs, self.edge_tris, tangled):
             self.points = self.points[~(tangled[self.points[:, 0]] | tangled[self.faces[self.points[:, 1]]].any(axis=1))]
             ends = self.edges[self.edge_pairs]  # (q, 2, 2)
             self.edge_pairs = self.edge_pairs[~tangled[ends.reshape(len(ends), 4)].any(axis=1)]

@@ -43,7 +43,7 @@ def layer_depths(points: np.ndarray, inner_x: np.ndarray, inner_faces: np.ndarra
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _crosses(r):
+def crosses(r):
     """Does segment p-q cross triangle a, b, c (Moeller-Trumbore, ends and edges excluded)? ``r``: their
     coordinates (px, py, pz, qx, ..., cz), m; scalars only, no temporary arrays (a drape's shown mesh has tens
     of thousands of edge-triangle pairs to test)."""
@@ -106,7 +106,7 @@ def _find_crossings(x, edges, faces, grid_lo, grid_cell, grid_shape, cell_start,
                         sj = plane[f, 0] * x[j, 0] + plane[f, 1] * x[j, 1] + plane[f, 2] * x[j, 2] - plane[f, 3]
                         if si * sj >= 0.0:
                             continue
-                        if _crosses((x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2], x[a, 0], x[a, 1],
+                        if crosses((x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2], x[a, 0], x[a, 1],
                                      x[a, 2], x[b, 0], x[b, 1], x[b, 2], x[cc, 0], x[cc, 1], x[cc, 2])):
                             if count < hits.shape[0]:
                                 hits[count, 0] = e

@@ -35,9 +35,12 @@ def unit_normal(x, a, b, c):
 
 
 @njit(cache=True, nogil=True)
-def moved(x, x0, i):
-    """m: how far point i moved from x0 to x."""
-    return math.sqrt((x[i, 0] - x0[i, 0]) ** 2 + (x[i, 1] - x0[i, 1]) ** 2 + (x[i, 2] - x0[i, 2]) ** 2)
+def moved_apart(x, x0, i, k):
+    """m: how far point i moved from x0 to x relative to point k (the length of the difference of their moves)."""
+    dx = (x[i, 0] - x0[i, 0]) - (x[k, 0] - x0[k, 0])
+    dy = (x[i, 1] - x0[i, 1]) - (x[k, 1] - x0[k, 1])
+    dz = (x[i, 2] - x0[i, 2]) - (x[k, 2] - x0[k, 2])
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 @njit(cache=True, nogil=True)
@@ -198,9 +201,11 @@ def closest_on_segments(x, p1, p2, q1, q2):
 
 @njit(cache=True, nogil=True)
 def far_from_triangle(i, f, x, x0, faces, thickness):
-    """Whether point i began the step further from triangle f than it and the triangle's corners moved in it, plus
-    ``thickness``: then they cannot meet (a point of a linearly moving triangle moves no further than its
-    furthest corner). Cloth's near neighbours, always within each other's boxes, are passed over so."""
+    """Whether point i began the step further from triangle f than it moved relative to the triangle's corners in
+    it, plus ``thickness``: then they cannot meet (every point of a linearly moving triangle moves as a mix of its
+    corners, so the point's move relative to it is no longer than relative to its furthest corner; cloth falling
+    as a whole moves little relative to itself). Cloth's near neighbours, always within each other's boxes, are
+    passed over so."""
     a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
     u, v = closest_uv_on_triangle(x0[i, 0], x0[i, 1], x0[i, 2], x0[a, 0], x0[a, 1], x0[a, 2], x0[b, 0], x0[b, 1],
                                   x0[b, 2], x0[c, 0], x0[c, 1], x0[c, 2])
@@ -208,7 +213,7 @@ def far_from_triangle(i, f, x, x0, faces, thickness):
     for ax in range(3):
         q = x0[a, ax] + u * (x0[b, ax] - x0[a, ax]) + v * (x0[c, ax] - x0[a, ax])
         dd += (x0[i, ax] - q) ** 2
-    reach = thickness + moved(x, x0, i) + max(moved(x, x0, a), max(moved(x, x0, b), moved(x, x0, c)))
+    reach = thickness + max(moved_apart(x, x0, i, a), max(moved_apart(x, x0, i, b), moved_apart(x, x0, i, c)))
     return dd > reach * reach
 
 
@@ -219,7 +224,8 @@ def far_from_edge(p1, p2, q1, q2, x, x0, thickness):
     dd = 0.0
     for ax in range(3):
         dd += (x0[q1, ax] + t * (x0[q2, ax] - x0[q1, ax]) - x0[p1, ax] - s * (x0[p2, ax] - x0[p1, ax])) ** 2
-    reach = thickness + max(moved(x, x0, p1), moved(x, x0, p2)) + max(moved(x, x0, q1), moved(x, x0, q2))
+    reach = thickness + max(max(moved_apart(x, x0, p1, q1), moved_apart(x, x0, p1, q2)),
+                            max(moved_apart(x, x0, p2, q1), moved_apart(x, x0, p2, q2)))
     return dd > reach * reach
 
 

@@ -207,14 +207,16 @@ class SelfContact:
 
     def stale(self, x: np.ndarray, x0: np.ndarray | None = None) -> bool:
         """Whether a point of x (n, 3) m (or of x0, where the step began) is more than (margin - thickness) / 2 from
-        where it was when the list was made: a point of a straight path from x0 to x is no further than its ends,
-        so a pair not on the list may then come within ``thickness`` of each other."""
+        where it was when the list was made, once the mesh's mean move since is taken away (a pair's distance does
+        not change as the cloth moves as a whole; the straight path from x0 to x of a point stays within the larger
+        of its two ends' distances, the mean moving straight too): else a pair not on the list may come within
+        ``thickness`` of each other."""
         if self.positions is None:
             return True
-        far = float(((x - self.positions) ** 2).sum(axis=1).max())
+        far = _largest_spread(x - self.positions)
         if x0 is not None:
-            far = max(far, float(((x0 - self.positions) ** 2).sum(axis=1).max()))
-        return 2.0 * np.sqrt(far) + self.thickness > self.margin
+            far = max(far, _largest_spread(x0 - self.positions))
+        return 2.0 * far + self.thickness > self.margin
 
     def build(self, x: np.ndarray, x0: np.ndarray) -> None:
         """The list from the paths x0 -> x (n, 3) m."""
@@ -233,6 +235,11 @@ class SelfContact:
             ends = self.edges[self.edge_pairs]  # (q, 2, 2)
             self.edge_pairs = self.edge_pairs[~tangled[ends.reshape(len(ends), 4)].any(axis=1)]
         self.positions = x.copy()
+
+
+def _largest_spread(moves: np.ndarray) -> float:
+    """m: the largest distance of one of the ``moves`` (n, 3) m from their mean."""
+    return float(np.sqrt(((moves - moves.mean(axis=0)) ** 2).sum(axis=1).max()))
 
 
 def _collect(kernel, args, n_seen: int) -> np.ndarray:

@@ -134,6 +134,63 @@ def _point_pairs(x, x0, faces, lo, cell, shape, cell_start, cell_tris, reach, se
 
 
 @njit(cache=True, nogil=True)
+def _pairs_of_moved(x, x0, faces, edges, moved, reach):
+    """(points (p, 2), edge pairs (q, 2)) int64: every (point, triangle) and (edge, edge) pair with a point of
+    ``moved`` (n,) bool, whose paths from x0 to x come within ``reach`` m of each other (``_point_pairs``,
+    ``_edge_pairs``), each pair of edges once as (lower, higher). Every point and edge is tested against the moved
+    ones (no grid): for the few points a list kept at rest needs again (a hem still swinging), that is cheaper
+    than the grid of every triangle."""
+    n_f, n_e = faces.shape[0], edges.shape[0]
+    point_box = _boxes(x, x0, np.arange(x.shape[0]).reshape(-1, 1))
+    tri_box = _boxes(x, x0, faces)
+    edge_box = _boxes(x, x0, edges)
+    tri_moved = np.zeros(n_f, dtype=np.bool_)
+    for f in range(n_f):
+        tri_moved[f] = moved[faces[f, 0]] or moved[faces[f, 1]] or moved[faces[f, 2]]
+    points = np.empty((64, 2), dtype=np.int64)
+    count = 0
+    for f in range(n_f):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        for i in range(x.shape[0]):
+            # a moved point against every triangle; a triangle with a moved corner against every point
+            if not (moved[i] or tri_moved[f]) or i == a or i == b or i == c:
+                continue
+            if _boxes_apart(point_box, i, tri_box, f, reach) or far_from_triangle(i, f, x, x0, faces, reach):
+                continue
+            if count == points.shape[0]:
+                grown = np.empty((2 * count, 2), dtype=np.int64)
+                grown[:count] = points
+                points = grown
+            points[count, 0] = i
+            points[count, 1] = f
+            count += 1
+    edge_moved = np.zeros(n_e, dtype=np.bool_)
+    for e in range(n_e):
+        edge_moved[e] = moved[edges[e, 0]] or moved[edges[e, 1]]
+    pairs = np.empty((64, 2), dtype=np.int64)
+    n_pairs = 0
+    for e in range(n_e):
+        if not edge_moved[e]:
+            continue
+        p1, p2 = edges[e, 0], edges[e, 1]
+        for k in range(n_e):
+            if k == e or (edge_moved[k] and k < e):
+                continue  # two moved edges once, from the lower
+            q1, q2 = edges[k, 0], edges[k, 1]
+            if q1 == p1 or q1 == p2 or q2 == p1 or q2 == p2 or _boxes_apart(edge_box, e, edge_box, k, reach) or \
+                    far_from_edge(p1, p2, q1, q2, x, x0, reach):
+                continue
+            if n_pairs == pairs.shape[0]:
+                grown = np.empty((2 * n_pairs, 2), dtype=np.int64)
+                grown[:n_pairs] = pairs
+                pairs = grown
+            pairs[n_pairs, 0] = min(e, k)
+            pairs[n_pairs, 1] = max(e, k)
+            n_pairs += 1
+    return points[:count], pairs[:n_pairs]
+
+
+@njit(cache=True, nogil=True)
 def _crossed_in_pairs(x, edges, faces, edge_pairs, edge_tris, tangled):
     """Mark in ``tangled`` (n,) bool the ends of every edge of an edge pair (``edge_pairs`` (q, 2) int64) that
     crosses a triangle on the other edge (``edge_tris`` (e, 2) int64, -1 for none) at x (n, 3) m, sharing no corner
@@ -186,12 +243,21 @@ def swept_grid(x: np.ndarray, x0: np.ndarray, faces: np.ndarray, cell: float, pa
     return TriGrid(lo, size, shape, start, tris)
 
 
+# Share of a mesh's points past their allowance up to which only their pairs are listed again (``_pairs_of_moved``,
+# every element against them); past it the whole list is made again on the grid. A re-list of 1-4 points (a T-shirt
+# M's swinging hem at rest) costs ~0.1 ms this way, a whole list 3-4 ms.
+PARTIAL_SHARE = 0.02
+
+
 class SelfContact:
     """The pairs of a garment's simulated mesh near enough to touch within a step: every (point, triangle) and
-    (edge, edge) pair whose paths came within ``margin`` m of each other (``build``, from the step's paths;
-    ``positions``: where the points were then). A pair not on it was at least ``margin`` apart along its paths,
-    so the points may move up to (margin - thickness) / 2 from there, in the passes' pushes and the steps after,
-    before the list must be made again (``stale``).
+    (edge, edge) pair whose paths came within ``margin`` m of each other as listed (``update``; ``positions``: where
+    each point was when its pairs were listed). A pair not on it was at least ``margin`` apart, so its points may
+    move up to allow = (margin - thickness) / 2 from there, in the passes' pushes and the steps after, before their
+    pairs must be listed again. While the whole list was made at once, that is counted once the mesh's mean move is
+    taken away (a pair's distance does not change as the cloth moves as a whole); when a few points have strayed,
+    only their pairs are listed again, within margin + allow (a point not listed again may stray 2 allow from where
+    it is then: margin + allow - 3 allow = thickness), and from then on each point's own move counts.
 
     faces (f, 3) int64, edges (e, 2) int64 and face_edges (f, 3) int64 (``topology.face_edge_ids``): the mesh,
     kept with the drape; thickness, margin m."""
@@ -200,41 +266,68 @@ class SelfContact:
                  margin: float, cell: float = 0.03):
         self.faces, self.edges, self.face_edges = faces, edges, face_edges
         self.thickness, self.margin, self.cell = float(thickness), float(margin), float(cell)
+        self.allow = 0.5 * (self.margin - self.thickness)
         self.positions = None
+        self.whole = False  # the list was made at once, every point's position taken together
+        self.tangled = np.zeros(0, dtype=np.bool_)
         self.edge_tris = edge_faces(faces)[1]  # the (at most two) triangles on each edge, -1 for none
         self.points = np.zeros((0, 2), dtype=np.int64)
         self.edge_pairs = np.zeros((0, 2), dtype=np.int64)
 
-    def stale(self, x: np.ndarray, x0: np.ndarray | None = None) -> bool:
-        """Whether a point of x (n, 3) m (or of x0, where the step began) is more than (margin - thickness) / 2 from
-        where it was when the list was made, once the mesh's mean move since is taken away (a pair's distance does
-        not change as the cloth moves as a whole; the straight path from x0 to x of a point stays within the larger
-        of its two ends' distances, the mean moving straight too): else a pair not on the list may come within
-        ``thickness`` of each other."""
+    def update(self, x: np.ndarray, x0: np.ndarray, from_start: bool = True) -> None:
+        """Keep the list right for the paths x0 -> x (n, 3) m (the straight path of a point stays within the larger
+        of its two ends' distances from where it was listed; ``from_start`` False: x0 was checked already, only x
+        has moved since): nothing if no point strayed, the strayed points' pairs (and those of the points crossed
+        through the mesh) if few did, else the whole list."""
         if self.positions is None:
-            return True
-        far = _largest_spread(x - self.positions)
-        if x0 is not None:
-            far = max(far, _largest_spread(x0 - self.positions))
-        return 2.0 * far + self.thickness > self.margin
+            return self.build(x, x0)
+        if self.whole:
+            far = _largest_spread(x - self.positions)
+            if from_start:
+                far = max(far, _largest_spread(x0 - self.positions))
+            if far <= self.allow:
+                return None
+        moved = ((x - self.positions) ** 2).sum(axis=1) > self.allow ** 2
+        if from_start:
+            moved |= ((x0 - self.positions) ** 2).sum(axis=1) > self.allow ** 2
+        moved |= self.tangled
+        if not moved.any():
+            return None
+        if moved.mean() > PARTIAL_SHARE:
+            return self.build(x, x0)
+        keep = ~(moved[self.points[:, 0]] | moved[self.faces[self.points[:, 1]]].any(axis=1))
+        keep_edges = ~moved[self.edges[self.edge_pairs]].reshape(-1, 4).any(axis=1)
+        points, edge_pairs = _pairs_of_moved(x, x0, self.faces, self.edges, moved, self.margin + self.allow)
+        self.tangled = np.zeros(len(x), dtype=np.bool_)
+        _crossed_in_pairs(x0, self.edges, self.faces, edge_pairs, self.edge_tris, self.tangled)
+        self._keep(np.concatenate([self.points[keep], points]), np.concatenate([self.edge_pairs[keep_edges], edge_pairs]))
+        self.positions[moved] = x[moved]
+        self.whole = False
+        return None
 
     def build(self, x: np.ndarray, x0: np.ndarray) -> None:
-        """The list from the paths x0 -> x (n, 3) m."""
+        """The whole list from the paths x0 -> x (n, 3) m."""
         grid = swept_grid(x, x0, self.faces, self.cell, self.margin)
         args = (grid.lo, grid.cell, grid.shape, grid.cell_start, grid.cell_tris, self.margin)
-        self.points = _collect(_point_pairs, (x, x0, self.faces, *args), len(self.faces))
-        self.edge_pairs = _collect(_edge_pairs, (x, x0, self.edges, self.faces, self.face_edges, *args,
-                                                 np.full(len(self.faces), -1, dtype=np.int64)), len(self.edges))
-        # where the mesh is already crossed through itself no side is right: its pairs are left to the untangling
-        # (held to the sides they happen to be on, a garment aligned with its legs through each other fought to
-        # the step limit). An edge through a triangle passes within the triangle's inradius (1 cm on a mesh of 3 cm
-        # edges) of one of its edges, so the crossings are looked for among the listed edge pairs only.
-        tangled = np.zeros(len(x), dtype=np.bool_)
-        if _crossed_in_pairs(x0, self.edges, self.faces, self.edge_pairs, self.edge_tris, tangled):
-            self.points = self.points[~(tangled[self.points[:, 0]] | tangled[self.faces[self.points[:, 1]]].any(axis=1))]
-            ends = self.edges[self.edge_pairs]  # (q, 2, 2)
-            self.edge_pairs = self.edge_pairs[~tangled[ends.reshape(len(ends), 4)].any(axis=1)]
+        points = _collect(_point_pairs, (x, x0, self.faces, *args), len(self.faces))
+        edge_pairs = _collect(_edge_pairs, (x, x0, self.edges, self.faces, self.face_edges, *args,
+                                            np.full(len(self.faces), -1, dtype=np.int64)), len(self.edges))
+        self.tangled = np.zeros(len(x), dtype=np.bool_)
+        _crossed_in_pairs(x0, self.edges, self.faces, edge_pairs, self.edge_tris, self.tangled)
+        self._keep(points, edge_pairs)
         self.positions = x.copy()
+        self.whole = True
+
+    def _keep(self, points: np.ndarray, edge_pairs: np.ndarray) -> None:
+        """List ``points`` (p, 2) and ``edge_pairs`` (q, 2) int64, but none with a point in ``tangled``: where the mesh
+        is crossed through itself where the step began no side is right, its pairs are left to the untangling (held
+        to the sides they happen to be on, a garment aligned with its legs through each other fought to the step
+        limit). An edge through a triangle passes within the triangle's inradius (1 cm on a mesh of 3 cm edges) of
+        one of its edges, so the crossings are looked for among the listed edge pairs only (``_crossed_in_pairs``)."""
+        if self.tangled.any():
+            points = points[~(self.tangled[points[:, 0]] | self.tangled[self.faces[points[:, 1]]].any(axis=1))]
+            edge_pairs = edge_pairs[~self.tangled[self.edges[edge_pairs]].reshape(-1, 4).any(axis=1)]
+        self.points, self.edge_pairs = points, edge_pairs
 
 
 def _largest_spread(moves: np.ndarray) -> float:

@@ -176,16 +176,14 @@ def keep_sides(contacts: SelfContact, x: np.ndarray, x_prev: np.ndarray, x0: np.
     total = 0
     no_marks = np.zeros(0, dtype=np.bool_)
     crossed = np.zeros(len(x), dtype=np.bool_)
-    if contacts.stale(x, x0):
-        contacts.build(x, x0)
+    contacts.update(x, x0)
     for _ in range(passes):
         pushed = _contact_pass(x, x_prev, x0, w, contacts.faces, contacts.edges, contacts.points,
                                contacts.edge_pairs, float(thickness), no_marks)
         total += pushed
         if pushed == 0:
             return total
-    if contacts.stale(x):  # the passes moved a point out of the list's reach: the check below needs every pair
-        contacts.build(x, x0)
+    contacts.update(x, x0, from_start=False)  # the passes may have moved a point out of the list's reach
     for _ in range(ROLLBACK_ROUNDS):
         if not _contact_pass(x, x_prev, x0, w, contacts.faces, contacts.edges, contacts.points, contacts.edge_pairs,
                              float(thickness), crossed):

@@ -134,6 +134,21 @@ def _point_pairs(x, x0, faces, lo, cell, shape, cell_start, cell_tris, reach, se
 
 
 @njit(cache=True, nogil=True)
+def _add_point_pair(x, x0, faces, reach, i, f, points, count):
+    """(count, points): (i, f) appended to the first ``count`` rows of ``points`` (grown if full) if point i is no
+    corner of triangle f and their paths come within ``reach`` m of each other (``far_from_triangle``)."""
+    if i == faces[f, 0] or i == faces[f, 1] or i == faces[f, 2] or far_from_triangle(i, f, x, x0, faces, reach):
+        return count, points
+    if count == points.shape[0]:
+        grown = np.empty((2 * count, 2), dtype=np.int64)
+        grown[:count] = points
+        points = grown
+    points[count, 0] = i
+    points[count, 1] = f
+    return count + 1, points
+
+
+@njit(cache=True, nogil=True)
 def _pairs_of_moved(x, x0, faces, edges, moved, reach):
     """(points (p, 2), edge pairs (q, 2)) int64: every (point, triangle) and (edge, edge) pair with a point of
     ``moved`` (n,) bool, whose paths from x0 to x come within ``reach`` m of each other (``_point_pairs``,
@@ -149,21 +164,14 @@ def _pairs_of_moved(x, x0, faces, edges, moved, reach):
         tri_moved[f] = moved[faces[f, 0]] or moved[faces[f, 1]] or moved[faces[f, 2]]
     points = np.empty((64, 2), dtype=np.int64)
     count = 0
-    for f in range(n_f):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+    for i in np.flatnonzero(moved):  # a moved point against every triangle
+        for f in range(n_f):
+            if not _boxes_apart(point_box, i, tri_box, f, reach):
+                count, points = _add_point_pair(x, x0, faces, reach, i, f, points, count)
+    for f in np.flatnonzero(tri_moved):  # a triangle with a moved corner against every point that did not move
         for i in range(x.shape[0]):
-            # a moved point against every triangle; a triangle with a moved corner against every point
-            if not (moved[i] or tri_moved[f]) or i == a or i == b or i == c:
-                continue
-            if _boxes_apart(point_box, i, tri_box, f, reach) or far_from_triangle(i, f, x, x0, faces, reach):
-                continue
-            if count == points.shape[0]:
-                grown = np.empty((2 * count, 2), dtype=np.int64)
-                grown[:count] = points
-                points = grown
-            points[count, 0] = i
-            points[count, 1] = f
-            count += 1
+            if not moved[i] and not _boxes_apart(point_box, i, tri_box, f, reach):
+                count, points = _add_point_pair(x, x0, faces, reach, i, f, points, count)
     edge_moved = np.zeros(n_e, dtype=np.bool_)
     for e in range(n_e):
         edge_moved[e] = moved[edges[e, 0]] or moved[edges[e, 1]]
@@ -280,21 +288,23 @@ class SelfContact:
         has moved since): nothing if no point strayed, the strayed points' pairs (and those of the points crossed
         through the mesh) if few did, else the whole list."""
         if self.positions is None:
-            return self.build(x, x0)
+            self.build(x, x0)
+            return
         if self.whole:
             far = _largest_spread(x - self.positions)
             if from_start:
                 far = max(far, _largest_spread(x0 - self.positions))
             if far <= self.allow:
-                return None
+                return
         moved = ((x - self.positions) ** 2).sum(axis=1) > self.allow ** 2
         if from_start:
             moved |= ((x0 - self.positions) ** 2).sum(axis=1) > self.allow ** 2
         moved |= self.tangled
         if not moved.any():
-            return None
+            return
         if moved.mean() > PARTIAL_SHARE:
-            return self.build(x, x0)
+            self.build(x, x0)
+            return
         keep = ~(moved[self.points[:, 0]] | moved[self.faces[self.points[:, 1]]].any(axis=1))
         keep_edges = ~moved[self.edges[self.edge_pairs]].reshape(-1, 4).any(axis=1)
         points, edge_pairs = _pairs_of_moved(x, x0, self.faces, self.edges, moved, self.margin + self.allow)
@@ -303,7 +313,6 @@ class SelfContact:
         self._keep(np.concatenate([self.points[keep], points]), np.concatenate([self.edge_pairs[keep_edges], edge_pairs]))
         self.positions[moved] = x[moved]
         self.whole = False
-        return None
 
     def build(self, x: np.ndarray, x0: np.ndarray) -> None:
         """The whole list from the paths x0 -> x (n, 3) m."""

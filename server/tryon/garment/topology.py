@@ -61,7 +61,13 @@ def edge_faces(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     (f, 3) and the (at most two) triangles on each, -1 where an edge has one (an opening's rim); where three
     triangles meet on an edge (a seam), the first two."""
     edges, ids = face_edge_ids(np.asarray(faces, dtype=np.int64))
-    adjacent = np.full((len(edges), 2), -1, dtype=np.int64)
+    return edges, faces_on_edges(ids, len(edges))
+
+
+def faces_on_edges(ids: np.ndarray, n_edges: int) -> np.ndarray:
+    """(e, 2) int64: the (at most two) triangles on each of ``n_edges`` edges, from each face's edge ids (f, 3)
+    (``face_edge_ids``), -1 where an edge has fewer (``edge_faces``)."""
+    adjacent = np.full((n_edges, 2), -1, dtype=np.int64)
     flat = ids.ravel()
     owner = np.repeat(np.arange(len(ids)), 3)
     order = np.argsort(flat, kind="stable")
@@ -70,4 +76,4 @@ def edge_faces(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     adjacent[flat[first], 0] = owner[first]
     second = np.r_[False, (flat[1:] == flat[:-1]) & first[:-1]]
     adjacent[flat[second], 1] = owner[second]
-    return edges, adjacent
+    return adjacent

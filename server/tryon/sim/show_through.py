@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from tryon.sim.collision.cloth import fill_grid
+from tryon.sim.collision.cloth import fill_grid, tris_in_cells
 from tryon.sim.collision.collider import BodyCollider
 from tryon.sim.metrics import PENETRATION_TOLERANCE
 
@@ -79,27 +79,24 @@ def outermost_crossing(points, normals, t_in, t_out, vertices, faces, lo, cell, 
     (m,) int64, -1 for none."""
     out = np.full(points.shape[0], np.nan)
     tri = np.full(points.shape[0], -1, dtype=np.int64)
+    r = np.empty(6, dtype=np.int64)
+    seen = np.full(faces.shape[0], -1, dtype=np.int64)
+    near = np.empty(faces.shape[0], dtype=np.int64)
     for i in range(points.shape[0]):
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
         dx, dy, dz = normals[i, 0], normals[i, 1], normals[i, 2]
-        lo_c = np.empty(3, dtype=np.int64)
-        hi_c = np.empty(3, dtype=np.int64)
         for a in range(3):
             s0 = points[i, a] - t_in * normals[i, a]
             s1 = points[i, a] + t_out * normals[i, a]
-            lo_c[a] = max(int((min(s0, s1) - lo[a]) / cell), 0)
-            hi_c[a] = min(int((max(s0, s1) - lo[a]) / cell), shape[a] - 1)
+            r[2 * a] = max(int((min(s0, s1) - lo[a]) / cell), 0)
+            r[2 * a + 1] = min(int((max(s0, s1) - lo[a]) / cell), shape[a] - 1)
         best = -np.inf
-        for ix in range(lo_c[0], hi_c[0] + 1):
-            for iy in range(lo_c[1], hi_c[1] + 1):
-                for iz in range(lo_c[2], hi_c[2] + 1):
-                    c = (ix * shape[1] + iy) * shape[2] + iz
-                    for j in range(cell_start[c], cell_start[c + 1]):
-                        f = cell_tris[j]
-                        t = _line_hit(px, py, pz, dx, dy, dz, vertices, faces[f, 0], faces[f, 1], faces[f, 2])[0]
-                        if -t_in <= t <= t_out and t > best:  # NaN (a miss) compares False
-                            best = t
-                            tri[i] = f
+        for m in range(tris_in_cells(r, shape, cell_start, cell_tris, seen, i, near)):
+            f = near[m]
+            t = _line_hit(px, py, pz, dx, dy, dz, vertices, faces[f, 0], faces[f, 1], faces[f, 2])[0]
+            if -t_in <= t <= t_out and t > best:  # NaN (a miss) compares False
+                best = t
+                tri[i] = f
         if best > -np.inf:
             out[i] = best
     return out, tri

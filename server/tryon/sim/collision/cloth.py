@@ -94,6 +94,26 @@ def fill_ranges(r, shape):
     return start, tris
 
 
+@njit(cache=True, nogil=True)
+def tris_in_cells(r, shape, cell_start, cell_tris, seen, stamp, out):
+    """How many triangles the cells of inclusive ranges r (6,) int64 (ix0, ix1, iy0, iy1, iz0, iz1) of a grid of
+    ``shape`` (3,) cells (``fill_grid``'s CSR ``cell_start``, ``cell_tris``) hold, each once: their ids into ``out``
+    (f,) int64. ``seen`` (f,) int64: a triangle already marked with ``stamp`` is passed over; the ones found are
+    marked."""
+    n = 0
+    for ix in range(r[0], r[1] + 1):
+        for iy in range(r[2], r[3] + 1):
+            for iz in range(r[4], r[5] + 1):
+                c = (ix * shape[1] + iy) * shape[2] + iz
+                for q in range(cell_start[c], cell_start[c + 1]):
+                    f = cell_tris[q]
+                    if seen[f] != stamp:
+                        seen[f] = stamp
+                        out[n] = f
+                        n += 1
+    return n
+
+
 def build_tri_grid(vertices: np.ndarray, faces: np.ndarray, cell: float, pad: float) -> TriGrid:
     """A ``TriGrid`` of the triangles ``faces`` (f, 3) int64 over ``vertices`` (m, 3) m, cells of about ``cell``
     m, each triangle in every cell its box grown by ``pad`` m overlaps (a point within ``pad`` of a triangle

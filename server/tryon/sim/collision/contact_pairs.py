@@ -11,9 +11,9 @@ import math
 import numpy as np
 from numba import njit
 
-from tryon.garment.topology import edge_faces
+from tryon.garment.topology import faces_on_edges
 from tryon.sim.collision.ccd import far_from_edge, far_from_triangle, paths_apart
-from tryon.sim.collision.cloth import MAX_CELLS_PER_AXIS, TriGrid, fill_ranges
+from tryon.sim.collision.cloth import MAX_CELLS_PER_AXIS, TriGrid, fill_ranges, tris_in_cells
 from tryon.sim.collision.crossings import crosses
 
 
@@ -54,24 +54,6 @@ def _cells_of(box, row, lo, cell, shape, r):
 
 
 @njit(cache=True, nogil=True)
-def _tris_in_cells(r, shape, cell_start, cell_tris, seen, stamp, out):
-    """How many triangles the cells of ranges r (``_cells_of``) hold, each once: their ids into ``out`` (f,) int64.
-    ``seen`` (f,) int64: a triangle already marked with ``stamp`` is passed over; the ones found are marked."""
-    n = 0
-    for ix in range(r[0], r[1] + 1):
-        for iy in range(r[2], r[3] + 1):
-            for iz in range(r[4], r[5] + 1):
-                c = (ix * shape[1] + iy) * shape[2] + iz
-                for q in range(cell_start[c], cell_start[c + 1]):
-                    f = cell_tris[q]
-                    if seen[f] != stamp:
-                        seen[f] = stamp
-                        out[n] = f
-                        n += 1
-    return n
-
-
-@njit(cache=True, nogil=True)
 def _edge_pairs(x, x0, edges, faces, face_edges, lo, cell, shape, cell_start, cell_tris, reach, seen, seen_edges,
                 out):
     """The pairs of edges (e, k), e < k, sharing no end, whose paths from x0 to x come within ``reach`` m of each
@@ -86,7 +68,7 @@ def _edge_pairs(x, x0, edges, faces, face_edges, lo, cell, shape, cell_start, ce
     for e in range(edges.shape[0]):
         p1, p2 = edges[e, 0], edges[e, 1]
         _cells_of(edge_box, e, lo, cell, shape, r)
-        for m in range(_tris_in_cells(r, shape, cell_start, cell_tris, seen, e, near)):
+        for m in range(tris_in_cells(r, shape, cell_start, cell_tris, seen, e, near)):
             f = near[m]
             if max(face_edges[f, 0], max(face_edges[f, 1], face_edges[f, 2])) <= e or \
                     _boxes_apart(edge_box, e, tri_box, f, reach):
@@ -119,7 +101,7 @@ def _point_pairs(x, x0, faces, lo, cell, shape, cell_start, cell_tris, reach, se
     near = np.empty(faces.shape[0], dtype=np.int64)
     for i in range(x.shape[0]):
         _cells_of(point_box, i, lo, cell, shape, r)
-        for m in range(_tris_in_cells(r, shape, cell_start, cell_tris, seen, i, near)):
+        for m in range(tris_in_cells(r, shape, cell_start, cell_tris, seen, i, near)):
             f = near[m]
             if faces[f, 0] == i or faces[f, 1] == i or faces[f, 2] == i:
                 continue
@@ -134,18 +116,24 @@ def _point_pairs(x, x0, faces, lo, cell, shape, cell_start, cell_tris, reach, se
 
 
 @njit(cache=True, nogil=True)
+def _append(rows, count, a, b):
+    """(count + 1, rows): (a, b) written to row ``count`` of ``rows`` (r, 2) int64, grown twice as long if full."""
+    if count == rows.shape[0]:
+        grown = np.empty((2 * count, 2), dtype=np.int64)
+        grown[:count] = rows
+        rows = grown
+    rows[count, 0] = a
+    rows[count, 1] = b
+    return count + 1, rows
+
+
+@njit(cache=True, nogil=True)
 def _add_point_pair(x, x0, faces, reach, i, f, points, count):
-    """(count, points): (i, f) appended to the first ``count`` rows of ``points`` (grown if full) if point i is no
+    """(count, points): (i, f) appended to the first ``count`` rows of ``points`` (``_append``) if point i is no
     corner of triangle f and their paths come within ``reach`` m of each other (``far_from_triangle``)."""
     if i == faces[f, 0] or i == faces[f, 1] or i == faces[f, 2] or far_from_triangle(i, f, x, x0, faces, reach):
         return count, points
-    if count == points.shape[0]:
-        grown = np.empty((2 * count, 2), dtype=np.int64)
-        grown[:count] = points
-        points = grown
-    points[count, 0] = i
-    points[count, 1] = f
-    return count + 1, points
+    return _append(points, count, i, f)
 
 
 @njit(cache=True, nogil=True)
@@ -188,13 +176,7 @@ def _pairs_of_moved(x, x0, faces, edges, moved, reach):
             if q1 == p1 or q1 == p2 or q2 == p1 or q2 == p2 or _boxes_apart(edge_box, e, edge_box, k, reach) or \
                     far_from_edge(p1, p2, q1, q2, x, x0, reach):
                 continue
-            if n_pairs == pairs.shape[0]:
-                grown = np.empty((2 * n_pairs, 2), dtype=np.int64)
-                grown[:n_pairs] = pairs
-                pairs = grown
-            pairs[n_pairs, 0] = min(e, k)
-            pairs[n_pairs, 1] = max(e, k)
-            n_pairs += 1
+            n_pairs, pairs = _append(pairs, n_pairs, min(e, k), max(e, k))
     return points[:count], pairs[:n_pairs]
 
 
@@ -278,7 +260,7 @@ class SelfContact:
         self.positions = None
         self.whole = False  # the list was made at once, every point's position taken together
         self.tangled = np.zeros(0, dtype=np.bool_)
-        self.edge_tris = edge_faces(faces)[1]  # the (at most two) triangles on each edge, -1 for none
+        self.edge_tris = faces_on_edges(face_edges, len(edges))  # the (at most two) triangles on each edge, -1: none
         self.points = np.zeros((0, 2), dtype=np.int64)
         self.edge_pairs = np.zeros((0, 2), dtype=np.int64)
 

@@ -7,7 +7,7 @@ import numpy as np
 from numba import njit
 
 from tryon.body.measure import mesh_edges
-from tryon.sim.collision.cloth import build_tri_grid, nearest_over
+from tryon.sim.collision.cloth import build_tri_grid, nearest_over, tris_in_cells
 
 
 @njit(cache=True, nogil=True)
@@ -84,34 +84,28 @@ def _find_crossings(x, edges, faces, grid_lo, grid_cell, grid_shape, cell_start,
         plane[f, 3] = nx * x[a, 0] + ny * x[a, 1] + nz * x[a, 2]
     count = 0
     r = np.empty(6, dtype=np.int64)
+    near = np.empty(faces.shape[0], dtype=np.int64)
     for e in range(edges.shape[0]):
         i, j = edges[e, 0], edges[e, 1]
         for a in range(3):
             lo, hi = min(x[i, a], x[j, a]), max(x[i, a], x[j, a])
             r[2 * a] = max(0, min(grid_shape[a] - 1, int((lo - grid_lo[a]) / grid_cell)))
             r[2 * a + 1] = max(0, min(grid_shape[a] - 1, int((hi - grid_lo[a]) / grid_cell)))
-        for ix in range(r[0], r[1] + 1):
-            for iy in range(r[2], r[3] + 1):
-                for iz in range(r[4], r[5] + 1):
-                    c = (ix * grid_shape[1] + iy) * grid_shape[2] + iz
-                    for q in range(cell_start[c], cell_start[c + 1]):
-                        f = cell_tris[q]
-                        if seen[f] == e:
-                            continue
-                        seen[f] = e
-                        a, b, cc = faces[f, 0], faces[f, 1], faces[f, 2]
-                        if i == a or i == b or i == cc or j == a or j == b or j == cc:
-                            continue
-                        si = plane[f, 0] * x[i, 0] + plane[f, 1] * x[i, 1] + plane[f, 2] * x[i, 2] - plane[f, 3]
-                        sj = plane[f, 0] * x[j, 0] + plane[f, 1] * x[j, 1] + plane[f, 2] * x[j, 2] - plane[f, 3]
-                        if si * sj >= 0.0:
-                            continue
-                        if crosses((x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2], x[a, 0], x[a, 1],
-                                     x[a, 2], x[b, 0], x[b, 1], x[b, 2], x[cc, 0], x[cc, 1], x[cc, 2])):
-                            if count < hits.shape[0]:
-                                hits[count, 0] = e
-                                hits[count, 1] = f
-                            count += 1
+        for m in range(tris_in_cells(r, grid_shape, cell_start, cell_tris, seen, e, near)):
+            f = near[m]
+            a, b, cc = faces[f, 0], faces[f, 1], faces[f, 2]
+            if i == a or i == b or i == cc or j == a or j == b or j == cc:
+                continue
+            si = plane[f, 0] * x[i, 0] + plane[f, 1] * x[i, 1] + plane[f, 2] * x[i, 2] - plane[f, 3]
+            sj = plane[f, 0] * x[j, 0] + plane[f, 1] * x[j, 1] + plane[f, 2] * x[j, 2] - plane[f, 3]
+            if si * sj >= 0.0:
+                continue
+            if crosses((x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2], x[a, 0], x[a, 1], x[a, 2],
+                        x[b, 0], x[b, 1], x[b, 2], x[cc, 0], x[cc, 1], x[cc, 2])):
+                if count < hits.shape[0]:
+                    hits[count, 0] = e
+                    hits[count, 1] = f
+                count += 1
     return count
 
 

@@ -553,3 +553,21 @@ def test_no_shown_frame_has_trousers_pinched_into_a_thigh(catalogue, filename):
     assert d.startup < first <= d.startup + d.tuning.unseen_pinch_steps + 1
     assert [s for s, _ in frames] == list(range(first, result.metrics["steps"] + 1))
     assert max(depth for _, depth in frames) <= 0.002 + 1e-9, max(frames, key=lambda f: f[1])
+
+
+def test_a_tangled_start_grows_only_the_legs_the_garment_starts_inside(catalogue):
+    """Trousers S on a 158 cm body start inside the torso and thighs, not the shins: the shins (with the feet)
+    keep their full size while the trunk and thighs grow. Grown from the shin's axis, a foot lengthened forward through the
+    hem lying on the floor before it, and the shown mesh pushed out round the toes stretched to 0.32."""
+    from tryon.sim.run import settle
+    from tryon.sim.start import start
+
+    small = build_body(Measurements(height=158, chest=86, waist=72, hips=92), Pose())
+    d = start(small, _model(catalogue, "trousers-s.obj", "bottom"), SimSettings())
+    grows = {small.parts[k] for k in np.flatnonzero(d.collider.growing)}
+    assert d.grow_steps and {"torso", "thigh_l", "thigh_r"} <= grows
+    assert not grows & {"shin_l", "shin_r"}
+    shins = np.isin(d.collider.vertex_part, [small.parts.index("shin_l"), small.parts.index("shin_r")])
+    assert np.allclose(d.collider.vertices[shins], small.vertices[shins], rtol=0, atol=1e-12)  # full size; the torso half
+    result = settle(d)[0]
+    assert result.metrics["display_max_strain"] <= 0.16

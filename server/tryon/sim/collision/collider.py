@@ -46,6 +46,8 @@ class BodyCollider:
         self.plain_boxes = np.empty((len(self.faces), 4))
         self.plain_normals = np.empty((len(self.faces), 3))
         self.scale = 1.0
+        # the parts the growth scales (``set_growing``); the others keep their full size throughout
+        self.growing = np.ones(len(self.cyl_shape), dtype=np.bool_)
         self._pose_vertices = self.rest_vertices
         self._pose_normals = self.rest_normals
         # the body's shape, counted up by every change (``update``), and the shape the real (un-offset)
@@ -75,6 +77,10 @@ class BodyCollider:
         self.cell_base = np.ascontiguousarray(m.cell_base, dtype=np.int64)
         self.cell_start = np.ascontiguousarray(m.cell_start, dtype=np.int64)
         self.cell_faces = np.ascontiguousarray(m.cell_faces, dtype=np.int64)
+        # each cell's part (a part's cells are the shape[k, 0] x shape[k, 1] from cell_base[k])
+        self.cell_part = np.empty(len(self.cell_start) - 1, dtype=np.int64)
+        for k, (rows, cols) in enumerate(self.cyl_shape):
+            self.cell_part[self.cell_base[k]:self.cell_base[k] + rows * cols] = k
         self.rest_rmax = np.empty(len(self.cell_start) - 1)
         self.cell_rmax = np.empty(len(self.cell_start) - 1)
         self.plain_rmax = np.empty(len(self.cell_start) - 1)
@@ -122,22 +128,30 @@ class BodyCollider:
     def update(self) -> None:
         """Recompute the offset surface from the current posed vertices and the growth scale."""
         self.shape += 1
+        part_scale = np.where(self.growing, self.scale, 1.0)
         if self.scale != 1.0:
-            grow_vertices(self._pose_vertices, self.vertex_part, self.cyl_origin, self.cyl_axes, self.scale,
+            grow_vertices(self._pose_vertices, self.vertex_part, self.cyl_origin, self.cyl_axes, part_scale,
                           self.vertices)
         else:
             self.vertices[:] = self._pose_vertices
         offset_body(self.vertices, self._pose_normals, self.faces, self.margin, self.offset, self.offset_normals)
         face_boxes(self.offset, self.faces, self.face_part, self.vertex_part, self.cyl_origin, self.cyl_axes,
                    self.corners, self.offset_boxes)
-        # Cell radii: growth scales every vertex's distance to its axis by ``scale`` and the offset adds at
-        # most ``margin``, and turning a part rigidly keeps its local radii, so the rest body's radii
+        # Cell radii: growth scales every vertex's distance to its axis by its part's scale and the offset adds
+        # at most ``margin``, and turning a part rigidly keeps its local radii, so the rest body's radii
         # bound them (computed once; the exact kernel over all (face, cell) pairs costs a few ms a call)
-        np.multiply(self.rest_rmax, self.scale, out=self.cell_rmax)
+        np.multiply(self.rest_rmax, part_scale[self.cell_part], out=self.cell_rmax)
         self.cell_rmax += self.margin
 
+    def set_growing(self, parts: np.ndarray) -> None:
+        """Only the body parts ``parts`` (int64 indices) are scaled by the growth (``set_scale``); the others keep
+        their full size. Takes effect at the next ``update``."""
+        self.growing[:] = False
+        self.growing[np.asarray(parts, dtype=np.int64)] = True
+
     def set_scale(self, scale: float, refresh: bool = True) -> None:
-        """Radial scale of every part about its axis (growth phase), 0 < scale <= 1. ``refresh=False`` leaves
+        """Radial scale of the growing parts (``set_growing``; every part unless told) about their axes (growth
+        phase), 0 < scale <= 1. ``refresh=False`` leaves
         the offset surface to the caller's next change (``pose_arms``), which recomputes it anyway."""
         self.scale = float(scale)
         if refresh:

@@ -113,13 +113,15 @@ def offset_body(vertices, vertex_normals, faces, margin, out_vertices, out_norma
 
 
 @njit(cache=True, nogil=True)
-def grow_vertices(vertices, vertex_part, origin, axes, scale, out):
-    """Body vertices with each part's distance to its axis scaled by ``scale`` (the growth phase).
+def grow_vertices(vertices, vertex_part, origin, axes, part_scale, out):
+    """Body vertices with each part k's distance to its axis scaled by ``part_scale[k]`` (the growth phase;
+    ``part_scale`` (P,)).
 
     The cylinder maps stay valid: theta and z of every vertex are unchanged, only r shrinks.
     """
     for i in range(vertices.shape[0]):
         k = vertex_part[i]
+        scale = part_scale[k]
         dx = vertices[i, 0] - origin[k, 0]
         dy = vertices[i, 1] - origin[k, 1]
         dz = vertices[i, 2] - origin[k, 2]

@@ -92,8 +92,6 @@ GIRTHS = {"chest": "torso", "waist": "torso", "hips": "torso", "neck": "head", "
 
 # The arms' parts (their names start so): raised above the head they are not part of the stature.
 ARM_PARTS = ("upper_arm", "forearm")
-# The legs' parts (their names start so).
-LEG_PARTS = ("thigh", "shin")
 
 
 @dataclass(frozen=True)

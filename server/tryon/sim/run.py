@@ -38,10 +38,10 @@ Start-up, for garments that begin tangled with the body (sleeves at another angl
 garment modelled on another body):
 - the arms are posed along the sleeves (``plan_arms``) and turned back to their real pose over the first
   steps (``arms.ArmSchedule``), carrying the sleeves with them, instead of cutting through them;
-- if any garment point is still inside the body, the parts it is inside grow from ``grow_from`` of their
-  radius to full size over ``grow_steps`` steps (each scaled toward its axis; Houdini Vellum Drape does the
-  same), pushing the cloth out the way it came in rather than teleporting points through the body; the
-  other parts keep their full size (``start.growing_parts``);
+- if any garment point is still inside the body, the body grows from ``grow_from`` of its radius to full
+  size over ``grow_steps`` steps (each part scaled toward its axis; Houdini Vellum Drape does the same),
+  pushing the cloth out the way it came in rather than teleporting points through the body; a part that
+  reaches far from its axis (a foot from the shin's) keeps its full size (``start.growing_parts``);
 - during these start-up steps gravity is off: a garment held by shoulders or hips would otherwise slide
   down a body that is not yet its full size. It falls into place once the body is complete;
 - the paper instead pushes such points out and pins them; pinning them for good would hold the garment

@@ -44,8 +44,8 @@ class SimSettings:
         garment no longer visibly moves, the solver's small jitter aside.
     rest_steps: consecutive steps under ``rest_energy`` needed to call the garment at rest.
     min_steps: steps always simulated (the growth phase plus a settling margin).
-    grow_steps: steps over which the body parts the aligned garment starts inside grow from ``grow_from`` of
-        their radius to full size (0 disables growing; ``start.growing_parts``).
+    grow_steps: steps over which the body grows from ``grow_from`` of its radius to full size when the
+        aligned garment starts tangled with it (0 disables growing; ``start.growing_parts``: which parts).
         These three count steps of ``REFERENCE_STEP`` (0.02 s): at another time step the drape takes as many
         of its own as make the same simulated time (``steps_of``).
     grow_from: initial radial scale of the growing body parts (0..1).

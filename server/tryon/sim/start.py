@@ -3,9 +3,9 @@
 ``start`` aligns the garment (or takes given positions), sizes it when its units were guessed, packs its
 springs (a bottom's waistband at the band limit), builds the body collider and the arms' turn back from the
 sleeves' pose, picks the body parts the garment can reach, and decides how a garment that starts inside the
-body gets out: the parts it starts inside grow from ``settings.grow_from`` of their radius (gravity off
-meanwhile), or, with growth off, the points are pushed out and pinned for ``tuning.pin_steps`` steps. See
-``run.py``'s doc.
+body gets out: the body grows from ``settings.grow_from`` of its radius (gravity off meanwhile; not the parts
+that reach far from their axis, ``growing_parts``), or, with growth off, the points are pushed out and pinned
+for ``tuning.pin_steps`` steps. See ``run.py``'s doc.
 """
 
 from __future__ import annotations
@@ -14,7 +14,6 @@ import time
 
 import numpy as np
 
-from tryon.body.build import LEG_PARTS
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.garment.springs import STRUCTURAL
@@ -90,11 +89,10 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         parts = np.union1d(parts, turned).astype(np.int64)
 
     # a tangled start: grow the body, or (growth off) push out and pin for a few steps
-    inside = collider.depth(x, parts, offset=True) > 0
-    tangled = bool(inside.any())
+    tangled = bool((collider.depth(x, parts, offset=True) > 0).any())
     grow_steps = settings.steps_of(settings.grow_steps) if tangled else 0
     if grow_steps:
-        collider.set_growing(growing_parts(collider, x[inside], parts, body))
+        collider.set_growing(growing_parts(collider, parts, tuning.grow_reach))
         collider.set_scale(settings.grow_from)
     state = DrapeState.at(x, inv_mass)
     pinned_until, saved_inv_mass = 0, None
@@ -123,13 +121,9 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
                  saved_inv_mass=saved_inv_mass, sized=sized, state=state, started=started, moving=motion is not None)
 
 
-def growing_parts(collider: BodyCollider, inside: np.ndarray, parts: np.ndarray, body: Body) -> np.ndarray:
-    """The body parts a tangled start grows (int64 indices): the trunk and arms of ``parts``, and the legs the
-    garment's points ``inside`` (q, 3) m start in. A leg the garment starts outside keeps its full size: grown
-    from the shin's axis, a foot lengthens forward through a trouser hem or a skirt lying on the floor before it
-    (the coarse points pushed aside, the triangles between them pierced; the shown mesh pushed out round the
-    toes stretched to 0.32 and 0.97 on the 158 cm body's trousers S and XXL). The trunk and arms grow whole:
-    the sleeves' plan starts the arms thin (``plan_arms``), and a top is put on over a trunk grown as one."""
-    out = [k for k in parts if not body.parts[k].startswith(LEG_PARTS)
-           or (collider.depth(inside, np.array([k], dtype=np.int64), offset=True) > 0).any()]
-    return np.array(out, dtype=np.int64)
+def growing_parts(collider: BodyCollider, parts: np.ndarray, reach: float) -> np.ndarray:
+    """The body parts of ``parts`` a tangled start grows (int64 indices): those whose vertices are at most
+    ``reach`` times their median distance from the part's axis (``Tuning.grow_reach``; a foot, far from the
+    shin's axis, is not grown)."""
+    ratio = collider.reach_ratio()
+    return np.array([k for k in parts if ratio[k] <= reach], dtype=np.int64)

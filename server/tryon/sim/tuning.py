@@ -24,6 +24,14 @@ class Tuning:
         (the garment can fall or slide a little; a part further than this cannot be reached before rest).
         A cloth dropped from high above a collider (the bench's ball scene) needs more.
     pin_steps: steps for which points pushed out at alignment stay pinned when growth is off.
+    grow_reach: ratio. A tangled start grows only the body parts that reach at most this many times their
+        median radius from their axis (``start.growing_parts``): a part grown from its axis sweeps its far
+        reaches through the cloth around it, and a foot, 4 times the shin's median radius from the shin's axis
+        (the head and every other part 2 at most), lengthened forward through the trouser hem or the skirt lying
+        on the floor before it (the coarse points pushed aside, the triangles between them pierced: the shown
+        mesh pushed out round the toes stretched 0.32-1.8 on the 158 cm body's trousers S, L and XXL). Cloth
+        that starts in a part not grown is pushed out to its nearest surface (outward, for a leg wrapped round
+        a calf or a hem in an instep).
     min_polish_rounds, max_polish_rounds, polish_stall_rounds, polish_progress: the relaxation after the
         loop runs at least MIN rounds (one step's substeps each), then until every spring meets the strain
         target (``metrics.allowed_length``), at most MAX, and gives up when the count of springs over the
@@ -121,6 +129,7 @@ class Tuning:
     rest_move: float = 1e-4
     part_reach: float = 0.15
     pin_steps: int = 5
+    grow_reach: float = 2.5
     min_polish_rounds: int = 3
     max_polish_rounds: int = 300
     polish_stall_rounds: int = 30

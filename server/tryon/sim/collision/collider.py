@@ -143,6 +143,20 @@ class BodyCollider:
         np.multiply(self.rest_rmax, part_scale[self.cell_part], out=self.cell_rmax)
         self.cell_rmax += self.margin
 
+    def reach_ratio(self) -> np.ndarray:
+        """(P,) each part's farthest vertex from its axis over its median vertex's distance, in the rest shape
+        (a foot's toes from the shin's axis: 4; the head and the other parts: 2 at most)."""
+        k = self.vertex_part
+        offset = self.rest_vertices - self.rest_frames["cyl_origin"][k]
+        along = self.rest_frames["cyl_axes"][k, 2]
+        radius = np.linalg.norm(offset - np.sum(offset * along, axis=1)[:, None] * along, axis=1)
+        out = np.ones(len(self.cyl_shape))
+        for p in range(len(out)):
+            r = radius[k == p]
+            if r.size and np.median(r) > 0:
+                out[p] = r.max() / np.median(r)
+        return out
+
     def set_growing(self, parts: np.ndarray) -> None:
         """Only the body parts ``parts`` (int64 indices) are scaled by the growth (``set_scale``); the others keep
         their full size. Takes effect at the next ``update``."""

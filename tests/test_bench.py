@@ -232,12 +232,15 @@ def test_the_equal_quality_search_takes_fewer_steps_a_frame_where_they_meet_the_
 
     def run(settings, steps):
         runs.append((steps, settings.substeps, settings.projection_steps))
-        return ball_row(0.16, 13.0)
+        # fewer substeps stretch more: 12 still meets the target, 9 does not
+        return ball_row(0.16 if settings.substeps >= 12 else 0.2, 13.0 * settings.substeps / 16)
 
     out = at_equal_quality(100, ball_row(0.26, 26.0), target, run, steps=2)
-    assert runs == [(1, 16, 4)]
-    assert out["met"] and out["steps_per_frame"] == 1 and out["projection_steps"] == 4
-    assert out["speedup"] == pytest.approx(2.0)
+    # one step a frame at the default substeps meets it; then 3/4 of the substeps while they do (the dearer
+    # settings are never run)
+    assert runs == [(1, 16, 4), (1, 12, 4), (1, 9, 4)]
+    assert out["met"] and out["steps_per_frame"] == 1 and out["projection_steps"] == 4 and out["substeps"] == 12
+    assert out["speedup"] == pytest.approx(26.0 / 9.75)
 
 
 def test_bad_out_or_section_is_refused_before_running(tmp_path, capsys):

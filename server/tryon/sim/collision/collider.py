@@ -165,8 +165,8 @@ class BodyCollider:
 
     def set_scale(self, scale: float, refresh: bool = True) -> None:
         """Radial scale of the growing parts (``set_growing``; every part unless told) about their axes (growth
-        phase), 0 < scale <= 1. ``refresh=False`` leaves
-        the offset surface to the caller's next change (``pose_arms``), which recomputes it anyway."""
+        phase), 0 < scale <= 1. ``refresh=False`` leaves the offset surface to the caller's next change
+        (``pose_arms``), which recomputes it anyway."""
         self.scale = float(scale)
         if refresh:
             self.update()

@@ -114,14 +114,20 @@ def tris_in_cells(r, shape, cell_start, cell_tris, seen, stamp, out):
     return n
 
 
+def grid_frame(lo: np.ndarray, hi: np.ndarray, cell: float, pad: float) -> tuple[np.ndarray, float, np.ndarray]:
+    """(origin (3,) m, cell size m, shape (3,) int64) of a grid over the box ``lo``-``hi`` (3,) m grown by ``pad`` m,
+    cells of about ``cell`` m, at most ``MAX_CELLS_PER_AXIS`` along any axis."""
+    origin = lo - pad
+    extent = hi + pad - origin
+    size = max(float(cell), float(extent.max()) / MAX_CELLS_PER_AXIS)
+    return origin, size, np.maximum(1, np.ceil(extent / size)).astype(np.int64)
+
+
 def build_tri_grid(vertices: np.ndarray, faces: np.ndarray, cell: float, pad: float) -> TriGrid:
     """A ``TriGrid`` of the triangles ``faces`` (f, 3) int64 over ``vertices`` (m, 3) m, cells of about ``cell``
     m, each triangle in every cell its box grown by ``pad`` m overlaps (a point within ``pad`` of a triangle
     finds it in its own cell)."""
-    lo = vertices.min(axis=0) - pad
-    extent = vertices.max(axis=0) + pad - lo
-    size = max(float(cell), float(extent.max()) / MAX_CELLS_PER_AXIS)
-    shape = np.maximum(1, np.ceil(extent / size)).astype(np.int64)
+    lo, size, shape = grid_frame(vertices.min(axis=0), vertices.max(axis=0), cell, pad)
     start, tris = fill_grid(vertices, faces, lo, size, shape, float(pad))
     return TriGrid(lo, size, shape, start, tris)
 

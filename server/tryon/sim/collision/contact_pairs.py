@@ -13,7 +13,7 @@ from numba import njit
 
 from tryon.garment.topology import faces_on_edges
 from tryon.sim.collision.ccd import far_from_edge, far_from_triangle, paths_apart
-from tryon.sim.collision.cloth import MAX_CELLS_PER_AXIS, TriGrid, fill_ranges, tris_in_cells
+from tryon.sim.collision.cloth import TriGrid, fill_ranges, grid_frame, tris_in_cells
 from tryon.sim.collision.crossings import crosses
 
 
@@ -225,10 +225,8 @@ def _swept_cells(x, x0, faces, lo, cell, shape, pad):
 def swept_grid(x: np.ndarray, x0: np.ndarray, faces: np.ndarray, cell: float, pad: float) -> TriGrid:
     """A ``TriGrid`` of the triangles ``faces`` (f, 3) int64 by the boxes they sweep from x0 (n, 3) m to x (n, 3) m,
     grown by ``pad`` m: a point whose path's box lies in a cell finds there every triangle it can meet."""
-    lo = np.minimum(x.min(axis=0), x0.min(axis=0)) - pad
-    extent = np.maximum(x.max(axis=0), x0.max(axis=0)) + pad - lo
-    size = max(float(cell), float(extent.max()) / MAX_CELLS_PER_AXIS)
-    shape = np.maximum(1, np.ceil(extent / size)).astype(np.int64)
+    lo, size, shape = grid_frame(np.minimum(x.min(axis=0), x0.min(axis=0)), np.maximum(x.max(axis=0), x0.max(axis=0)),
+                                 cell, pad)
     start, tris = fill_ranges(_swept_cells(x, x0, faces, lo, size, shape, float(pad)), shape)
     return TriGrid(lo, size, shape, start, tris)
 
@@ -287,12 +285,11 @@ class SelfContact:
         if moved.mean() > PARTIAL_SHARE:
             self.build(x, x0)
             return
-        keep = ~(moved[self.points[:, 0]] | moved[self.faces[self.points[:, 1]]].any(axis=1))
-        keep_edges = ~moved[self.edges[self.edge_pairs]].reshape(-1, 4).any(axis=1)
+        kept_points, kept_edges = self._without(self.points, self.edge_pairs, moved)
         points, edge_pairs = _pairs_of_moved(x, x0, self.faces, self.edges, moved, self.margin + self.allow)
         self.tangled = np.zeros(len(x), dtype=np.bool_)
         _crossed_in_pairs(x0, self.edges, self.faces, edge_pairs, self.edge_tris, self.tangled)
-        self._keep(np.concatenate([self.points[keep], points]), np.concatenate([self.edge_pairs[keep_edges], edge_pairs]))
+        self._keep(np.concatenate([kept_points, points]), np.concatenate([kept_edges, edge_pairs]))
         self.positions[moved] = x[moved]
         self.whole = False
 
@@ -316,9 +313,14 @@ class SelfContact:
         limit). An edge through a triangle passes within the triangle's inradius (1 cm on a mesh of 3 cm edges) of
         one of its edges, so the crossings are looked for among the listed edge pairs only (``_crossed_in_pairs``)."""
         if self.tangled.any():
-            points = points[~(self.tangled[points[:, 0]] | self.tangled[self.faces[points[:, 1]]].any(axis=1))]
-            edge_pairs = edge_pairs[~self.tangled[self.edges[edge_pairs]].reshape(-1, 4).any(axis=1)]
+            points, edge_pairs = self._without(points, edge_pairs, self.tangled)
         self.points, self.edge_pairs = points, edge_pairs
+
+    def _without(self, points: np.ndarray, edge_pairs: np.ndarray, marked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``points`` (p, 2) and ``edge_pairs`` (q, 2) int64 without the pairs that have a point ``marked`` (n,) bool
+        (the point, a corner of its triangle, an end of either edge)."""
+        points = points[~(marked[points[:, 0]] | marked[self.faces[points[:, 1]]].any(axis=1))]
+        return points, edge_pairs[~marked[self.edges[edge_pairs]].reshape(-1, 4).any(axis=1)]
 
 
 def _largest_spread(moves: np.ndarray) -> float:

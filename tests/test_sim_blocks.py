@@ -230,3 +230,60 @@ def test_the_depth_on_two_threads_equals_one_call_over_all_points():
     inside = expected > 0.002
     assert inside.sum() > 500 and np.abs(one[inside] - expected[inside]).max() < 0.002
     assert np.all(one[expected < -0.002] == 0.0)
+
+
+def test_the_points_kernels_on_two_threads_equal_one_call():
+    """``verlet_split``, ``project_split`` and ``friction_split`` with ``two``: half the points (or half the
+    listed ones) a thread, each writing its own rows: the positions, pushes and friction of one call over all
+    (an odd count, so the halves differ in size)."""
+    from tryon.sim.collision.contacts import friction_split, project_split
+    from tryon.sim.integrate import verlet_split
+
+    rng = np.random.default_rng(13)
+    k = 3001
+    x0 = rng.normal(size=(k, 3))
+    xp0 = x0 + rng.normal(scale=0.01, size=(k, 3))
+    w = rng.uniform(0.0, 2.0, k)
+    w[::7] = 0.0  # pinned points
+    listed = np.flatnonzero(rng.random(k) < 0.6)
+    normal = rng.normal(size=(k, 3))
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    point = x0 + normal * rng.uniform(-0.02, 0.02, (k, 1))  # some points behind their plane, some in front
+    outs = []
+    for two in (False, True):
+        x, xp, push = x0.copy(), xp0.copy(), np.zeros(k)
+        verlet_split(x, xp, w, 0.01, 9.81, 1.0, 10.0, two)
+        project_split(x, xp, listed, point, normal, 0.6, 0.4, None, two)
+        project_split(x, xp, listed, point, normal, 0.0, 0.0, push, two)
+        pushed = push.copy()
+        friction_split(x, xp, listed, normal, push, 0.6, 0.4, two)
+        outs.append((x, xp, pushed, push))
+    assert (outs[0][2] > 0).sum() > 100  # the planes pushed many points
+    for a, b in zip(outs[0], outs[1]):
+        assert np.array_equal(a, b)
+
+
+def test_the_projections_active_set_on_two_threads_is_that_of_one_scan():
+    """The fast projection's scan for the springs over their limits (``projection._active``) on two blocks at once:
+    the same springs, in the same order, with the same directions and excesses as one scan over all; and a
+    projection with the blocks lands where one without them does."""
+    from tryon.sim.projection import _active, project_stretch
+
+    model, ends, table, blocks = _packed(40)
+    assert blocks[2] == int(parallel_ok())
+    rng = np.random.default_rng(14)
+    x0 = model.coarse_vertices * 1.08 + rng.normal(scale=0.002, size=model.coarse_vertices.shape)  # stretched
+    w = np.ones(len(x0))
+    free_along = np.zeros(len(x0), dtype=np.bool_)
+    normals = np.tile([0.0, 1.0, 0.0], (len(x0), 1))
+    found = []
+    for b in (np.zeros(3, np.int64), np.array([blocks[0], blocks[1], 1])):
+        act, dirs, c, diag = np.empty(len(ends), np.int64), np.empty((len(ends), 3)), np.empty(len(ends)), \
+            np.empty(len(ends))
+        m, left = _active(x0, w, ends, table, free_along, normals, act, dirs, c, diag, b)
+        x = x0.copy()
+        project_stretch(x, w, ends, table, free_along, normals, 4, b)
+        found.append((m, left, act[:m], dirs[:m], c[:m], diag[:m], x))
+    assert found[0][0] > 1000  # most springs start over their limit
+    for a, b in zip(found[0], found[1]):
+        assert np.array_equal(a, b)

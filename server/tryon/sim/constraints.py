@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from tryon.sim.collision.contacts import project_listed
+from tryon.sim.collision.contacts import project_listed, project_split
 
 
 @njit(cache=True, nogil=True, fastmath=True)
@@ -296,10 +296,10 @@ def solve_listed(x, x_prev, inv_mass, ends, table, passes, listed, plane_point, 
                  mu_kinetic, push, relax=1.0, blocks=ONE_BLOCK):
     """``solve_constraints`` with the contact planes of the points ``listed`` (q,) int64 (those with a
     plane, increasing): the same result, the projections visiting only the points in contact. ``blocks``:
-    the springs' blocks (``_blocked_pass``)."""
+    the springs' blocks (``_blocked_pass``; where they may run on two threads, so do the projections)."""
     for sweep in range(passes):
         _blocked_pass(x, inv_mass, ends, table, blocks, sweep % 2 == 1, relax)
-        project_listed(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_kinetic, push)
+        project_split(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_kinetic, push, blocks[2] != 0)
 
 
 @njit(cache=True, nogil=True, fastmath=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True, nogil=True, fastmath=True)
@@ -56,6 +56,28 @@ def kinetic_energy_per_kg(x, x_prev, mass, dt):
     if m <= 0.0:
         return 0.0
     return 0.5 * e / (m * dt * dt)
+
+
+@njit(cache=True, nogil=True, parallel=True, fastmath=True)
+def _verlet_halves(x, x_prev, inv_mass, dt, gravity, air_drag, max_speed):
+    """``verlet_step`` (same arguments) on two threads, half the points each. No races: a point's step reads
+    and writes only its own rows; the result is that of one call over all."""
+    k = x.shape[0]
+    half = k // 2
+    for t in prange(2):
+        lo = 0 if t == 0 else half
+        hi = half if t == 0 else k
+        verlet_step(x[lo:hi], x_prev[lo:hi], inv_mass[lo:hi], dt, gravity, air_drag, max_speed)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def verlet_split(x, x_prev, inv_mass, dt, gravity, air_drag, max_speed, two):
+    """``verlet_step``, on two threads if ``two`` (a garment whose springs run in two blocks,
+    ``blocks.split_springs``), else on the calling thread."""
+    if two:
+        _verlet_halves(x, x_prev, inv_mass, dt, gravity, air_drag, max_speed)
+    else:
+        verlet_step(x, x_prev, inv_mass, dt, gravity, air_drag, max_speed)
 
 
 @njit(cache=True, nogil=True, fastmath=True)

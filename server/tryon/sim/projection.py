@@ -31,7 +31,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
+
+from tryon.sim.constraints import ONE_BLOCK
 
 # Relative slack of the active set: a spring joins when longer than l_max (1 + ACTIVE_SLACK), so one left at
 # its limit by rounding is not solved again.
@@ -99,13 +101,13 @@ def _apply(m, act, ends, dirs, w, free_along, plane_normal, diag, p, acc, out):
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def _active(x, w, ends, table, free_along, plane_normal, act, dirs, c, diag):
-    """Fill the active set (springs over l_max (1 + ACTIVE_SLACK) that can move along their length): their
-    indices, unit directions (i - j), violations (m) and system diagonals. Returns (how many, how many of
-    them are past l_max (1 + TOLERANCE))."""
-    m = 0
+def _active_range(x, w, ends, table, free_along, plane_normal, lo, hi, act, dirs, c, diag, at):
+    """Fill the active set of the springs [lo, hi) (those over l_max (1 + ACTIVE_SLACK) that can move along
+    their length) from entry ``at`` on: their indices, unit directions (i - j), violations (m) and system
+    diagonals. Returns (the entry after the last filled, how many of them are past l_max (1 + TOLERANCE))."""
+    m = at
     left = 0
-    for s in range(ends.shape[0]):
+    for s in range(lo, hi):
         i = ends[s, 0]
         j = ends[s, 1]
         dx = x[i, 0] - x[j, 0]
@@ -136,8 +138,47 @@ def _active(x, w, ends, table, free_along, plane_normal, act, dirs, c, diag):
     return m, left
 
 
+@njit(cache=True, nogil=True, parallel=True, fastmath=True)
+def _active_halves(x, w, ends, table, free_along, plane_normal, blocks, act, dirs, c, diag):
+    """``_active`` over springs in two blocks (``blocks.split_springs``: [A | B | boundary], ``blocks`` (3,)
+    int64): A's and B's active springs found on two threads, B's then moved up behind A's, then the
+    boundary's. No races: each thread reads the positions only and writes the entries of its own block's
+    range of act, dirs, c and diag; the set, in order, is that of one scan over all."""
+    na = blocks[0]
+    m_ab = na + blocks[1]
+    end = np.zeros(2, dtype=np.int64)
+    left = np.zeros(2, dtype=np.int64)
+    for t in prange(2):
+        lo = 0 if t == 0 else na
+        hi = na if t == 0 else m_ab
+        end[t], left[t] = _active_range(x, w, ends, table, free_along, plane_normal, lo, hi, act, dirs, c, diag,
+                                        lo)
+    m = end[0]
+    for a in range(na, end[1]):
+        act[m] = act[a]
+        dirs[m, 0] = dirs[a, 0]
+        dirs[m, 1] = dirs[a, 1]
+        dirs[m, 2] = dirs[a, 2]
+        c[m] = c[a]
+        diag[m] = diag[a]
+        m += 1
+    m, last = _active_range(x, w, ends, table, free_along, plane_normal, m_ab, ends.shape[0], act, dirs, c, diag,
+                            m)
+    return m, left[0] + left[1] + last
+
+
 @njit(cache=True, nogil=True, fastmath=True)
-def project_stretch(x, w, ends, table, free_along, plane_normal, newton_steps):
+def _active(x, w, ends, table, free_along, plane_normal, act, dirs, c, diag, blocks):
+    """Fill the active set (springs over l_max (1 + ACTIVE_SLACK) that can move along their length): their
+    indices, unit directions (i - j), violations (m) and system diagonals; on two threads where ``blocks``
+    allows (``_active_halves``). Returns (how many, how many of them are past l_max (1 + TOLERANCE))."""
+    if blocks[2]:
+        return _active_halves(x, w, ends, table, free_along, plane_normal, blocks, act, dirs, c, diag)
+    return _active_range(x, w, ends, table, free_along, plane_normal, 0, ends.shape[0], act, dirs, c, diag, 0)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def project_stretch(x, w, ends, table, free_along, plane_normal, newton_steps, blocks=ONE_BLOCK):
     """Bring the springs over their limits back towards them, in place: up to ``newton_steps`` Newton steps,
     each of up to CG_STEPS conjugate-gradient iterations, stopping once every spring that can move is within
     TOLERANCE of its limit; a step that leaves the largest excess larger is halved or undone. Returns how many
@@ -145,7 +186,9 @@ def project_stretch(x, w, ends, table, free_along, plane_normal, newton_steps):
 
     x (k, 3) m; w (k,) 1/kg the inverse masses of the split (0: the point does not move); ends (s, 2) uint32
     and table (s, 5) the packed springs (``constraints.pack_springs``: l_max m in column 0); free_along (k,)
-    bool: the points that move along their contact plane only (unit normals plane_normal (k, 3))."""
+    bool: the points that move along their contact plane only (unit normals plane_normal (k, 3)); blocks (3,)
+    int64: the springs' blocks (``blocks.split_springs``; where they may run on two threads, the scans for
+    the springs over their limits do)."""
     n_s = ends.shape[0]
     act = np.empty(n_s, dtype=np.int64)
     dirs = np.empty((n_s, 3))
@@ -158,7 +201,7 @@ def project_stretch(x, w, ends, table, free_along, plane_normal, newton_steps):
     halvings = 0
     merit_base = np.inf
     while True:
-        m, left = _active(x, w, ends, table, free_along, plane_normal, act, dirs, c, diag)
+        m, left = _active(x, w, ends, table, free_along, plane_normal, act, dirs, c, diag, blocks)
         merit = 0.0
         for a in range(m):
             merit = max(merit, c[a] / table[act[a], 0])
@@ -166,7 +209,7 @@ def project_stretch(x, w, ends, table, free_along, plane_normal, newton_steps):
             # the last step overshot (far past the limits the linearisation is poor): half of it back
             if halvings == MAX_HALVINGS:
                 x[:] = base
-                m, left = _active(x, w, ends, table, free_along, plane_normal, act, dirs, c, diag)
+                m, left = _active(x, w, ends, table, free_along, plane_normal, act, dirs, c, diag, blocks)
                 break
             x[:] = 0.5 * (x + base)
             halvings += 1

@@ -189,7 +189,7 @@ def _project(d: Drape, w_eff: np.ndarray) -> None:
     w = np.empty_like(w_eff)
     sticking(st.x, st.x_step, w_eff, st.has_plane, st.plane_normal, w)
     before = st.x.copy()
-    project_stretch(st.x, w, d.ends, d.table, st.has_plane, st.plane_normal, d.settings.projection_steps)
+    project_stretch(st.x, w, d.ends, d.table, st.has_plane, st.plane_normal, d.settings.projection_steps, d.blocks)
     st.x_prev += st.x - before
     project_listed(st.x, st.x_prev, np.flatnonzero(st.has_plane), st.plane_point, st.plane_normal, 0.0, 0.0)
 

@@ -15,10 +15,10 @@ import numpy as np
 from numba import njit
 
 from tryon.sim.blocks import sweep_blocked
-from tryon.sim.collision.contacts import apply_friction, project_listed
+from tryon.sim.collision.contacts import friction_split, project_listed, project_split
 from tryon.sim.collision.movers import collide_movers
 from tryon.sim.constraints import solve_listed
-from tryon.sim.integrate import keep_above_floor, verlet_step
+from tryon.sim.integrate import keep_above_floor, verlet_split, verlet_step
 
 
 class Springs(NamedTuple):
@@ -87,18 +87,21 @@ def finish_step(x, x_prev, inv_mass, w_eff, springs, on_body, sweep, planes, run
     First substep: the top-down sweep (if on), the contact planes, friction, the floor. Each of the
     ``run.n_sub - 1`` further substeps: Verlet (eq. 1), the within-step test, the planes with friction on the
     inertial motion, ``run.per_sub`` passes over the springs and ``run.contact_passes`` over the body's springs,
-    then the same tail.
+    then the same tail. On a garment whose springs run in two blocks that may use two threads
+    (``springs.blocks``), the prediction, the plane projections and friction run on two threads too, half the
+    points each (``verlet_split``, ``project_split``, ``friction_split``): the same numbers.
     """
     touching = planes.touching
+    two = springs.blocks[2] != 0
     for sub in range(run.n_sub):
         if sub > 0:
-            verlet_step(x, x_prev, inv_mass, run.h, run.gravity, run.air_drag, run.max_speed)
+            verlet_split(x, x_prev, inv_mass, run.h, run.gravity, run.air_drag, run.max_speed, two)
             if collide_movers(x, x_prev, inv_mass, movers, run.mu_static, run.mu_kinetic, planes.has, planes.point,
                               planes.normal):
                 touching = np.flatnonzero(planes.has)
             # friction acts on the inertial motion only (x - x_prev right after the prediction), never on
             # the springs' corrections (which stand for the cloth's tension)
-            project_listed(x, x_prev, touching, planes.point, planes.normal, run.mu_static, run.mu_kinetic)
+            project_split(x, x_prev, touching, planes.point, planes.normal, run.mu_static, run.mu_kinetic, None, two)
             solve_listed(x, x_prev, w_eff, springs.ends, springs.table, run.per_sub, touching, planes.point,
                          planes.normal, 0.0, 0.0, planes.push, 1.0, springs.blocks)
             if run.contact_passes:
@@ -106,8 +109,8 @@ def finish_step(x, x_prev, inv_mass, w_eff, springs, on_body, sweep, planes, run
                              planes.point, planes.normal, 0.0, 0.0, planes.push, 1.0, on_body.blocks)
         if run.sweep and (sub == run.n_sub - 1 or run.sweep_every_substep):
             sweep_blocked(x, x_prev, w_eff, sweep.ends, sweep.lmax, planes.has, sweep.blocks)
-        project_listed(x, x_prev, touching, planes.point, planes.normal, 0.0, 0.0, planes.push)
-        apply_friction(x, x_prev, touching, planes.normal, planes.push, run.mu_static, run.mu_kinetic)
+        project_split(x, x_prev, touching, planes.point, planes.normal, 0.0, 0.0, planes.push, two)
+        friction_split(x, x_prev, touching, planes.normal, planes.push, run.mu_static, run.mu_kinetic, two)
         keep_above_floor(x, x_prev, run.floor_y)
 
 

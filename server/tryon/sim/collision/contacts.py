@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True, nogil=True, fastmath=True, inline="always")
@@ -83,6 +83,29 @@ def project_planes(x, x_prev, has_plane, plane_point, plane_normal, mu_static, m
     project_listed(x, x_prev, np.flatnonzero(has_plane), plane_point, plane_normal, mu_static, mu_kinetic, push)
 
 
+@njit(cache=True, nogil=True, parallel=True, fastmath=True)
+def _project_halves(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_kinetic, push):
+    """``project_listed`` (same arguments) on two threads, the first half of ``listed`` on one, the rest on
+    the other. No races: a point is listed once, and its projection reads and writes only its own rows of x,
+    x_prev and push; the result is that of one call over all."""
+    q = listed.shape[0]
+    half = q // 2
+    for t in prange(2):
+        lo = 0 if t == 0 else half
+        hi = half if t == 0 else q
+        project_listed(x, x_prev, listed[lo:hi], plane_point, plane_normal, mu_static, mu_kinetic, push)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def project_split(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_kinetic, push, two):
+    """``project_listed``, on two threads if ``two`` (a garment whose springs run in two blocks,
+    ``blocks.split_springs``), else on the calling thread."""
+    if two:
+        _project_halves(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_kinetic, push)
+    else:
+        project_listed(x, x_prev, listed, plane_point, plane_normal, mu_static, mu_kinetic, push)
+
+
 @njit(cache=True, nogil=True, fastmath=True)
 def apply_friction(x, x_prev, listed, plane_normal, push, mu_static, mu_kinetic):
     """Coulomb friction for the substep, in place, for the points ``listed`` (q,) int64 (those with a
@@ -106,6 +129,27 @@ def apply_friction(x, x_prev, listed, plane_normal, push, mu_static, mu_kinetic)
         x[i, 0] -= cut * tx
         x[i, 1] -= cut * ty
         x[i, 2] -= cut * tz
+
+
+@njit(cache=True, nogil=True, parallel=True, fastmath=True)
+def _friction_halves(x, x_prev, listed, plane_normal, push, mu_static, mu_kinetic):
+    """``apply_friction`` (same arguments) on two threads, half of ``listed`` each. No races: a point is listed
+    once and its friction reads and writes only its own rows; the result is that of one call over all."""
+    q = listed.shape[0]
+    half = q // 2
+    for t in prange(2):
+        lo = 0 if t == 0 else half
+        hi = half if t == 0 else q
+        apply_friction(x, x_prev, listed[lo:hi], plane_normal, push, mu_static, mu_kinetic)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def friction_split(x, x_prev, listed, plane_normal, push, mu_static, mu_kinetic, two):
+    """``apply_friction``, on two threads if ``two`` (as ``project_split``)."""
+    if two:
+        _friction_halves(x, x_prev, listed, plane_normal, push, mu_static, mu_kinetic)
+    else:
+        apply_friction(x, x_prev, listed, plane_normal, push, mu_static, mu_kinetic)
 
 
 @njit(cache=True, nogil=True)

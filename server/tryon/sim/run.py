@@ -16,8 +16,7 @@ substeps converge much further than the same passes on one step). Each substep:
    contacts still within ``plane_reuse`` of where they touched only reuse their plane (no map query);
    later substeps push onto the planes, with friction on the predicted motion; a point pinched between two
    parts (pushed out of each into the other: cloth between touching thighs) is held where the step began
-   (``hold_pinched``, once the body no longer grows or turns), and one flipping between the parts is kept
-   still through the step's substeps too (``pinch_flip``); in later substeps, a point without a plane that
+   (``hold_pinched``, once the body no longer grows or turns); in later substeps, a point without a plane that
    has moved more than the margin plus ``frame_depth`` since its test (cloth landing fast, a point the
    springs pull in) is tested again the same way (``collision/movers.py``); at the step's end a contact
    point more than ``frame_depth`` inside the body (slid along its plane into another part where two

@@ -30,7 +30,7 @@ class DrapeState:
     substep's passes (for friction); active (k,) bool: the points the step's collision tests; reused (k,) bool:
     contacts that only re-projected onto their plane; x_checked (k, 3) m: where each point was last tested;
     x_step (k, 3) m: positions at the end of the last step; held (k,) bool: held in a pinch between two parts
-    this step; flipping (k,) bool: held, and flipping between the parts (kept still); moves (2, k, 3) m: each
+    this step; moves (2, k, 3) m: each
     point's move in the last step and in the one before; movers (k,) bool: work space of the within-step
     test (``collision.movers``); layer_has (k,) bool, layer_point (k, 3) m, layer_normal (k, 3): contact
     planes on a garment under this one (an outfit's layer collision), taken where stricter than the body's.
@@ -51,7 +51,6 @@ class DrapeState:
     x_checked: np.ndarray
     x_step: np.ndarray
     held: np.ndarray
-    flipping: np.ndarray
     moves: np.ndarray
     movers: np.ndarray
     layer_has: np.ndarray
@@ -71,7 +70,7 @@ class DrapeState:
                    has_plane=np.zeros(k, dtype=np.bool_), plane_point=np.zeros((k, 3)), plane_normal=np.zeros((k, 3)),
                    push=np.zeros(k), active=np.ones(k, dtype=np.bool_), reused=np.zeros(k, dtype=np.bool_),
                    x_checked=x.copy(), x_step=x.copy(), held=np.zeros(k, dtype=np.bool_),
-                   flipping=np.zeros(k, dtype=np.bool_), moves=np.zeros((2, k, 3)),
+                   moves=np.zeros((2, k, 3)),
                    movers=np.zeros(k, dtype=np.bool_), layer_has=np.zeros(k, dtype=np.bool_),
                    layer_point=np.zeros((k, 3)), layer_normal=np.zeros((k, 3)))
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from tryon.sim.blocks import block_order
 from tryon.sim.collision.contacts import (
-    flipped, points_to_test, project_listed, reuse_planes, take_stricter_planes,
+    points_to_test, project_listed, reuse_planes, take_stricter_planes,
 )
 from tryon.sim.collision.self_contact import keep_drape_sides
 from tryon.sim.collision.untangle import untangle
@@ -71,14 +71,9 @@ def step(d: Drape) -> bool:
     if st.layer_has.any():
         take_stricter_planes(x, *st.planes, *st.layer_planes)
     touching = np.flatnonzero(st.has_plane)  # the points with a contact plane this step
-    # a point flipping in a pinch stays still for the whole step, springs included (``tuning.pinch_flip``)
-    st.flipping &= st.held
-    if st.held.any() and n > d.startup + s.steps_of(s.min_steps):
-        st.flipping |= st.held & flipped(st.moves[0], st.moves[1], tu.pinch_flip)
-    step_mass = np.where(st.flipping, 0.0, inv_mass) if st.flipping.any() else inv_mass
     # points on the body count as heavier in the springs, so hanging cloth hangs from them instead of
     # dragging them in (mass scaling)
-    w_eff = np.where(st.has_plane, step_mass * tu.contact_weight, step_mass)
+    w_eff = np.where(st.has_plane, inv_mass * tu.contact_weight, inv_mass)
     contact_passes = tu.contact_passes if not changing else 0
     if contact_passes:
         d.body_ends, d.body_table, d.body_blocks = contact_springs(d.ends, d.table, st.has_plane, d.blocks)
@@ -103,7 +98,7 @@ def step(d: Drape) -> bool:
     movers = d.collider.movers(st, d.parts, s.contact_offset, tu.near, d.reach,
                                hold_pinched=not changing, retest_planes=d.moving, hold_depth=hold_depth,
                                two=bool(d.blocks[2]))
-    finish_step(x, x_prev, step_mass, w_eff, Springs(d.ends, d.table, d.blocks),
+    finish_step(x, x_prev, inv_mass, w_eff, Springs(d.ends, d.table, d.blocks),
                 Springs(d.body_ends, d.body_table, d.body_blocks), Sweep(d.sweep_ends, d.sweep_lmax, d.sweep_blocks),
                 planes, run, movers)
     if s.projection_steps and not changing:

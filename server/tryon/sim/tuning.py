@@ -56,14 +56,6 @@ class Tuning:
         constraint passes (so the springs cannot pull them in between two collision tests).
     plane_reuse: m. A contact plane is reused (no map query) while the point stays this close to where it
         touched (within 1 cm on a 5 cm arm the plane lies at most 1 mm off the surface).
-    pinch_flip: m. A point held in a pinch whose last two steps moved it more than this each, the second
-        back against the first, is flipping between the two parts (the springs moving it through one and
-        back every other step; ~5 cm under the armpit of the long-sleeve M with the arm at 15 degrees, the
-        elbow bent 100, which never came to rest): it is kept still, springs included, for as long as it
-        stays pinched. Only once the garment has fallen (after the start-up and ``min_steps``): holding
-        every pinched point, or flipping ones from the start, left a sleeveless dress's armhole off the arm
-        with the arms hanging; flips over 1 cm left 26 springs over on the T-shirt M with the elbow bent
-        120, over 3 cm the long-sleeve L at 15 degrees still flipping.
     floor_y: m, the floor the body stands on (its feet are on y = 0); trouser legs and long hems rest on it.
     floor_under_sole: put the floor under the offset body's soles: a floor inside the offset body would
         trap a trouser hem between the floor and the sole's rim, stretching its springs without end.
@@ -140,7 +132,6 @@ class Tuning:
     order_refresh: int = 20
     near: float = 0.005
     plane_reuse: float = 0.01
-    pinch_flip: float = 0.02
     floor_y: float = 0.001
     floor_under_sole: bool = True
     sweep_every_substep: bool = True

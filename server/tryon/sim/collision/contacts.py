@@ -1,4 +1,4 @@
-"""Contacts: the planes a collision leaves, friction on them, which points to test again, pinches.
+"""Contacts: the planes a collision leaves, friction on them, which points to test again.
 
 The body collision (``kernels.collide_points``) runs once per step; for every point it pushed out or found
 within ``near`` of the body it leaves a contact plane (a point on the offset surface, the surface's unit
@@ -6,8 +6,7 @@ normal). The rest of the step keeps to those planes (``project_listed`` after ev
 Coulomb friction on positions (Macklin et al. 2014, "Unified particle physics": ``coulomb_cut``, shared by
 every projection and the collision response). Next step a contact still near where it touched only
 re-projects onto its plane (``reuse_planes``), and a point that has not moved since its last test and
-touches nothing is not tested at all (``points_to_test``). A point pinched between two body parts that
-flips between them every step is found by ``flipped`` (the step loop then holds it still).
+touches nothing is not tested at all (``points_to_test``).
 """
 
 from __future__ import annotations
@@ -209,14 +208,6 @@ def points_to_test(x, x_checked, has_plane, reused, rest_move, active):
         active[i] = (dx * dx + dy * dy + dz * dz > rest_move * rest_move or has_plane[i]) and not reused[i]
         n += active[i]
     return n
-
-
-def flipped(last: np.ndarray, before: np.ndarray, least: float) -> np.ndarray:
-    """(k,) bool: which points' last move ``last`` (k, 3) m went back against the move before it ``before``
-    (k, 3), both longer than ``least`` m (an angle over 120 degrees between them)."""
-    a = np.linalg.norm(last, axis=1)
-    b = np.linalg.norm(before, axis=1)
-    return (a > least) & (b > least) & (np.einsum("ij,ij->i", last, before) < -0.5 * a * b)
 
 
 @njit(cache=True, nogil=True, fastmath=True)

@@ -598,8 +598,8 @@ def collide_points(x, x_prev, inv_mass, active, parts, surface, lam, mu_static, 
     contact flag).
     hold_pinched: a point pushed out of one part into another in every round (``ROUNDS``) stays where it
     was at the start of the step (only while the body does not move: a growing body would grow into it);
-    held (k,) bool out, if given: which tested points were held so (``run.drape`` keeps those flipping
-    between two parts still for the step). hold_depth: m, given (under 1e8) a pinched point ends where the
+    held (k,) bool out, if given: which tested points were held so (the step loop tests them again at its
+    next step, the relaxation keeps them still). hold_depth: m, given (under 1e8) a pinched point ends where the
     rounds' pushes left it least deep instead (``_least_deep``).
 
     Each point: pushed out of the parts round after round (``_push_out``); if still inside, put where it is

@@ -30,9 +30,8 @@ class DrapeState:
     substep's passes (for friction); active (k,) bool: the points the step's collision tests; reused (k,) bool:
     contacts that only re-projected onto their plane; x_checked (k, 3) m: where each point was last tested;
     x_step (k, 3) m: positions at the end of the last step; held (k,) bool: held in a pinch between two parts
-    this step; moves (2, k, 3) m: each
-    point's move in the last step and in the one before; movers (k,) bool: work space of the within-step
-    test (``collision.movers``); layer_has (k,) bool, layer_point (k, 3) m, layer_normal (k, 3): contact
+    this step; moves (2, k, 3) m: each point's move in the last step and in the one before; movers (k,) bool:
+    work space of the within-step test (``collision.movers``); layer_has (k,) bool, layer_point (k, 3) m, layer_normal (k, 3): contact
     planes on a garment under this one (an outfit's layer collision), taken where stricter than the body's.
     step: steps done; rest_run: consecutive steps under the rest energy; rest_reached; energy J/kg: the last
     step's kinetic energy per kilogram; collided: how many points the last collision moved.

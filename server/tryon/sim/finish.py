@@ -38,13 +38,14 @@ def finish(d: Drape, relaxation: Relaxation, stopped: bool = False) -> TryOnResu
     return result(d, relaxation, full, full_parts, stopped)
 
 
-def full_mesh(d: Drape, also_collide: Callable[..., int] | None = None
+def full_mesh(d: Drape, also_collide: Callable[..., int] | None = None, alone: bool = True
               ) -> tuple[np.ndarray, np.ndarray]:
     """The shown mesh (n, 3) m of ``d``'s garment: it follows the coarse one, its stretch held to the limits,
     pushed out of the offset body (and out of whatever ``also_collide`` keeps it from, ``follow_coarse``);
-    and the body parts (q,) int64 it can touch."""
+    and the body parts (q,) int64 it can touch. ``alone``: the garment is not one of an outfit's (its settling
+    rounds, ``follow_coarse``'s ``settle``)."""
     return follow_coarse(d.model, d.state.x, d.collider, d.limits, d.settings.contact_offset, d.floor_y,
-                         also_collide, d.tuning.untangle_step, d.tuning.shown_untangle_rounds)
+                         also_collide, d.tuning.untangle_step, d.tuning.shown_untangle_rounds, settle=alone)
 
 
 def result(d: Drape, relaxation: Relaxation, full: np.ndarray, full_parts: np.ndarray,

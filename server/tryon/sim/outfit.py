@@ -363,10 +363,10 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
                 collide_all(d)
                 cap_stretch(d.state.x, d.state.inv_mass, d.springs, d.rest, FINAL_CAP, d.tuning.tear_passes)
     full_faces = [np.ascontiguousarray(d.model.faces, dtype=np.int64) for d in drapes]
-    shown = [full_mesh(drapes[0])]
+    shown = [full_mesh(drapes[0], alone=False)]
     for j in range(1, len(drapes)):
         # each outer shown mesh built off the shown meshes under it, those held still
-        shown.append(full_mesh(drapes[j], off_shown([s[0] for s in shown], full_faces[: j + 1], body)))
+        shown.append(full_mesh(drapes[j], off_shown([s[0] for s in shown], full_faces[: j + 1], body), alone=False))
     full = [s[0] for s in shown]
     full_sides = [face_sides(v, f, outward_from_body(v, body)) for v, f in zip(full, full_faces)]
     results = [result(d, r, f, s[1], stopped) for d, r, f, s in zip(drapes, relaxations, full, shown)]

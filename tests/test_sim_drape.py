@@ -574,7 +574,6 @@ def test_a_tangled_start_does_not_grow_the_feet(catalogue):
     assert result.metrics["display_max_strain"] <= 0.16
 
 
-
 def test_the_shown_mesh_takes_back_the_stretch_its_pushes_leave(catalogue):
     """Trousers XL on the fit bench's large body (185 cm, 112 / 100 / 112): no spring over its limit, but the shown
     mesh's collision pushed a crotch vertex into the crease between the thighs, stretching its edges to 0.32.

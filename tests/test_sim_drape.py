@@ -492,11 +492,12 @@ def test_the_start_up_is_not_shown_only_the_garment_on_the_whole_body(catalogue,
 
     model = _model(catalogue, "trousers-m.obj", "bottom")
     d = start(body, model, SimSettings())
-    assert d.grow_steps and d.startup >= d.grow_steps  # the trousers start tangled with the legs
+    control = d.control
+    assert control.grow_steps and control.startup >= control.grow_steps  # the trousers start tangled with the legs
     whole, frames = BodyCollider(body, SimSettings().collision_margin), []
     result = settle(d, lambda step, x: frames.append((step, deepest_inside(whole, x))) is None)[0]
-    assert frames[0][0] == d.startup + 1 and frames[-1][0] == result.metrics["steps"]
-    assert [s for s, _ in frames] == list(range(d.startup + 1, result.metrics["steps"] + 1))
+    assert frames[0][0] == control.startup + 1 and frames[-1][0] == result.metrics["steps"]
+    assert [s for s, _ in frames] == list(range(control.startup + 1, result.metrics["steps"] + 1))
     assert max(depth for _, depth in frames) < 0.01
     # a checker of the whole run (the stability stress) is handed the start-up too
     steps = []
@@ -525,7 +526,7 @@ def test_no_shown_frame_has_a_contact_point_in_another_part(catalogue, body, fil
 
     result = settle(d, watch)[0]
     assert result.metrics["rest_reached"] and result.metrics["penetrating_vertices"] == 0
-    assert len(deepest) == result.metrics["steps"] - d.startup
+    assert len(deepest) == result.metrics["steps"] - d.control.startup
     assert max(deepest) <= 0.002 + 1e-9, (int(np.argmax(deepest)), max(deepest))
 
 
@@ -550,7 +551,7 @@ def test_no_shown_frame_has_trousers_pinched_into_a_thigh(catalogue, filename):
     assert result.metrics["openings_on_limbs"]
     # the stream starts at most ``unseen_pinch_steps`` after the start-up and has every step from there on
     first = frames[0][0]
-    assert d.startup < first <= d.startup + d.tuning.unseen_pinch_steps + 1
+    assert d.control.startup < first <= d.control.startup + d.model.tuning.unseen_pinch_steps + 1
     assert [s for s, _ in frames] == list(range(first, result.metrics["steps"] + 1))
     assert max(depth for _, depth in frames) <= 0.002 + 1e-9, max(frames, key=lambda f: f[1])
 
@@ -565,11 +566,11 @@ def test_a_tangled_start_does_not_grow_the_feet(catalogue):
 
     small = build_body(Measurements(height=158, chest=86, waist=72, hips=92), Pose())
     d = start(small, _model(catalogue, "trousers-s.obj", "bottom"), SimSettings())
-    grows = {small.parts[k] for k in np.flatnonzero(d.collider.growing)}
-    assert d.grow_steps and {"torso", "thigh_l", "thigh_r"} <= grows
+    grows = {small.parts[k] for k in np.flatnonzero(d.control.collider.growing)}
+    assert d.control.grow_steps and {"torso", "thigh_l", "thigh_r"} <= grows
     assert not grows & {"shin_l", "shin_r"}
-    shins = np.isin(d.collider.vertex_part, [small.parts.index("shin_l"), small.parts.index("shin_r")])
-    assert np.allclose(d.collider.vertices[shins], small.vertices[shins], rtol=0, atol=1e-12)  # full size
+    shins = np.isin(d.control.collider.vertex_part, [small.parts.index("shin_l"), small.parts.index("shin_r")])
+    assert np.allclose(d.control.collider.vertices[shins], small.vertices[shins], rtol=0, atol=1e-12)  # full size
     result = settle(d)[0]
     assert result.metrics["display_max_strain"] <= 0.16
 
@@ -588,6 +589,7 @@ def test_the_shown_mesh_takes_back_the_stretch_its_pushes_leave(catalogue):
     result = settle(d)[0]
     assert sum(k["over"] for k in result.metrics["strain_by_kind"].values()) == 0
     assert result.metrics["display_max_strain"] <= 0.16 and result.metrics["body_through_vertices"] == 0
-    full, _ = follow_coarse(d.model, d.state.x, d.collider, d.limits, d.settings.contact_offset, d.floor_y, None,
-                            d.tuning.untangle_step, d.tuning.shown_untangle_rounds, settle=False)
-    assert display_strain(full, d.model) > 0.25  # without the rounds
+    m = d.model
+    full, _ = follow_coarse(m.garment, d.state.x, d.control.collider, m.limits, m.settings.contact_offset, m.floor_y,
+                            None, m.tuning.untangle_step, m.tuning.shown_untangle_rounds, settle=False)
+    assert display_strain(full, d.model.garment) > 0.25  # without the rounds

@@ -71,13 +71,13 @@ def test_a_repose_reports_the_deepest_point_of_any_of_its_steps(tmp_path):
     d = start(build_body(MEDIUM), model, SimSettings())
     first, _ = settle(d)
     assert "motion_max_penetration_mm" not in first.metrics
-    parts = np.arange(len(d.body.parts), dtype=np.int64)
+    parts = np.arange(len(d.control.body.parts), dtype=np.int64)
     for name in ("arms_raised", "hands_on_hips"):
         d = repose(d, build_body(MEDIUM, pose_from(name)))
         frames = []
 
         def watch(step, x, d=d):
-            frames.append(float(d.collider.depth(x, parts, offset=False).max()))  # the body as it is this step
+            frames.append(float(d.control.collider.depth(x, parts, offset=False).max()))  # the body as it is this step
             return True
 
         result, _ = settle(d, watch)
@@ -143,7 +143,7 @@ def test_a_sleeve_caught_in_a_big_move_is_carried_again_through_the_midway_pose(
     assert redraped and again is not d
     assert fixed.metrics["openings_on_limbs"] is True and fixed.metrics["penetrating_vertices"] == 0
     assert fixed.metrics["rest_reached"]
-    assert again.body is d.body and again.body.pose == d.body.pose
+    assert again.control.body is d.control.body and again.control.body.pose == d.control.body.pose
 
 
 def test_a_garment_sized_to_the_body_stays_sized_in_every_pose():
@@ -162,9 +162,9 @@ def test_a_garment_sized_to_the_body_stays_sized_in_every_pose():
     model = prepare(mesh, id="guessed", name="guessed", category="dress", size="S", source_sha256="0",
                     source_name="guessed.obj")
     d = start(build_body(MEDIUM), model, SimSettings(max_steps=3))
-    assert d.sized
+    assert d.model.sized
     moved = repose(d, build_body(MEDIUM, pose_from("hands_on_hips")))
-    assert moved.sized and moved.model is d.model
+    assert moved.model.sized and moved.model.garment is d.model.garment
     result, _ = settle(moved)
     assert result.metrics["sized_to_body"]
 

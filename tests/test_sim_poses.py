@@ -70,7 +70,7 @@ def test_a_drape_reposed_three_times_carries_the_garment_with_the_body(catalogue
     for pose in (pose_from("arms_raised"), ASYMMETRIC, pose_from("arms_down")):
         body = build_body(MEDIUM, pose)
         d = repose(d, body)
-        assert d.arms.steps > 10  # the body moved over steps, not at once
+        assert d.control.arms.steps > 10  # the body moved over steps, not at once
         m = settle(d).metrics
         assert m["rest_reached"] and m["penetrating_vertices"] == 0, (pose, m)
         assert sorted(o["around"] for o in m["limb_openings"]) == ["upper_arm_l", "upper_arm_r"], pose
@@ -90,7 +90,7 @@ def test_limbs_far_from_the_garment_take_their_new_pose_at_once(catalogue):
     trousers = start(build_body(MEDIUM), _model(catalogue, "trousers-m.obj", "bottom"), SimSettings())
     before = settle(trousers)[0]
     moved = repose(trousers, raised)
-    assert moved.arms.steps == 0 and moved.arms.turned_parts() == []
+    assert moved.control.arms.steps == 0 and moved.control.arms.turned_parts() == []
     m = settle(moved)[0].metrics
     assert m["rest_reached"] and m["penetrating_vertices"] == 0 and m["stays_up"], m
     assert sorted(o["around"] for o in m["limb_openings"]) == ["shin_l", "shin_r"]
@@ -98,7 +98,7 @@ def test_limbs_far_from_the_garment_take_their_new_pose_at_once(catalogue):
     assert m["slid_cm"] < 2.0 and m["steps"] < before.metrics["steps"], (m["slid_cm"], m["steps"])
     shirt = start(build_body(MEDIUM), _model(catalogue, "tshirt-m.obj", "top"), SimSettings())
     settle(shirt)
-    assert repose(shirt, raised).arms.steps > 10
+    assert repose(shirt, raised).control.arms.steps > 10
 
 
 def test_a_reposed_body_starts_where_the_garment_was_draped():

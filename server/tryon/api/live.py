@@ -199,7 +199,7 @@ class LiveReposing:
         session.update_received_at = received_at
         session.update_first_frame_at = session.update_first_step_at = None
         body = build_body(self.measurements, pose)
-        transition = PoseTransition(self.drape.body, body, garment=self.drape.state.x)
+        transition = PoseTransition(self.drape.control.body, body, garment=self.drape.state.x)
         vertices = FLOAT32.encode(body.vertices)  # binary: 12 bytes a vertex, 2.4 x less than JSON, no parse
         message = {"type": "body", "update": update, "pose": body.pose, "vertex_part": body.vertex_part,
                    "transition_steps": int(transition.steps), "vertices": {"binary_bytes": len(vertices),
@@ -214,12 +214,12 @@ class LiveReposing:
             result, gave_way = settle(d, guard, give_way=lambda: session.pending is not None)
         finally:
             session.moving = None
-            if d.state.step > d.startup:  # the garment is on the new body's pose: the next re-pose starts here
+            if d.state.step > d.control.startup:  # the garment is on the new body's pose: the next re-pose starts here
                 self.drape = d
         if gave_way:
             return None
         d, result, redraped = redrape_if_off(d, result, guard)
-        result = judged(result, body, [d.model])
+        result = judged(result, body, [d.model.garment])
         self.drape = d
         session.post_final(d.state.step, result.vertices)
         done = {**done_message(result, guard.stopped_by), "update": update, "redraped": redraped}
@@ -227,7 +227,7 @@ class LiveReposing:
         done["metrics"]["wall_seconds"] = round(time.monotonic() - received_at, 4)
         done["time_to_first_frame_s"] = None if first is None else round(first - received_at, 4)
         done["time_to_first_step_s"] = None if stepped is None else round(stepped - received_at, 4)
-        done["transition_steps"] = int(d.arms.steps)
+        done["transition_steps"] = int(d.control.arms.steps)
         return done
 
 
@@ -337,7 +337,7 @@ class LiveSession:
         d = self.moving
         if d is None:
             return None
-        return _body_pose(d.arms.current() if d.state.step <= d.arms.steps else None, d.state.step)
+        return _body_pose(d.control.arms.current() if d.state.step <= d.control.arms.steps else None, d.state.step)
 
     def post_start(self, x: np.ndarray, moves: np.ndarray | None) -> None:
         """A re-pose's step 0 for the live outbox (sim thread), before its drape is set up: the garment's coarse

@@ -107,9 +107,9 @@ class FrameCheck:
             return True
         self.worst = max(self.worst, float((spring_lengths(x, self.springs) / self.rest).max()))
         d = self.drape
-        if d is not None and d.state.x is x and d.motion_depth > self.depth_seen:
-            self.depth_seen = d.motion_depth
-            i, self.deepest_part = deepest_point(d.collider, x)
+        if d is not None and d.state.x is x and d.state.motion_depth > self.depth_seen:
+            self.depth_seen = d.state.motion_depth
+            i, self.deepest_part = deepest_point(d.control.collider, x)
             self.deepest_pinched = bool(d.state.held[i])
         return True
 
@@ -154,7 +154,7 @@ def run_sequence(model, measurements, poses: list, settings=None) -> list[dict]:
         diverged = False
         try:
             d = repose(d, build_body(measurements, pose))
-            rec["transition_steps"] = int(d.arms.steps)
+            rec["transition_steps"] = int(d.control.arms.steps)
             check.watch(d)
             result, _ = settle(d, check)
             m = result.metrics

@@ -208,7 +208,7 @@ def perf(repeats: int = 3, settings: SimSettings = SimSettings()) -> dict:
     phases["start"] = time.perf_counter() - t
     with _Timer(capture_step=max(1, result.metrics["steps"] - 10)) as timer:
         t = time.perf_counter()
-        while d.state.step < settings.max_steps and not step(d):
+        while d.state.step < settings.max_steps and not step(d.model, d.state, d.control):
             pass
         phases["loop"] = time.perf_counter() - t
     t = time.perf_counter()

@@ -167,7 +167,7 @@ def tuck_in(drapes: list[Drape], faces: list[np.ndarray], sides: list[np.ndarray
     over the bottom's surface, within ``TUCK_REACH``, go ``LAYER_GAP`` under it, the bottom held still.
     Aligned each on its own, a shirt's hem hangs over the trousers' hips; pushed in only by the layer
     collision, step by step, it would be caught half in, half out."""
-    category = [d.model.meta.category for d in drapes]
+    category = [d.model.garment.meta.category for d in drapes]
     for j, d in enumerate(drapes):
         if category[j] != "bottom":
             continue
@@ -180,13 +180,13 @@ def tuck_in(drapes: list[Drape], faces: list[np.ndarray], sides: list[np.ndarray
 
 def gather(d: Drape, pressed: np.ndarray, compression: np.ndarray) -> None:
     """Cloth pressed between an outer layer and what is under it (``pressed`` (k,) bool, on a contact plane) may
-    shorten: the springs with both ends so squeezed lose their compression correction (``d.table``'s third
+    shorten: the springs with both ends so squeezed lose their compression correction (``d.model.table``'s third
     column; the others get back ``compression`` (s,)). A loose shirt tucked into a waistband gathers into folds
     finer than the coarse mesh's 2-3 cm triangles can show; kept at their natural lengths its springs would
     stretch the band over it instead."""
     squeezed = pressed & d.state.has_plane
-    both = squeezed[d.springs[:, 0]] & squeezed[d.springs[:, 1]]
-    d.table[:, 2] = np.where(both, 0.0, compression)
+    both = squeezed[d.model.springs[:, 0]] & squeezed[d.model.springs[:, 1]]
+    d.model.table[:, 2] = np.where(both, 0.0, compression)
 
 
 def layer_order(categories: list[str], tuck: str = "out") -> list[int]:
@@ -275,6 +275,11 @@ def off_shown(under: list[np.ndarray], faces: list[np.ndarray], body: Body) -> C
 _GARMENT_THREADS: ThreadPoolExecutor | None = None
 
 
+def step_drape(d: Drape) -> bool:
+    """``step`` on one garment's drape."""
+    return step(d.model, d.state, d.control)
+
+
 def each_garment(fn: Callable, drapes: list[Drape]) -> list:
     """``[fn(d) for d in drapes]``, the garments at once (one thread each, each held to one numba thread) when
     there are several and the calling thread may use two threads or more, else one after the other. ``fn`` must
@@ -309,19 +314,19 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
     # the push off the shown meshes under it (``full_mesh.follow_coarse``'s ``also_collide``): untangled without
     # that push, a long-sleeve S over a T-shirt M ended with a shown vertex 5 mm into the torso at an armpit
     drapes = [start(body, models[i], settings, replace(tuning, untangle_every=0)) for i in order]
-    faces = [np.ascontiguousarray(d.model.coarse_faces, dtype=np.int64) for d in drapes]
+    faces = [np.ascontiguousarray(d.model.garment.coarse_faces, dtype=np.int64) for d in drapes]
 
     def sides():
         """Which side of each triangle is outside, where the garments are now."""
         return [face_sides(d.state.x, f, outward_from_body(d.state.x, body)) for d, f in zip(drapes, faces)]
     if tuck == "in":
         tuck_in(drapes, faces, sides())
-    layered_from = max(d.startup for d in drapes)  # every body complete: the layers may collide
+    layered_from = max(d.control.startup for d in drapes)  # every body complete: the layers may collide
     asleep = np.zeros(len(drapes), dtype=np.bool_)
-    compression = [d.table[:, 2].copy() for d in drapes]  # each spring's compression fraction, as packed
+    compression = [d.model.table[:, 2].copy() for d in drapes]  # each spring's compression fraction, as packed
     stopped, n = False, 0
     for n in range(1, settings.max_steps + 1):
-        each_garment(step, [d for d, sleeping in zip(drapes, asleep) if not sleeping])
+        each_garment(step_drape, [d for d, sleeping in zip(drapes, asleep) if not sleeping])
         if n > layered_from and len(drapes) > 1:
             before = [d.state.x.copy() for d in drapes]
             pressed = [np.zeros(len(d.state.x), dtype=np.bool_) for d in drapes]
@@ -361,8 +366,9 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
             for d, (springs, run) in zip(drapes, passes):
                 relaxation_round(d, springs, run)
                 collide_all(d)
-                cap_stretch(d.state.x, d.state.inv_mass, d.springs, d.rest, FINAL_CAP, d.tuning.tear_passes)
-    full_faces = [np.ascontiguousarray(d.model.faces, dtype=np.int64) for d in drapes]
+                cap_stretch(d.state.x, d.state.inv_mass, d.model.springs, d.model.rest, FINAL_CAP,
+                            d.model.tuning.tear_passes)
+    full_faces = [np.ascontiguousarray(d.model.garment.faces, dtype=np.int64) for d in drapes]
     shown = [full_mesh(drapes[0], alone=False)]
     for j in range(1, len(drapes)):
         # each outer shown mesh built off the shown meshes under it, those held still
@@ -371,13 +377,13 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
     full_sides = [face_sides(v, f, outward_from_body(v, body)) for v, f in zip(full, full_faces)]
     results = [result(d, r, f, s[1], stopped) for d, r, f, s in zip(drapes, relaxations, full, shown)]
     count, deepest = layer_metrics(full, full_faces, full_sides)
-    tops = [k for k, d in enumerate(drapes) if d.model.meta.category != "bottom"]
-    bottoms = [k for k, d in enumerate(drapes) if d.model.meta.category == "bottom"]
+    tops = [k for k, d in enumerate(drapes) if d.model.garment.meta.category != "bottom"]
+    bottoms = [k for k, d in enumerate(drapes) if d.model.garment.meta.category == "bottom"]
     tucked = None
     if tops and bottoms:
         bottom = drapes[bottoms[0]]
-        band = waistband_mask(bottom.state.x, bottom.model.coarse_faces, "bottom", bottom.model.coarse_loops,
-                              bottom.piece)
+        garment = bottom.model.garment
+        band = waistband_mask(bottom.state.x, garment.coarse_faces, "bottom", garment.coarse_loops, bottom.model.piece)
         b = bottoms[0]
         heights = bottom.state.x[band, 1]
         tucked = tuck_as_asked(full[tops[0]], full[b], full_faces[b], full_sides[b],
@@ -389,7 +395,7 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
         "rest_reached": bool(asleep.all()) and not stopped,
         "stopped": bool(stopped),
         "tuck": tuck,
-        "layers": [d.model.meta.id for d in drapes],
+        "layers": [d.model.garment.meta.id for d in drapes],
         "layer_penetrating_vertices": int(count),
         "max_layer_penetration_mm": round(1000.0 * float(deepest), 3),
         "tuck_as_asked": tucked,

@@ -36,25 +36,26 @@ class Relaxation:
 
 def complete_body(d: Drape) -> None:
     """The body at full size and in its real pose, the start's pins released (a loop stopped early)."""
-    collider, arms, st = d.collider, d.arms, d.state
+    collider, arms, st = d.control.collider, d.control.arms, d.state
     if collider.scale != 1.0:
         collider.set_scale(1.0, refresh=not arms.steps)
     if arms.steps:
         arms.apply(arms.steps)
-    if d.pinned_until and st.step < d.pinned_until:
-        st.inv_mass[:] = d.saved_inv_mass
+    if d.control.pinned_until and st.step < d.control.pinned_until:
+        st.inv_mass[:] = d.control.saved_inv_mass
 
 
 def relax(d: Drape) -> Relaxation:
     """Relax ``d``'s garment in place (see the module doc)."""
     complete_body(d)
-    tu, st = d.tuning, d.state
+    m, st = d.model, d.state
+    tu = m.tuning
     x, x_prev, inv_mass = st.x, st.x_prev, st.inv_mass
-    target = allowed_length(d.rest, d.limits[d.kind])
+    target = allowed_length(m.rest, m.limits[m.kind])
     rounds = 0
     x_prev[:] = x
     x_loop = x.copy()
-    fewest_over, best_round = len(d.springs) + 1, 0
+    fewest_over, best_round = len(m.springs) + 1, 0
     springs, run = relaxation_passes(d)
     # the untangling while it makes progress, and in the first rounds only: where it cannot undo a crossing (cloth
     # pinched between two parts, on the floor) it fights the springs, and the rounds after it are theirs
@@ -70,7 +71,7 @@ def relax(d: Drape) -> Relaxation:
             # judged after the final collision the result gets (between two collision tests a point may
             # slide past its contact plane, over a sharp edge, and be pushed back out, stretching springs)
             collide_all(d)
-            n_over = int(np.count_nonzero(spring_lengths(x, d.springs) > target))
+            n_over = int(np.count_nonzero(spring_lengths(x, m.springs) > target))
             if n_over == 0:
                 break
             if n_over <= tu.polish_progress * fewest_over:
@@ -82,26 +83,27 @@ def relax(d: Drape) -> Relaxation:
     relax_move = np.linalg.norm(x - x_loop, axis=1)
     # each piece of the file on its own (pieces meet only the body, never each other): an outfit's trousers
     # may be carried down the legs while its shirt barely moves
-    piece_move = np.array([np.quantile(relax_move[d.piece == p], tu.relax_move_quantile)
-                           for p in range(int(d.piece.max()) + 1)])
+    piece_move = np.array([np.quantile(relax_move[m.piece == p], tu.relax_move_quantile)
+                           for p in range(int(m.piece.max()) + 1)])
     carried = piece_move > tu.relax_max_move
     # nor may it take a sleeve or trouser leg off its limb (a T-shirt on arms hanging against the torso: the
     # sleeves, pinched between arm and torso, pulled up off the arms)
-    for (_, _, loop), before, after in zip(d.openings, openings_on_limbs(x_loop, d.body, d.openings),
-                                           openings_on_limbs(x, d.body, d.openings)):
+    body = d.control.body
+    for (_, _, loop), before, after in zip(m.openings, openings_on_limbs(x_loop, body, m.openings),
+                                           openings_on_limbs(x, body, m.openings)):
         if before["ok"] and not after["ok"]:
-            carried[d.piece[loop[0]]] = True
+            carried[m.piece[loop[0]]] = True
     relaxed = not carried.any()
     if not relaxed:
         # the relaxation carried a piece away: that piece stays where the loop left it, its springs over the
         # target reported as they are
-        back = carried[d.piece]
+        back = carried[m.piece]
         x[back] = x_loop[back]
         x_prev[:] = x
         collide_all(d)
     # the tear guard again: the final collision wins over the springs, so a garment far too small for its
     # body would leave it with springs pushed past the guard (the loop's guard ran before it)
-    cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
+    cap_stretch(x, inv_mass, m.springs, m.rest, tu.tear_guard, tu.tear_passes)
     return Relaxation(rounds=rounds, relax_move=relax_move, piece_move=piece_move, relaxed=relaxed)
 
 
@@ -109,11 +111,12 @@ def relaxation_passes(d: Drape) -> tuple[Springs, Substeps]:
     """The springs and substeps of a relaxation round of ``d``: only the over-long springs act (no compression
     pushes cloth off the body; with l0 = 0 too a compressed spring is not even visited, so the passes skip the
     buckled cloth on the body); gravity and friction off, light drag (``tuning.relax_drag``)."""
-    stretch_only = d.table.copy()
+    m = d.model
+    stretch_only = m.table.copy()
     stretch_only[:, 1:] = 0.0
-    run = Substeps(float(d.h), int(d.n_sub), int(d.per_sub), 0, 0.0, float(d.tuning.relax_drag),
-                   float(d.settings.max_speed), 0.0, 0.0, False, False, float(d.floor_y))
-    return Springs(d.ends, stretch_only, d.blocks), run
+    run = Substeps(float(m.h), int(m.n_sub), int(m.per_sub), 0, 0.0, float(m.tuning.relax_drag),
+                   float(m.settings.max_speed), 0.0, 0.0, False, False, float(m.floor_y))
+    return Springs(m.ends, stretch_only, m.blocks), run
 
 
 def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool = False) -> int:
@@ -122,18 +125,19 @@ def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool =
     collision pushed keeps that layer's plane where it asks more, as in ``step``), the rest of the round in one
     kernel, a round of the untangling if ``untangle`` (``collision/untangle.py``), then the tear guard. Returns the
     crossings that round found (-1: none looked for)."""
-    s, tu, st = d.settings, d.tuning, d.state
+    m, st, control = d.model, d.state, d.control
+    s, tu = m.settings, m.tuning
     x, x_prev, inv_mass = st.x, st.x_prev, st.inv_mass
     x_start = x.copy() if tu.self_thickness else x
-    verlet_step(x, x_prev, inv_mass, d.h, 0.0, tu.relax_drag, s.max_speed)
+    verlet_step(x, x_prev, inv_mass, m.h, 0.0, tu.relax_drag, s.max_speed)
     st.active[:] = True
     # a point pinched between two parts (pushed out of each into the other) does not flip between them: it is
     # held where the round began or, if that is deeper than the collision's reach, put where the pushes leave
     # it least deep (as a re-posed drape's steps do; the body is whole here, nothing grows into it). Flipping
     # between the thighs, the legs of trousers on a larger body crossed each other
-    d.collider.collide(x, x_prev, inv_mass, st.active, d.parts, s.contact_offset, 0.0, 0.0, st.contact,
-                       near=tu.near, planes=st.planes, hold_pinched=True, held=st.held,
-                       hold_depth=d.reach, two=bool(d.blocks[2]))
+    control.collider.collide(x, x_prev, inv_mass, st.active, control.parts, s.contact_offset, 0.0, 0.0, st.contact,
+                             near=tu.near, planes=st.planes, hold_pinched=True, held=st.held,
+                             hold_depth=m.reach, two=m.two_threads)
     if st.layer_has.any():
         take_stricter_planes(x, *st.planes, *st.layer_planes)
     touching = np.flatnonzero(st.has_plane)
@@ -141,9 +145,9 @@ def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool =
                                                                   st.has_plane, st.push), run)
     if tu.self_thickness:
         w = np.where(st.held, 0.0, np.where(st.has_plane, inv_mass * tu.contact_weight, inv_mass))
-        keep_drape_sides(d, x_start, w)
-    crossings = untangle_drape(d) if untangle and tu.untangle_step else -1
-    cap_stretch(x, inv_mass, d.springs, d.rest, tu.tear_guard, tu.tear_passes)
+        keep_drape_sides(m, st, x_start, w)
+    crossings = untangle_drape(m, st) if untangle and tu.untangle_step else -1
+    cap_stretch(x, inv_mass, m.springs, m.rest, tu.tear_guard, tu.tear_passes)
     return crossings
 
 
@@ -151,5 +155,5 @@ def collide_all(d: Drape) -> None:
     """Every point out of the body, without friction (the relaxation's and the result's final collision)."""
     st = d.state
     st.active[:] = True
-    d.collider.collide(st.x, st.x_prev, st.inv_mass, st.active, d.parts, d.settings.contact_offset, 0.0, 0.0,
-                       st.contact, two=bool(d.blocks[2]))
+    d.control.collider.collide(st.x, st.x_prev, st.inv_mass, st.active, d.control.parts,
+                               d.model.settings.contact_offset, 0.0, 0.0, st.contact, two=d.model.two_threads)

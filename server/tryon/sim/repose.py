@@ -316,9 +316,10 @@ class PoseTransition:
 def repose(d: Drape, body: Body, transition: PoseTransition | None = None) -> Drape:
     """A drape on ``body`` (``d``'s body in a new pose) whose garment starts where ``d``'s is and is carried
     along as the body moves from the old pose to the new over the first steps (``transition``, made here if
-    not given: ``PoseTransition(d.body, body, garment=d.state.x)``); see the module doc. ``d`` is left as it
+    not given: ``PoseTransition(d.control.body, body, garment=d.state.x)``); see the module doc. ``d`` is left as it
     was."""
-    return carry(d.body, d.state.x, d.model, d.settings, d.tuning, body, transition, d.sized)
+    m = d.model
+    return carry(d.control.body, d.state.x, m.garment, m.settings, m.tuning, body, transition, m.sized)
 
 
 def carry(old: Body, garment: np.ndarray, model: GarmentModel, settings: SimSettings, tuning: Tuning, body: Body,
@@ -328,9 +329,7 @@ def carry(old: Body, garment: np.ndarray, model: GarmentModel, settings: SimSett
     sized to this person (``start``), as the drape it comes from says: it stays so in every pose."""
     if transition is None:
         transition = PoseTransition(old, body, garment=garment)
-    d = start(body, model, settings, tuning, initial=garment.copy(), motion=transition.bind)
-    d.sized = sized
-    return d
+    return start(body, model, settings, tuning, initial=garment.copy(), motion=transition.bind, sized=sized)
 
 
 def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape, TryOnResult, bool]:
@@ -341,9 +340,9 @@ def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape,
     way (the T-shirt M, six poses three times over: a sleeve came off at the tenth and stayed off), and a later
     pose would start from there. A garment sized to the body (guessed units) is left as it is. The result draped
     again keeps the re-pose's ``motion_max_penetration_mm`` (or the deeper of the carries')."""
-    if result is None or result.metrics.get("openings_on_limbs") is not False or d.sized:
+    if result is None or result.metrics.get("openings_on_limbs") is not False or d.model.sized:
         return d, result, False
-    fresh, again = fresh_drape(d.body, d.model, d.settings, d.tuning, on_frame)
+    fresh, again = fresh_drape(d.control.body, d.model.garment, d.model.settings, d.model.tuning, on_frame)
     if again.metrics.get("openings_on_limbs") is not False:
         # the motion the client saw was the re-pose's (the fresh drape's start grows the body inside the cloth)
         again.metrics["motion_max_penetration_mm"] = result.metrics.get("motion_max_penetration_mm")
@@ -364,16 +363,17 @@ def through_midway(d: Drape, on_frame=None) -> tuple[Drape, TryOnResult] | None:
     re-pose of a body ``build_body`` made. A big move in one go (an arm swung 80 degrees forward while its elbow
     bends 110) can leave a sleeve caught beside the arm where a fresh drape in that pose leaves it off too: the
     three such settles of the motion stress's twenty sequences (the long-sleeves M and XXL) end on the arms so."""
-    t = d.arms
+    t = d.control.arms
     if not isinstance(t, PoseTransition) or t.garment is None or t.old.resolution is None or not t.old.pose:
         return None
-    old, new = t.old.pose, d.body.pose
+    old, new = t.old.pose, d.control.body.pose
     mid = {k: 0.5 * (old[k] + v) if isinstance(v, float) and isinstance(old.get(k), float) else v
            for k, v in new.items()}
-    half = carry(t.old, t.garment, d.model, d.settings, d.tuning,
-                 build_body(Measurements(**d.body.requested), Pose(**mid), d.body.resolution), sized=d.sized)
+    m, body = d.model, d.control.body
+    half = carry(t.old, t.garment, m.garment, m.settings, m.tuning,
+                 build_body(Measurements(**body.requested), Pose(**mid), body.resolution), sized=m.sized)
     first, _ = settle(half)
-    again, result = settle_after(half, first, d.body, on_frame)
+    again, result = settle_after(half, first, body, on_frame)
     result.metrics["motion_max_penetration_mm"] = max(first.metrics.get("motion_max_penetration_mm") or 0.0,
                                                       result.metrics.get("motion_max_penetration_mm") or 0.0)
     return again, result
@@ -413,9 +413,9 @@ def fresh_drape(body: Body, model: GarmentModel, settings: SimSettings, tuning: 
 def long_sleeves(d: Drape) -> bool:
     """Whether a sleeve of ``d``'s garment (the far opening the arm plan found) lies farther from its shoulder
     joint than the elbow is, where the drape starts (round the forearm or the hand, not the upper arm)."""
-    for side, cuff in (("l", d.plan.left_cuff), ("r", d.plan.right_cuff)):
-        if cuff is not None and f"forearm_{side}" in d.body.parts:
-            joint, elbow, _ = arm_joints(d.body, side)
+    for side, cuff in (("l", d.control.plan.left_cuff), ("r", d.control.plan.right_cuff)):
+        if cuff is not None and f"forearm_{side}" in d.control.body.parts:
+            joint, elbow, _ = arm_joints(d.control.body, side)
             if np.linalg.norm(d.state.x[cuff].mean(axis=0) - joint) > np.linalg.norm(elbow - joint):
                 return True
     return False

@@ -26,24 +26,25 @@ from tryon.sim.constraints import pack_springs
 from tryon.sim.limbs import limb_openings
 from tryon.sim.pieces import piece_labels, piece_tops, waistband_mask
 from tryon.sim.settings import REFERENCE_STEP, SimSettings
-from tryon.sim.state import Drape, DrapeState
+from tryon.sim.state import BodyControl, Drape, DrapeModel, DrapeState
 from tryon.sim.tuning import TUNING, Tuning
 
 
 def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings(), tuning: Tuning = TUNING,
-          initial: np.ndarray | None = None, motion=None) -> Drape:
+          initial: np.ndarray | None = None, motion=None, sized: bool = False) -> Drape:
     """A drape of ``model`` on ``body``, ready for its first step. ``initial`` (k, 3) m replaces the
     alignment (tests and stress scenes start from given positions; a re-posed drape from where its garment
     was). ``motion(collider)``: the body's start-up motion in place of the arms' turn back from the sleeves
-    (``repose.PoseTransition``: the body moving from its old pose to this one, carrying the garment)."""
+    (``repose.PoseTransition``: the body moving from its old pose to this one, carrying the garment).
+    ``sized``: ``model`` is a garment of guessed units already sized to this person (a re-pose of such a
+    drape); an aligned one is sized here when its units were guessed."""
     started = time.perf_counter()
-    sized = False
     piece = piece_labels(model.coarse_faces, len(model.mass))  # a file's separate garments (an outfit's)
     if initial is None:
         x, shape = align_sized(body, model, piece=piece)
-        sized = shape is not None
-        if sized:  # sized to this body (guessed units): its springs' natural lengths change too
+        if shape is not None:  # sized to this body (guessed units): its springs' natural lengths change too
             model = model.resized(shape)
+            sized = True
         # the arms start as thin as the body starts growing: a cuff must have room for them then
         plan = plan_arms(body, x, model.meta.category, model.coarse_faces, model.coarse_loops, piece,
                          start_scale=settings.grow_from if settings.grow_steps else 1.0)
@@ -94,7 +95,7 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     if grow_steps:
         collider.set_growing(growing_parts(collider, parts, tuning.grow_reach))
         collider.set_scale(settings.grow_from)
-    state = DrapeState.at(x, inv_mass)
+    state = DrapeState.at(x, inv_mass, started)
     pinned_until, saved_inv_mass = 0, None
     if tangled and not grow_steps:
         collider.collide(x, state.x_prev, inv_mass, state.active, parts, settings.contact_offset, 0.0, 0.0,
@@ -113,12 +114,14 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         # pushing it back up, stretching its springs without end
         floor_y = min(floor_y, float(body.vertices[:, 1].min()) - settings.collision_margin
                       - settings.contact_offset)
-    return Drape(body=body, model=model, settings=settings, tuning=tuning, collider=collider, arms=arms, plan=plan,
-                 parts=parts, piece=piece, springs=springs, rest=rest, kind=kind, mass=mass, limits=limits, ends=ends,
-                 table=table, blocks=blocks, openings=openings, placed_tops=placed_tops, floor_y=floor_y, n_sub=n_sub,
-                 per_sub=per_sub, h=h,
-                 grow_steps=grow_steps, startup=max(grow_steps, arms.steps), pinned_until=pinned_until,
-                 saved_inv_mass=saved_inv_mass, sized=sized, state=state, started=started, moving=motion is not None)
+    drape_model = DrapeModel(garment=model, settings=settings, tuning=tuning, piece=piece, springs=springs, rest=rest,
+                             kind=kind, mass=mass, limits=limits, ends=ends, table=table, blocks=blocks,
+                             openings=openings, placed_tops=placed_tops, floor_y=floor_y, n_sub=n_sub,
+                             per_sub=per_sub, h=h, sized=sized)
+    control = BodyControl(body=body, collider=collider, arms=arms, plan=plan, parts=parts, grow_steps=grow_steps,
+                          startup=max(grow_steps, arms.steps), pinned_until=pinned_until,
+                          saved_inv_mass=saved_inv_mass, moving=motion is not None)
+    return Drape(drape_model, state, control)
 
 
 def growing_parts(collider: BodyCollider, parts: np.ndarray, reach: float) -> np.ndarray:

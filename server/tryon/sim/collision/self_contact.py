@@ -196,12 +196,14 @@ def keep_sides(contacts: SelfContact, x: np.ndarray, x_prev: np.ndarray, x0: np.
     return total
 
 
-def keep_drape_sides(d, x0: np.ndarray, w: np.ndarray) -> int:
-    """``keep_sides`` on drape ``d``'s simulated mesh (``d.state.x``) as it moved from x0 (n, 3) m, with the inverse
-    masses w (n,) 1/kg, its pairs kept on the drape (``d.self_contact``) from call to call."""
-    tu, st = d.tuning, d.state
-    if d.self_contact is None:
-        faces = np.ascontiguousarray(d.model.coarse_faces, dtype=np.int64)
+def keep_drape_sides(model, state, x0: np.ndarray, w: np.ndarray) -> int:
+    """``keep_sides`` on a drape's simulated mesh (``state.x``; ``model``: its ``state.DrapeModel``) as it moved
+    from x0 (n, 3) m, with the inverse masses w (n,) 1/kg, its pairs kept in the state (``state.self_contact``)
+    from call to call."""
+    tu = model.tuning
+    if state.self_contact is None:
+        faces = np.ascontiguousarray(model.garment.coarse_faces, dtype=np.int64)
         edges, face_edges = face_edge_ids(faces)
-        d.self_contact = SelfContact(faces, edges, face_edges, tu.self_thickness, tu.self_thickness + tu.self_margin)
-    return keep_sides(d.self_contact, st.x, st.x_prev, x0, w, tu.self_thickness, tu.self_passes)
+        state.self_contact = SelfContact(faces, edges, face_edges, tu.self_thickness,
+                                         tu.self_thickness + tu.self_margin)
+    return keep_sides(state.self_contact, state.x, state.x_prev, x0, w, tu.self_thickness, tu.self_passes)

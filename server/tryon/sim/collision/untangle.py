@@ -180,11 +180,11 @@ def _crossings_after(x: np.ndarray, faces: np.ndarray, edges: np.ndarray, cell: 
     return np.concatenate(found)
 
 
-def untangle(d) -> int:
-    """One round of ``untangle_round`` on drape ``d``'s simulated mesh, ``d.tuning.untangle_step`` m at most."""
-    st = d.state
-    faces, edges, adjacent = d.model.coarse_edge_faces
+def untangle(model, state) -> int:
+    """One round of ``untangle_round`` on a drape's simulated mesh (``state.x``; ``model``: its
+    ``state.DrapeModel``), ``model.tuning.untangle_step`` m at most."""
+    faces, edges, adjacent = model.garment.coarse_edge_faces
     # a point on the body or on the garment under it (an outfit's layer) stays where they hold it, as does one held
     # in a pinch between two body parts
-    w = np.where(st.held | st.has_plane | st.layer_has, 0.0, st.inv_mass)
-    return untangle_round(st.x, st.x_prev, w, faces, edges, adjacent, d.tuning.untangle_step)
+    w = np.where(state.held | state.has_plane | state.layer_has, 0.0, state.inv_mass)
+    return untangle_round(state.x, state.x_prev, w, faces, edges, adjacent, model.tuning.untangle_step)

@@ -57,8 +57,9 @@ PINCHED_LEAST_DEEP = 0.0
 SKIN_DEEPEST = 0.01
 # Rounds of (stretch passes of the points the body does not hold, collision, lift) at the end: the collision
 # calls and the lifts stretch the shown edges between a pushed point and its neighbours; with the body's points
-# held, the neighbours take it back. The fit bench's 90 drapes: 7 with no spring over but a shown edge over 16 %
-# without them, 4 with three rounds; body vertices through the shown meshes 18 -> 1.
+# held, the neighbours take it back. The fit bench's 90 drapes with no spring over but a shown edge over 16 %: 7
+# without them, 4 with three rounds (body vertices through the shown meshes 18 -> 1); then, the passes' springs
+# interleaved, 4 -> 2 with the lifted points held too and the passes once more after the last round.
 SETTLE_ROUNDS = 3
 
 
@@ -129,19 +130,25 @@ def follow_coarse(model: GarmentModel, coarse: np.ndarray, collider: BodyCollide
 def _settle_free(full: np.ndarray, full_prev: np.ndarray, contact: np.ndarray, ends: np.ndarray, table: np.ndarray,
                  collider: BodyCollider, parts: np.ndarray, contact_offset: float, faces: np.ndarray) -> None:
     """After the collision calls, ``SETTLE_ROUNDS`` rounds of: the stretch passes with the points the last
-    collision pushed (``contact`` (n,) bool) held still, so the stretch the pushes left is taken back by the points
-    the body does not hold and none is pulled into it; every point's collision (a pinched one where its pushes
-    leave it least deep); the lift of the triangles the skin pokes through. Then the body's collision once more:
-    it has the last word. In place on ``full`` (n, 3) m; ``ends`` / ``table`` the full mesh's packed springs
-    (stretch only)."""
+    collision pushed (``contact`` (n,) bool) and the last lift moved held still, so the stretch the pushes and the
+    lift left is taken back by the points the body does not hold, none is pulled into it and the lift is not
+    undone; every point's collision (a pinched one where its pushes leave it least deep); the lift of the
+    triangles the skin pokes through. Then those stretch passes once more (the last round's collision and lift
+    stretch the edges from the points they moved to their neighbours: the large body's long-sleeve L 0.15 -> 0.21
+    over a shoulder) and the body's collision: it has the last word. In place on ``full`` (n, 3) m; ``ends`` /
+    ``table`` the full mesh's packed springs (stretch only)."""
     ones = np.ones(len(full))
     active = np.ones(len(full), dtype=np.bool_)
+    held = contact.copy()
     for _ in range(SETTLE_ROUNDS):
-        satisfy_springs(full, np.where(contact, 0.0, 1.0), ends, table, DISPLAY_PASSES)
+        satisfy_springs(full, np.where(held, 0.0, 1.0), ends, table, DISPLAY_PASSES)
         active[:] = True
         collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact,
                          hold_depth=PINCHED_LEAST_DEEP)
+        before = full.copy()
         lift_over_skin(collider, parts, full, faces, collider.margin, SKIN_DEEPEST)
+        held = contact | np.any(full != before, axis=1)
+    satisfy_springs(full, np.where(held, 0.0, 1.0), ends, table, DISPLAY_PASSES)
     active[:] = True
     collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact,
                      hold_depth=PINCHED_LEAST_DEEP)

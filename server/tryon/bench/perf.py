@@ -20,9 +20,7 @@ pass costs 6.6 ns a spring and a scan that only finds the springs outside their 
 then correcting only those (about a fifth) made a whole step 10 % faster; a colour-ordered Jacobi pass
 written to vectorise (no two springs of a colour share a point) was 2x slower (a square root and a division
 for every spring); positions padded to (k, 4) changed nothing. At the scan's 1.8 ns, a step's 513,472 visits
-alone would cost 0.9 ms, the collision another 0.7 ms. What did make the pass faster (once every spring near
-its length was elastic, 13.9 ns a visit): the springs interleaved so that neighbours share no point
-(``blocks.pass_order``), so that a correction need not wait for the one before it: 7.6 ns.
+alone would cost 0.9 ms, the collision another 0.7 ms.
 """
 
 from __future__ import annotations

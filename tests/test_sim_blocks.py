@@ -11,8 +11,7 @@ import pytest
 from tryon.api.pool import SimPool
 from tryon.bench.synthetic import cloth_square
 from tryon.sim.blocks import (
-    INTERLEAVE, MIN_SPLIT_SPRINGS, block_order, machine_threads, parallel_ok, pass_order, split_springs,
-    sweep_blocked, use_threads,
+    MIN_SPLIT_SPRINGS, block_order, machine_threads, parallel_ok, split_springs, sweep_blocked, use_threads,
 )
 from tryon.sim.constraints import pack_springs, satisfy_springs, solve_listed
 from tryon.sim.settings import SimSettings
@@ -26,29 +25,6 @@ def _packed(n: int):
     ends, table = pack_springs(model.springs[order], model.rest[order], model.kind[order], S.limits_array(),
                                S.compression_array())
     return model, ends, table, blocks
-
-
-def test_the_pass_order_keeps_each_block_and_parts_neighbours_that_share_a_point():
-    """``pass_order`` on a cloth's springs in two blocks: a permutation that keeps every spring in its block,
-    moves none far from its place, and leaves no two springs within ``INTERLEAVE`` of each other sharing a
-    point (in the cloth's own order a row's springs follow each other)."""
-    model = cloth_square(1.0, 41, 1.0)
-    order, blocks = split_springs(model.springs, model.coarse_vertices, min_springs=0)
-    springs = model.springs[order]
-    perm = pass_order(springs, blocks)
-    assert np.array_equal(np.sort(perm), np.arange(len(perm)))
-    na, nb = int(blocks[0]), int(blocks[1])
-    block = np.searchsorted([na, na + nb], np.arange(len(perm)), side="right")
-    assert np.array_equal(block[perm], block)  # each spring stays in its block
-    assert np.abs(perm - np.arange(len(perm))).max() < 100
-
-    def sharing(ends, gap):
-        return np.mean([len(set(ends[q]) & set(ends[q - gap])) > 0 for q in range(gap, len(ends))])
-
-    ordered = springs[perm]
-    assert sharing(springs, 1) > 0.1  # a row of the cloth: (0, 1), (1, 2), (2, 3) ...
-    assert all(sharing(ordered[lo:hi], gap) < 0.01 for gap in range(1, INTERLEAVE + 1)
-               for lo, hi in ((0, na), (na, na + nb)))
 
 
 def test_the_blocks_share_no_point_and_the_boundary_is_thin():

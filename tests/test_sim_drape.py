@@ -576,21 +576,20 @@ def test_a_tangled_start_does_not_grow_the_feet(catalogue):
 
 
 def test_the_shown_mesh_takes_back_the_stretch_its_pushes_leave(catalogue):
-    """The A-line skirt XL on the fit bench's small body (158 cm, 86 / 72 / 92): no spring over its limit, but
-    the shown mesh's last pushes out of the body leave its edges stretched to 0.5. The settling rounds
-    (``full_mesh._settle_free``: the stretch passes with the pushed points held, collision, lift) bring every
-    shown edge within 16 % without letting the body through; the drape shows that mesh. (Which drape needs the
-    rounds moves with the solver: the large body's trousers XL did before the passes' springs were interleaved.)"""
+    """Trousers XL on the fit bench's large body (185 cm, 112 / 100 / 112): no spring over its limit, but the shown
+    mesh's collision pushed a crotch vertex into the crease between the thighs, stretching its edges to 0.32.
+    The settling rounds (``full_mesh._settle_free``: the stretch passes with the pushed points held, collision,
+    lift) bring every shown edge within 16 % without letting the body through; the drape shows that mesh."""
     from tryon.sim.full_mesh import display_strain, follow_coarse
     from tryon.sim.run import settle
     from tryon.sim.start import start
 
-    small = build_body(Measurements(height=158, chest=86, waist=72, hips=92), Pose())
-    d = start(small, _model(catalogue, "skirt-xl.obj", "bottom"), SimSettings())
+    large = build_body(Measurements(height=185, chest=112, waist=100, hips=112), Pose())
+    d = start(large, _model(catalogue, "trousers-xl.obj", "bottom"), SimSettings())
     result = settle(d)[0]
     assert sum(k["over"] for k in result.metrics["strain_by_kind"].values()) == 0
     assert result.metrics["display_max_strain"] <= 0.16 and result.metrics["body_through_vertices"] == 0
     m = d.model
     full, _ = follow_coarse(m.garment, d.state.x, d.control.collider, m.limits, m.settings.contact_offset, m.floor_y,
                             None, m.tuning.untangle_step, m.tuning.shown_untangle_rounds, settle=False)
-    assert display_strain(full, d.model.garment) > 0.4  # without the rounds
+    assert display_strain(full, d.model.garment) > 0.25  # without the rounds

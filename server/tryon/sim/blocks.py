@@ -7,8 +7,7 @@ garment's rest shape); the springs with both ends in one half form that half's b
 cut (one row of a cloth) the boundary. The two blocks write disjoint points, so they run at the same time on
 two threads with no race, and the numbers are those of one thread running block A, then block B: the same
 on one thread or two, whatever the machine's load. The boundary springs run after them (before them on a
-backward pass). Within a block the springs keep the garment's own order but for local moves that keep
-neighbours in a pass from sharing a point (``pass_order``: a correction need not wait for the one before it).
+backward pass). Within a block the springs keep the garment's own order.
 
 Only garments with at least ``MIN_SPLIT_SPRINGS`` springs are split: a parallel launch costs a few
 microseconds, and the catalogue's garments (at most 12,480 springs, the XXL dress; ~0.1 ms a pass) keep
@@ -34,18 +33,6 @@ from tryon.sim.constraints import sweep_downward
 
 # springs: a garment with fewer keeps one block (the perf T-shirt has 16,938, the catalogue at most 12,480)
 MIN_SPLIT_SPRINGS = 15_000
-# springs: in a pass, a spring shares no point with the INTERLEAVE springs before it wherever one of the next
-# LOOKAHEAD springs not yet placed allows (``interleaved``). A spring's correction then need not wait for the one
-# before it to be written (its square root and division overlap with the next's in the core): the perf T-shirt's
-# pass 13.9 -> 7.6 ns a spring (in the garment's own order 87 % of neighbours share a point; 2: 8.2 ns, 4: 7.3,
-# 8: 7.1). The drapes move with the order as with any change to the passes: with 4 the tests' long-sleeve on a
-# 120-degree elbow ended with springs over and hanging sleeves round an upper arm, with 8 a tucked-in outfit's
-# shown trousers kept most of their crossings; 2 and 3 keep all three.
-INTERLEAVE = 3
-# springs: how far ahead a spring may be taken for that (16: 12 % of neighbours still share a point); the order
-# stays the garment's but for such local moves (a spring moves 10 places on average), so a pass still carries a
-# correction along a chain
-LOOKAHEAD = 64
 
 if "NUMBA_THREADING_LAYER" not in os.environ:
     # the pool's worker threads launch parallel kernels at once: only OpenMP and TBB allow that
@@ -79,48 +66,6 @@ def split_springs(springs: np.ndarray, points: np.ndarray,
     order = np.concatenate([np.flatnonzero(in_a), np.flatnonzero(in_b), np.flatnonzero(~(in_a | in_b))])
     blocks = np.array([in_a.sum(), in_b.sum(), int(parallel_ok())], dtype=np.int64)
     return order.astype(np.int64), blocks
-
-
-def pass_order(springs: np.ndarray, blocks: np.ndarray) -> np.ndarray:
-    """A permutation (s,) int64 of springs (s, 2) in block order (``split_springs``) that keeps each block's
-    springs in its block, in their order but for ``interleaved``'s local moves."""
-    na, nb = int(blocks[0]), int(blocks[1])
-    cuts = [0, na, na + nb, len(springs)] if na + nb else [0, len(springs)]
-    ends = np.ascontiguousarray(springs, dtype=np.int64)
-    return np.concatenate([lo + interleaved(ends[lo:hi], INTERLEAVE, LOOKAHEAD)
-                           for lo, hi in zip(cuts[:-1], cuts[1:])]).astype(np.int64)
-
-
-@njit(cache=True, nogil=True)
-def interleaved(ends, window, lookahead):
-    """A permutation (s,) int64 of the springs ``ends`` (s, 2) int64: at each place the first spring not yet
-    placed, or the first of the next ``lookahead`` unplaced ones that shares no point with the ``window``
-    springs placed before it, if the first does. O(s lookahead)."""
-    s = ends.shape[0]
-    out = np.empty(s, dtype=np.int64)
-    if s == 0:
-        return out
-    last = np.full(ends.max() + 1, -window - 1, dtype=np.int64)  # where each point was last placed
-    placed = np.zeros(s, dtype=np.bool_)
-    first = 0
-    for pos in range(s):
-        while placed[first]:
-            first += 1
-        pick = first
-        seen = 0
-        q = first
-        while q < s and seen < lookahead:
-            if not placed[q]:
-                if pos - last[ends[q, 0]] > window and pos - last[ends[q, 1]] > window:
-                    pick = q
-                    break
-                seen += 1
-            q += 1
-        placed[pick] = True
-        out[pos] = pick
-        last[ends[pick, 0]] = pos
-        last[ends[pick, 1]] = pos
-    return out
 
 
 def machine_threads() -> int:

@@ -20,7 +20,7 @@ from tryon.garment.springs import STRUCTURAL
 from tryon.sim.align import align_sized
 from tryon.sim.arm_plan import ArmPlan, plan_arms
 from tryon.sim.arms import ArmSchedule
-from tryon.sim.blocks import pass_order, split_springs
+from tryon.sim.blocks import split_springs
 from tryon.sim.collision.collider import BodyCollider, relevant_parts
 from tryon.sim.constraints import pack_springs
 from tryon.sim.limbs import limb_openings
@@ -54,7 +54,6 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     limits = settings.limits_array()
     # a large garment's springs in two blocks that share no point (its passes then run on two threads)
     order, blocks = split_springs(model.springs, model.coarse_vertices)
-    order = order[pass_order(model.springs[order], blocks)]  # neighbours in a pass share no point
     springs = np.ascontiguousarray(model.springs[order], dtype=np.int64)
     rest = np.ascontiguousarray(model.rest[order], dtype=np.float64)
     kind = np.ascontiguousarray(model.kind[order], dtype=np.int64)

@@ -58,8 +58,8 @@ SKIN_DEEPEST = 0.01
 # Rounds of (stretch passes of the points the body does not hold, collision, lift) at the end: the collision
 # calls and the lifts stretch the shown edges between a pushed point and its neighbours; with the body's points
 # held, the neighbours take it back. The fit bench's 90 drapes with no spring over but a shown edge over 16 %: 7
-# without them, 4 with three rounds (body vertices through the shown meshes 18 -> 1); then, the passes' springs
-# interleaved, 4 -> 2 with the lifted points held too and the passes once more after the last round.
+# without them, 4 with three rounds (body vertices through the shown meshes 18 -> 1), 2 with the lifted points
+# held too and the passes once more after the last round (one of them, the dress M, reported tight).
 SETTLE_ROUNDS = 3
 
 

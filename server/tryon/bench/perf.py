@@ -49,7 +49,7 @@ from tryon.sim.relax import relax
 from tryon.sim.run import drape
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
-from tryon.sim.step import step
+from tryon.sim.step import step_drape
 from tryon.sim.substeps import finish_step
 
 # Grid spacing (m) that gives the generator's T-shirt (size M) about 7,500 vertices.
@@ -211,7 +211,7 @@ def perf(repeats: int = 3, settings: SimSettings = SimSettings()) -> dict:
     phases["start"] = time.perf_counter() - t
     with _Timer(capture_step=max(1, result.metrics["steps"] - 10)) as timer:
         t = time.perf_counter()
-        while d.state.step < settings.max_steps and not step(d.model, d.state, d.control):
+        while d.state.step < settings.max_steps and not step_drape(d):
             pass
         phases["loop"] = time.perf_counter() - t
     t = time.perf_counter()

@@ -140,18 +140,16 @@ def _settle_free(full: np.ndarray, full_prev: np.ndarray, contact: np.ndarray, e
     ones = np.ones(len(full))
     active = np.ones(len(full), dtype=np.bool_)
     held = contact.copy()
-    for _ in range(SETTLE_ROUNDS):
+    for r in range(SETTLE_ROUNDS + 1):  # the rounds, then their passes and collision once more
         satisfy_springs(full, np.where(held, 0.0, 1.0), ends, table, DISPLAY_PASSES)
         active[:] = True
         collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact,
                          hold_depth=PINCHED_LEAST_DEEP)
+        if r == SETTLE_ROUNDS:
+            break
         before = full.copy()
         lift_over_skin(collider, parts, full, faces, collider.margin, SKIN_DEEPEST)
         held = contact | np.any(full != before, axis=1)
-    satisfy_springs(full, np.where(held, 0.0, 1.0), ends, table, DISPLAY_PASSES)
-    active[:] = True
-    collider.collide(full, full_prev, ones, active, parts, contact_offset, 0.0, 0.0, contact,
-                     hold_depth=PINCHED_LEAST_DEEP)
 
 
 def display_strain(full: np.ndarray, model: GarmentModel) -> float:

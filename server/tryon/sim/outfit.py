@@ -80,7 +80,7 @@ from tryon.sim.relax import collide_all, relax, relaxation_passes, relaxation_ro
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
 from tryon.sim.state import Drape
-from tryon.sim.step import step
+from tryon.sim.step import step_drape
 from tryon.sim.tuning import TUNING, Tuning
 
 # At most this many garments in one outfit (an undershirt, a shirt, a layer over them; or a top and a bottom
@@ -273,11 +273,6 @@ def off_shown(under: list[np.ndarray], faces: list[np.ndarray], body: Body) -> C
 
 
 _GARMENT_THREADS: ThreadPoolExecutor | None = None
-
-
-def step_drape(d: Drape) -> bool:
-    """``step`` on one garment's drape."""
-    return step(d.model, d.state, d.control)
 
 
 def each_garment(fn: Callable, drapes: list[Drape]) -> list:

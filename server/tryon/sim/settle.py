@@ -15,7 +15,7 @@ from tryon.sim.finish import TryOnResult, finish
 from tryon.sim.metrics import deepest_inside
 from tryon.sim.relax import relax
 from tryon.sim.state import Drape
-from tryon.sim.step import step
+from tryon.sim.step import step_drape
 
 __all__ = ["settle", "showing"]
 
@@ -37,7 +37,7 @@ def settle(d: Drape, on_frame=None, give_way=None, start_up: bool = False) -> tu
     over (a checker that watches the whole run: the stability stress)."""
     stopped = False
     for _ in range(d.model.settings.max_steps):
-        at_rest = step(d.model, d.state, d.control)
+        at_rest = step_drape(d)
         if d.control.moving:  # a re-pose: how deep the cloth is inside the body as it is at this step
             d.state.motion_depth = max(d.state.motion_depth, deepest_inside(d.control.collider, d.state.x))
         shown = start_up or d.control.moving or showing(d)

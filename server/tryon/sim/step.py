@@ -23,7 +23,7 @@ from tryon.sim.constraints import (
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.pieces import hanging_pieces
 from tryon.sim.projection import project_stretch, sticking
-from tryon.sim.state import BodyControl, DrapeModel, DrapeState
+from tryon.sim.state import BodyControl, Drape, DrapeModel, DrapeState
 from tryon.sim.substeps import Planes, Springs, Substeps, Sweep, finish_step
 
 
@@ -111,6 +111,11 @@ def step(model: DrapeModel, state: DrapeState, control: BodyControl) -> bool:
     # sole there), and a re-pose's straddled limbs.
     cap_stretch(x, inv_mass, model.springs, model.rest, tu.tear_guard, tu.tear_passes)
     return _at_rest(model, st, control.startup)
+
+
+def step_drape(d: Drape) -> bool:
+    """``step`` on a drape's three parts (its model, state and control)."""
+    return step(d.model, d.state, d.control)
 
 
 def _body_at(control: BodyControl, st: DrapeState, n: int, grow_from: float) -> None:

@@ -393,3 +393,28 @@ def test_an_inner_layer_on_the_body_does_not_give_way_to_the_outer_one():
     inner, outer = collided([np.ones(3, dtype=np.bool_), np.zeros(3, dtype=np.bool_)])
     assert np.array_equal(inner, tri)
     assert outer[0, 2] == pytest.approx(0.002)  # its point over the inner triangle went the whole gap out
+
+
+def test_a_shirt_tucked_into_trousers_is_gathered_above_the_crotch(tmp_path):
+    """The T-shirt M hangs below the crotch of 170 / 92 / 76 / 98 (tucked out); tucked into the trousers M its tail
+    lay across the gap between the thighs and held the trousers' crotch seam under it: the trousers were "too
+    tight at the left thigh, the right thigh, the waist, the right shin and the hips", shown at 2.35x. Gathered
+    inside the band (``outfit.tail_gathered``) it ends above the crotch and the trousers are not too tight; the
+    catalogue's T-shirt keeps its own lengths."""
+    from tryon.bench.stress import catalogue_models
+    from tryon.sim.landmarks import body_landmarks
+    from tryon.sim.outfit import TAIL_ABOVE_CROTCH
+
+    shopper = build_body(Measurements(height=170, chest=92, waist=76, hips=98), Pose())
+    crotch = body_landmarks(shopper).crotch_y
+    shirt, trousers = catalogue_models(data_dir=tmp_path, names=["tshirt-m.obj", "trousers-m.obj"])
+    rest = shirt.rest.copy()
+    out = drape_outfit(shopper, [shirt, trousers], tuck="out")
+    assert out.results[1].coarse[:, 1].min() < crotch - 0.05  # the shirt, over the trousers, hangs past the crotch
+    tucked = drape_outfit(shopper, [shirt, trousers], tuck="in")
+    top, bottom = tucked.results
+    assert tucked.metrics["tuck_as_asked"] and tucked.metrics["layer_penetrating_vertices"] == 0
+    assert top.coarse[:, 1].min() > crotch + TAIL_ABOVE_CROTCH - 0.01
+    assert bottom.metrics["too_tight"] == {}, bottom.metrics["too_tight"]
+    assert bottom.metrics["max_strain"] < 0.25  # 0.48 with the tail between the thighs
+    assert np.array_equal(shirt.rest, rest)

@@ -50,7 +50,8 @@ garment under it, each triangle's outward side taken on the shown meshes as they
 
 Tuck: a top and a bottom in one outfit are layered by ``tuck``: ``out`` (the default) puts the bottom under
 every top (the top's hem falls over the waistband), ``in`` puts the bottom right over the innermost top (its
-band holds that top's hem inside; a second top stays over both).
+band holds that top's hem inside; a second top stays over both. Before the first step the tucked top's tail, what lies under the bottom's top, is gathered to fit
+inside it (``tail_gathered``: round the body to the bottom's girth, and above the crotch in trousers or shorts).
 """
 
 from __future__ import annotations
@@ -62,6 +63,8 @@ from typing import Callable
 
 import numba
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
@@ -75,6 +78,7 @@ from tryon.sim.collision.crossings import layer_depths, signed_distances
 from tryon.sim.collision.over_fixed import OverFixed
 from tryon.sim.constraints import cap_stretch
 from tryon.sim.finish import TryOnResult, full_mesh, result
+from tryon.sim.landmarks import body_landmarks, hull_girth, torso_points
 from tryon.sim.pieces import piece_kinds, piece_labels, waistband_mask
 from tryon.sim.relax import collide_all, relax, relaxation_passes, relaxation_round
 from tryon.sim.settings import SimSettings
@@ -129,6 +133,11 @@ SHOWN_LAYER_ROUNDS = 5
 # penetration (issue 29's tolerance, as for the body).
 LAYER_TOLERANCE = 0.002
 TUCKS = ("out", "in")
+# m: a top tucked into trousers or shorts ends at least this far above the body's crotch (``tail_gathered``):
+# clear of the gap between the thighs, where the bottom's crotch seam lies.
+TAIL_ABOVE_CROTCH = 0.03
+# m: the height of the slabs in which a tucked tail's girth is gathered to the bottom's (``_gather_round``).
+GATHER_SLAB = 0.02
 # The share of the top's shown vertices at the band's height, over the bottom, that must be on the tuck's side of
 # its surface for ``tuck_as_asked``.
 TUCK_SHARE = 0.9
@@ -176,6 +185,68 @@ def tuck_in(drapes: list[Drape], faces: list[np.ndarray], sides: list[np.ndarray
             collide_layers(x, [drapes[i].state.x_prev, d.state.x_prev],
                            [drapes[i].state.inv_mass, np.zeros(len(x[1]))], [faces[i], faces[j]], [sides[i], sides[j]],
                            LAYER_GAP, both_ways=True, reach=TUCK_REACH)
+
+
+def tail_gathered(top: Drape, bottom: Drape, body: Body) -> GarmentModel | None:
+    """The top's garment with its tail, the part under ``bottom``'s top, gathered to fit in it: round the body
+    to the bottom's girth (``_gather_round``), and for trousers or shorts up to end ``TAIL_ABOVE_CROTCH`` above
+    the body's crotch; None when nothing of it is under the bottom. Worn, that cloth is folded and bunched inside
+    the band, finer than the coarse mesh's triangles show. Kept at its own girth, a shirt wider than the band
+    pushed the band out past its limit; kept at its length, the cloth hanging below the crotch lay across the gap
+    between the thighs, where the bottom's crotch seam goes, and the layer push held the seam centimetres below
+    the crotch, stretching the seat and thighs (the T-shirt M in the trousers M on 170 / 92 / 76 / 98: shown
+    2.35x, tight). The gathered shape's lengths become the springs' natural ones (``GarmentModel.resized``; the
+    alignment only translates a top, so the aligned move is the rest shape's move)."""
+    garment, x = top.model.garment, top.state.x
+    above = float(bottom.state.x[:, 1].max())
+    limbs = [o for _, _, o in top.model.openings]
+    hems = [loop for loop in garment.coarse_loops if not any(np.array_equal(loop, o) for o in limbs)]
+    if not hems:
+        return None
+    hem = min(hems, key=lambda loop: float(x[loop, 1].mean()))
+    tail = _reached_below(hem, garment.springs, x[:, 1] < above)
+    if not tail.any():
+        return None
+    moved = x.copy()
+    target = body_landmarks(body).crotch_y + TAIL_ABOVE_CROTCH
+    lowest = float(x[tail, 1].min())
+    if any(limb == "leg" for _, limb, _ in bottom.model.openings) and lowest < target < above:
+        moved[tail, 1] = above - (above - x[tail, 1]) * (above - target) / (above - lowest)
+    _gather_round(moved, tail, bottom.state.x, torso_points(body))
+    return garment.resized(garment.coarse_vertices + (moved - x))
+
+
+def _gather_round(moved: np.ndarray, tail: np.ndarray, bottom: np.ndarray, torso: np.ndarray) -> None:
+    """Gather the ``tail`` points (k,) bool of ``moved`` (k, 3) m, in place, round the body to fit inside
+    ``bottom`` (b, 3) m: in each ``GATHER_SLAB`` of height their girth is scaled about the bottom's centre there
+    to the bottom's girth less two ``LAYER_GAP`` round it (the excess folded finer than the coarse mesh shows, as
+    a shirt's round a belt), but not below the body's (``torso`` (t, 3) m, its vertices) and a ``LAYER_GAP``
+    round it: a bottom too small for the body is stretched over the shirt, not the shirt into the body."""
+    for y in np.arange(moved[tail, 1].min(), moved[tail, 1].max() + GATHER_SLAB, GATHER_SLAB):
+        here = tail & (np.abs(moved[:, 1] - y) <= GATHER_SLAB / 2)
+        around = np.abs(bottom[:, 1] - y) <= GATHER_SLAB
+        if here.sum() < 3 or around.sum() < 3:
+            continue
+        room = hull_girth(bottom[around]) - 4.0 * np.pi * LAYER_GAP
+        body = np.abs(torso[:, 1] - y) <= GATHER_SLAB / 2
+        if body.sum() >= 3:
+            room = max(room, hull_girth(torso[body]) + 2.0 * np.pi * LAYER_GAP)
+        girth = hull_girth(moved[here])
+        if girth <= room or room <= 0.0:
+            continue
+        centre = bottom[around][:, [0, 2]].mean(axis=0)
+        moved[np.ix_(here, [0, 2])] = centre + (moved[np.ix_(here, [0, 2])] - centre) * (room / girth)
+
+
+def _reached_below(start: np.ndarray, springs: np.ndarray, below: np.ndarray) -> np.ndarray:
+    """(k,) bool: the points ``below`` (k,) bool reached from ``start`` (point ids) along ``springs`` (s, 2)
+    through points ``below`` only (a top's tail from its hem, not its sleeves)."""
+    a, b = springs[:, 0], springs[:, 1]
+    keep = below[a] & below[b]
+    n = len(below)
+    graph = coo_matrix((np.ones(int(keep.sum())), (a[keep], b[keep])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    return below & np.isin(label, label[start[below[start]]])
 
 
 def gather(d: Drape, pressed: np.ndarray, compression: np.ndarray) -> None:
@@ -315,6 +386,11 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
         """Which side of each triangle is outside, where the garments are now."""
         return [face_sides(d.state.x, f, outward_from_body(d.state.x, body)) for d, f in zip(drapes, faces)]
     if tuck == "in":
+        for k in range(len(drapes) - 1):  # a top with the bottom right over it: its tail gathered in
+            if drapes[k + 1].model.garment.meta.category == "bottom":
+                gathered = tail_gathered(drapes[k], drapes[k + 1], body)
+                if gathered is not None:
+                    drapes[k] = start(body, gathered, settings, replace(tuning, untangle_every=0))
         tuck_in(drapes, faces, sides())
     layered_from = max(d.control.startup for d in drapes)  # every body complete: the layers may collide
     asleep = np.zeros(len(drapes), dtype=np.bool_)

@@ -72,6 +72,7 @@ def test_sections_carry_their_figures(bench):
     for style, by in sizes["preferences"].items():  # slim never a larger size, relaxed never a smaller one
         assert by["slim"]["larger"] == 0 and by["relaxed"]["smaller"] == 0
         assert 0 < sum(by["slim"].values()) <= sizes["styles"][style]["people"]
+        assert sizes["advice_s_median"][style] > 0 and sizes["tryon_s_median"][style] > 0  # one try-on timed too
     t1 = _section(report, "table1")["data"]["ours"][0]
     assert 0 < t1["simplified"] < t1["vertices"]
     assert t1["collision_ms_full"] > 0 and t1["collision_ms_simplified"] > 0

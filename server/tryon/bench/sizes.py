@@ -3,7 +3,8 @@ style CSV (``tryon bench --bodies CSV``; by default the small sample of made-up 
 ``tests/data/bodies-sample.csv``) and the catalogue's T-shirt and trousers styles, the drape-based advice
 (``tryon fit-table``'s code, that of ``POST /api/fit``) beside the size the style's own chart gives:
 how often they agree, exactly and within one size, every disagreement with the advice's reason, and the time
-of one advice.
+of one advice against that of one try-on of the advised size (the body built and the size draped, as
+``POST /api/tryon`` does; issue 52: advice at most 3x one try-on).
 
 The advice starts from the chart's size (the maker's claim) and the drapes move it (our measurement: up while
 too tight, down while it falls off or is loose), so every disagreement is such a move and the report gives its
@@ -27,6 +28,8 @@ STYLES = ("tshirt", "trousers")
 PREFERENCES = ("slim", "relaxed")
 # People taken in the quick run (the first of the CSV).
 QUICK_PEOPLE = 3
+# People per style whose advised size is also draped alone, timed as one try-on (the first of the CSV).
+TRYON_PEOPLE = 5
 SAMPLE = Path("tests") / "data" / "bodies-sample.csv"
 
 
@@ -39,6 +42,22 @@ def _bodies_path(ctx: Context) -> Path:
     if not sample.exists():
         raise SkipSection(f"no bodies: give --bodies CSV (the sample {SAMPLE} is not in this installation)")
     return sample
+
+
+def _median(values: list[float]) -> float | None:
+    return float(np.median(values)) if values else None
+
+
+def _one_tryon(person, model) -> float:
+    """s: one try-on of ``model`` on ``person``: the body built and the garment draped (default settings and
+    pose, as ``POST /api/tryon``)."""
+    from tryon.body.build import build_body
+    from tryon.body.params import Measurements, Pose
+    from tryon.sim.run import drape
+
+    t = time.perf_counter()
+    drape(build_body(Measurements(**person.measurements), Pose()), model)
+    return time.perf_counter() - t
 
 
 def _catalogue(root: Path):
@@ -66,16 +85,18 @@ def run(ctx: Context, sec: Section) -> None:
         catalogue = _catalogue(Path(tmp))
         styles = {s: catalogue.style(s) for s in STYLES if catalogue.style(s)}
         models = {m.id: catalogue.model(m.id) for entries in styles.values() for m in entries}
-        rows, disagreements, times = [], [], []
+        rows, disagreements = [], []
+        times, tryon_times = {}, {}  # style -> s of each advice, of each timed try-on
         stats, moved = {}, {}
         for style, entries in styles.items():
             labels = [m.size for m in entries]
             st = stats[style] = {"people": 0, "covered": 0, "exact": 0, "within_one": 0, "no_advice": 0}
             mv = moved[style] = {p: {"smaller": 0, "same": 0, "larger": 0} for p in PREFERENCES}
+            times[style], tryon_times[style] = [], []
             for person in people:
                 t = time.perf_counter()
                 row = advise_person(person, style, entries, models, also=PREFERENCES)
-                times.append(time.perf_counter() - t)
+                times[style].append(time.perf_counter() - t)
                 for p in PREFERENCES:
                     if row[p] in labels and row["recommended"] in labels:
                         step = labels.index(row[p]) - labels.index(row["recommended"])
@@ -90,6 +111,8 @@ def run(ctx: Context, sec: Section) -> None:
                 st["covered"] += 1
                 st["exact"] += got == want
                 st["within_one"] += got is not None and abs(got - want) <= 1
+                if len(tryon_times[style]) < TRYON_PEOPLE and got is not None:
+                    tryon_times[style].append(_one_tryon(person, models[entries[got].id]))
                 if got != want:
                     disagreements.append([person.id, style, labels[want], row["recommended"] or "none",
                                           row["verdicts"], row["reason"]])
@@ -98,7 +121,8 @@ def run(ctx: Context, sec: Section) -> None:
         rows.append([style, st["people"], st["covered"], st["exact"], f"{100 * st['exact'] / covered:.0f} %",
                      st["within_one"], f"{100 * st['within_one'] / covered:.0f} %", st["no_advice"]])
     sec.data.update({"bodies": str(path), "people": len(people), "styles": stats, "preferences": moved,
-                     "advice_s_median": float(np.median(times)) if times else None,
+                     "advice_s_median": {k: _median(v) for k, v in times.items()},
+                     "tryon_s_median": {k: _median(v) for k, v in tryon_times.items()},
                      "disagreements": disagreements})
     sec.tables.append(Table(
         f"Drape-based advice against the style's chart ({len(people)} people of {path.name})",
@@ -122,11 +146,13 @@ def run(ctx: Context, sec: Section) -> None:
         ["person", "style", "chart", "advice", "verdicts", "the advice's reason"],
         disagreements or [["-", "-", "-", "-", "-", "none"]],
     ))
-    median = sec.data["advice_s_median"]
     for style, st in stats.items():
         covered = max(st["covered"], 1)
+        median, one = sec.data["advice_s_median"][style], sec.data["tryon_s_median"][style]
+        ratio = (f", {median / one:.2f}x one try-on of the advised size ({fmt(one)} s, median of "
+                 f"{len(tryon_times[style])})" if median and one else "")
         sec.headline.append(
             f"sizes, {style}: the advice agrees with the chart for {st['exact']} of {st['covered']} people "
             f"({100 * st['exact'] / covered:.0f} %), within one size for {st['within_one']} "
             f"({100 * st['within_one'] / covered:.0f} %); median {fmt(median)} s an advice (its three fits from "
-            f"the same drapes)")
+            f"the same drapes){ratio}")

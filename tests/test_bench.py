@@ -335,5 +335,7 @@ def test_outfits_section_drapes_a_top_over_a_bottom(bench):
         assert r["steps"] > 0 and r["wall_s"] > 0 and r["single_sum_s"] > 0
         assert r["cost_ratio"] == pytest.approx(r["wall_s"] / r["single_sum_s"])
         assert r["layer_penetrating"] >= 0 and r["penetrating"] >= 0
+        assert math.isfinite(r["shown_strain"]) and r["shown_strain"] > 0
     out = rows[0]
     assert out["layer_penetrating"] == 0 and out["tuck_as_asked"] is True  # the top's hem over the band
+    assert out["shown_strain"] <= 0.16  # what the page draws is within the cloth's limits (issue 51's 16 %)

@@ -50,8 +50,9 @@ garment under it, each triangle's outward side taken on the shown meshes as they
 
 Tuck: a top and a bottom in one outfit are layered by ``tuck``: ``out`` (the default) puts the bottom under
 every top (the top's hem falls over the waistband), ``in`` puts the bottom right over the innermost top (its
-band holds that top's hem inside; a second top stays over both. Before the first step the tucked top's tail, what lies under the bottom's top, is gathered to fit
-inside it (``tail_gathered``: round the body to the bottom's girth, and above the crotch in trousers or shorts).
+band holds that top's hem inside; a second top stays over both). Before the first step the tucked top's tail,
+what lies under the bottom's top, is gathered to fit inside it (``tail_gathered``: round the body to the
+bottom's girth, and above the crotch in trousers or shorts).
 """
 
 from __future__ import annotations

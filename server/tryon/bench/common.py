@@ -162,6 +162,11 @@ def finite(value):
     return value
 
 
+def median(values) -> float | None:
+    """The median of ``values`` (numbers), None when there are none."""
+    return float(np.median(values)) if len(values) else None
+
+
 def fmt(value, digits: int = 3) -> str:
     """A table cell: floats to ``digits`` significant digits, None as a dash."""
     if value is None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import time
 from dataclasses import replace
 
-from tryon.bench.common import Context, Section, Table, fmt
+from tryon.bench.common import Context, Section, Table, fmt, median
 from tryon.bench.scenes import catalogue_entries, main_entry, prepared
 
 # cm: the three bodies (height, chest, waist, hips).
@@ -107,7 +107,7 @@ def run(ctx: Context, sec: Section) -> None:
         + f"; self-crossing edges {sum(d['self_intersections'] for d in data)}; a shown frame more than 2 mm inside "
         f"{sum(d['frame_depth_mm'] > 2.0 for d in data)}/{len(data)} "
         f"(deepest {fmt(max(d['frame_depth_mm'] for d in data))} mm); hang stretch median "
-        f"{fmt(100.0 * _median([d['hang_stretch'] for d in data]))} %, largest "
+        f"{fmt(100.0 * median([d['hang_stretch'] for d in data]))} %, largest "
         f"{fmt(100.0 * max(d['hang_stretch'] for d in data))} %")
 
 
@@ -160,13 +160,6 @@ def _settings_words(ctx: Context, settings) -> str:
     if ctx.projection:
         words.append(f"{settings.projection_steps} Newton steps of the fast projection a step")
     return ", ".join(words)
-
-
-def _median(values: list) -> float:
-    """The median of a list of numbers."""
-    import numpy as np
-
-    return float(np.median(values))
 
 
 def _stays_up(d: dict) -> str:

@@ -19,9 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
-from tryon.bench.common import Context, Section, SkipSection, Table, fmt
+from tryon.bench.common import Context, Section, SkipSection, Table, fmt, median
 
 STYLES = ("tshirt", "trousers")
 # The fit preferences compared with the regular fit's advice (``fit.verdict.PREFERENCES``).
@@ -42,10 +40,6 @@ def _bodies_path(ctx: Context) -> Path:
     if not sample.exists():
         raise SkipSection(f"no bodies: give --bodies CSV (the sample {SAMPLE} is not in this installation)")
     return sample
-
-
-def _median(values: list[float]) -> float | None:
-    return float(np.median(values)) if values else None
 
 
 def _one_tryon(person, model) -> float:
@@ -121,8 +115,8 @@ def run(ctx: Context, sec: Section) -> None:
         rows.append([style, st["people"], st["covered"], st["exact"], f"{100 * st['exact'] / covered:.0f} %",
                      st["within_one"], f"{100 * st['within_one'] / covered:.0f} %", st["no_advice"]])
     sec.data.update({"bodies": str(path), "people": len(people), "styles": stats, "preferences": moved,
-                     "advice_s_median": {k: _median(v) for k, v in times.items()},
-                     "tryon_s_median": {k: _median(v) for k, v in tryon_times.items()},
+                     "advice_s_median": {k: median(v) for k, v in times.items()},
+                     "tryon_s_median": {k: median(v) for k, v in tryon_times.items()},
                      "disagreements": disagreements})
     sec.tables.append(Table(
         f"Drape-based advice against the style's chart ({len(people)} people of {path.name})",
@@ -148,11 +142,11 @@ def run(ctx: Context, sec: Section) -> None:
     ))
     for style, st in stats.items():
         covered = max(st["covered"], 1)
-        median, one = sec.data["advice_s_median"][style], sec.data["tryon_s_median"][style]
-        ratio = (f", {median / one:.2f}x one try-on of the advised size ({fmt(one)} s, median of "
-                 f"{len(tryon_times[style])})" if median and one else "")
+        advice, one = sec.data["advice_s_median"][style], sec.data["tryon_s_median"][style]
+        ratio = (f", {advice / one:.2f}x one try-on of the advised size ({fmt(one)} s, median of "
+                 f"{len(tryon_times[style])})" if advice and one else "")
         sec.headline.append(
             f"sizes, {style}: the advice agrees with the chart for {st['exact']} of {st['covered']} people "
             f"({100 * st['exact'] / covered:.0f} %), within one size for {st['within_one']} "
-            f"({100 * st['within_one'] / covered:.0f} %); median {fmt(median)} s an advice (its three fits from "
+            f"({100 * st['within_one'] / covered:.0f} %); median {fmt(advice)} s an advice (its three fits from "
             f"the same drapes){ratio}")

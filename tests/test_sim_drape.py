@@ -346,6 +346,43 @@ def test_trouser_legs_too_long_for_the_body_start_above_the_feet(catalogue):
     assert sum(k["over"] for k in m["strain_by_kind"].values()) == 0, m["strain_by_kind"]
 
 
+def test_legs_shortened_above_the_feet_lengthen_under_gravity_whatever_the_step(catalogue):
+    """Trousers M on the chart's M body (172 cm) reach onto its insteps: their legs start shortened above the
+    feet, their springs folded (no compression correction), and lengthen as gravity draws the hems down. Pushing
+    back from the first step, the legs lengthened both ways while the body grew, lifting the waist 2 cm at the
+    default step and 7.7 cm at a 4x finer one, and the two drapes rested 28 mm RMS apart, their waists 26 mm
+    (now 4.7 mm and 0.2 mm)."""
+    from tryon.sim.landmarks import body_landmarks
+    from tryon.sim.legs import garment_crotch
+    from tryon.sim.run import settle
+    from tryon.sim.start import start
+    from tryon.sim.step import step_drape
+
+    chart_m = build_body(Measurements(height=172, chest=96, waist=82, hips=100), Pose())
+    model = _model(catalogue, "trousers-m.obj", "bottom")
+    rests = []
+    for settings in (SimSettings(), SimSettings(time_step=0.005, passes=48, substeps=16, max_steps=3000)):
+        d = start(chart_m, model, settings)
+        folded = np.zeros(len(d.model.springs), dtype=bool)
+        folded[d.state.folded] = True
+        crotch = garment_crotch(d.state.x, d.model.garment.coarse_faces, body_landmarks(chart_m).center_x)
+        legs = d.state.x[d.model.springs, 1].min(axis=1) < crotch  # a spring with an end below the crotch
+        assert folded.sum() > 0.5 * legs.sum() and not folded[~legs].any()
+        assert (d.model.table[folded, 2] == 0.0).all()
+        assert np.array_equal(d.model.table[~folded, 2], d.model.compression[~folded])
+        top = d.state.x[:, 1].max()
+        for _ in range(d.control.startup):
+            step_drape(d)
+        assert d.state.x[:, 1].max() - top < 0.005  # the waist not lifted while the body grows
+        result = settle(d)[0]
+        assert result.metrics["rest_reached"] and result.metrics["stays_up"]
+        assert len(d.state.folded) < 0.2 * folded.sum()  # most of the legs hang at their length again
+        rests.append(result.coarse)
+    apart = np.linalg.norm(rests[0] - rests[1], axis=1)
+    assert np.sqrt(np.mean(apart ** 2)) < 0.008
+    assert abs(rests[0][:, 1].max() - rests[1][:, 1].max()) < 0.005
+
+
 def test_a_garment_too_small_for_the_body_says_where(catalogue):
     """The T-shirt S (95 cm under the arms, 106 cm at its 10 % limit) on a 112 cm chest cannot meet the
     strain target: the metrics name the chest as where it is too tight."""

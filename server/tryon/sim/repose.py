@@ -319,17 +319,20 @@ def repose(d: Drape, body: Body, transition: PoseTransition | None = None) -> Dr
     not given: ``PoseTransition(d.control.body, body, garment=d.state.x)``); see the module doc. ``d`` is left as it
     was."""
     m = d.model
-    return carry(d.control.body, d.state.x, m.garment, m.settings, m.tuning, body, transition, m.sized)
+    return carry(d.control.body, d.state.x, m.garment, m.settings, m.tuning, body, transition, m.sized,
+                 d.state.folded)
 
 
 def carry(old: Body, garment: np.ndarray, model: GarmentModel, settings: SimSettings, tuning: Tuning, body: Body,
-          transition: PoseTransition | None = None, sized: bool = False) -> Drape:
+          transition: PoseTransition | None = None, sized: bool = False, folded: np.ndarray | None = None) -> Drape:
     """``repose`` from the ``garment`` (k, 3) m of ``model`` as it lies on ``old`` (no drape needed: a re-pose
     done again from where it started, ``through_midway``). ``sized``: ``model`` is a garment of guessed units
-    sized to this person (``start``), as the drape it comes from says: it stays so in every pose."""
+    sized to this person (``start``), as the drape it comes from says: it stays so in every pose. ``folded``: the
+    springs still folded where it lies (``DrapeState.folded``; trouser legs bunched on the feet stay so)."""
     if transition is None:
         transition = PoseTransition(old, body, garment=garment)
-    return start(body, model, settings, tuning, initial=garment.copy(), motion=transition.bind, sized=sized)
+    return start(body, model, settings, tuning, initial=garment.copy(), motion=transition.bind, sized=sized,
+                 folded=folded)
 
 
 def redrape_if_off(d: Drape, result: TryOnResult, on_frame=None) -> tuple[Drape, TryOnResult, bool]:
@@ -371,7 +374,8 @@ def through_midway(d: Drape, on_frame=None) -> tuple[Drape, TryOnResult] | None:
            for k, v in new.items()}
     m, body = d.model, d.control.body
     half = carry(t.old, t.garment, m.garment, m.settings, m.tuning,
-                 build_body(Measurements(**body.requested), Pose(**mid), body.resolution), sized=m.sized)
+                 build_body(Measurements(**body.requested), Pose(**mid), body.resolution), sized=m.sized,
+                 folded=d.state.folded)
     first, _ = settle(half)
     again, result = settle_after(half, first, body, on_frame)
     result.metrics["motion_max_penetration_mm"] = max(first.metrics.get("motion_max_penetration_mm") or 0.0,

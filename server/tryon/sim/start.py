@@ -22,7 +22,7 @@ from tryon.sim.arm_plan import ArmPlan, plan_arms
 from tryon.sim.arms import ArmSchedule
 from tryon.sim.blocks import split_springs
 from tryon.sim.collision.collider import BodyCollider, relevant_parts
-from tryon.sim.constraints import pack_springs
+from tryon.sim.constraints import pack_springs, spring_lengths
 from tryon.sim.limbs import limb_openings
 from tryon.sim.pieces import piece_labels, piece_tops, waistband_mask
 from tryon.sim.settings import REFERENCE_STEP, SimSettings
@@ -31,13 +31,16 @@ from tryon.sim.tuning import TUNING, Tuning
 
 
 def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings(), tuning: Tuning = TUNING,
-          initial: np.ndarray | None = None, motion=None, sized: bool = False) -> Drape:
+          initial: np.ndarray | None = None, motion=None, sized: bool = False,
+          folded: np.ndarray | None = None) -> Drape:
     """A drape of ``model`` on ``body``, ready for its first step. ``initial`` (k, 3) m replaces the
     alignment (tests and stress scenes start from given positions; a re-posed drape from where its garment
     was). ``motion(collider)``: the body's start-up motion in place of the arms' turn back from the sleeves
     (``repose.PoseTransition``: the body moving from its old pose to this one, carrying the garment).
     ``sized``: ``model`` is a garment of guessed units already sized to this person (a re-pose of such a
-    drape); an aligned one is sized here when its units were guessed."""
+    drape); an aligned one is sized here when its units were guessed. ``folded`` (q,) int64: the springs that
+    start folded (``DrapeState.folded``: a re-pose carries its drape's); None: those the alignment shortened,
+    none from ``initial``."""
     started = time.perf_counter()
     piece = piece_labels(model.coarse_faces, len(model.mass))  # a file's separate garments (an outfit's)
     if initial is None:
@@ -76,6 +79,17 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     h = float(settings.time_step) / n_sub
     # the fabric's elasticity (``constraints._spring_pass``): k h^2 / passes per substep, h the substep
     table[:, 4] = model.stiffness[order] * (h * h / per_sub)
+    compression = table[:, 2].copy()
+    # cloth the alignment shortened (trouser legs made for a taller body, shortened to start above the feet:
+    # ``legs.clear_feet``) lies folded finer than the coarse mesh shows: it pushes nothing until gravity or the
+    # body draws it back to its length (``step``). Pushing back from the first step, the legs lengthened both
+    # ways while the body grew with gravity off, lifting the waist 2 cm at the default step and 7.7 cm at a 4x
+    # finer one: where the drape came to rest depended on the step.
+    if folded is None:
+        folded = (np.flatnonzero(spring_lengths(x, springs) < rest * (1.0 - tuning.folded_below)) if initial is None
+                  else np.empty(0, dtype=np.int64))
+    folded = np.asarray(folded, dtype=np.int64)
+    table[folded, 2] = 0.0
 
     collider = BodyCollider(body, settings.collision_margin)
     placed_tops = piece_tops(x, piece)  # to tell at the end how far the garment slid down
@@ -96,6 +110,7 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         collider.set_growing(growing_parts(collider, parts, tuning.grow_reach))
         collider.set_scale(settings.grow_from)
     state = DrapeState.at(x, inv_mass, started)
+    state.folded = folded
     pinned_until, saved_inv_mass = 0, None
     if tangled and not grow_steps:
         collider.collide(x, state.x_prev, inv_mass, state.active, parts, settings.contact_offset, 0.0, 0.0,
@@ -115,8 +130,8 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         floor_y = min(floor_y, float(body.vertices[:, 1].min()) - settings.collision_margin
                       - settings.contact_offset)
     drape_model = DrapeModel(garment=model, settings=settings, tuning=tuning, piece=piece, springs=springs, rest=rest,
-                             kind=kind, mass=mass, limits=limits, ends=ends, table=table, blocks=blocks,
-                             openings=openings, placed_tops=placed_tops, floor_y=floor_y, n_sub=n_sub,
+                             kind=kind, mass=mass, limits=limits, ends=ends, table=table, compression=compression,
+                             blocks=blocks, openings=openings, placed_tops=placed_tops, floor_y=floor_y, n_sub=n_sub,
                              per_sub=per_sub, h=h, sized=sized)
     control = BodyControl(body=body, collider=collider, arms=arms, plan=plan, parts=parts, grow_steps=grow_steps,
                           startup=max(grow_steps, arms.steps), pinned_until=pinned_until,

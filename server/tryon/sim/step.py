@@ -18,7 +18,7 @@ from tryon.sim.collision.contacts import (
 from tryon.sim.collision.self_contact import keep_drape_sides
 from tryon.sim.collision.untangle import untangle
 from tryon.sim.constraints import (
-    cap_stretch, contact_springs, pack_sweep, solve_listed, sweep_springs, top_down_order,
+    cap_stretch, contact_springs, pack_sweep, solve_listed, spring_lengths, sweep_springs, top_down_order,
 )
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.pieces import hanging_pieces
@@ -110,6 +110,8 @@ def step(model: DrapeModel, state: DrapeState, control: BodyControl) -> bool:
     # bodies: the long-sleeve M's cuffs round the hands on the medium body, the trousers M's hem caught under a
     # sole there), and a re-pose's straddled limbs.
     cap_stretch(x, inv_mass, model.springs, model.rest, tu.tear_guard, tu.tear_passes)
+    if len(st.folded):
+        _unfold(model, st)
     return _at_rest(model, st, control.startup)
 
 
@@ -197,6 +199,15 @@ def _held_back(st: DrapeState, collider: BodyCollider, parts: np.ndarray, frame_
     back = drawn[collider.depth(st.x_step[drawn], parts) < now[deep]]
     st.x[back] = st.x_step[back]
     st.x_prev[back] = st.x_step[back]
+
+
+def _unfold(model: DrapeModel, st: DrapeState) -> None:
+    """The folded springs (``st.folded``) drawn back to their natural length (within ``tuning.folded_below``)
+    resist compression again (their packed compression, ``model.compression``) and are no longer folded."""
+    folded = st.folded
+    back = spring_lengths(st.x, model.springs[folded]) >= model.rest[folded] * (1.0 - model.tuning.folded_below)
+    model.table[folded[back], 2] = model.compression[folded[back]]
+    st.folded = folded[~back]
 
 
 def _project(model: DrapeModel, st: DrapeState, w_eff: np.ndarray) -> None:

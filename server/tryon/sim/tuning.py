@@ -116,6 +116,9 @@ class Tuning:
     self_margin: m, how much further than ``self_thickness`` apart the pairs it lists may be
         (``contact_pairs.SelfContact``): a point may stray half of it before its pairs are listed again. 2 cm or
         3 cm (fewer lists, more pairs) cost more on the shorts XXL than 1 cm.
+    folded_below: ratio. A spring the alignment leaves shorter than (1 - this) x its natural length starts
+        folded: no compression correction until it is that long again (``start``; trouser legs shortened to
+        start above the feet). 0.1 %: far under the strain limits, far over the rounding of a rigid move.
     """
 
     rest_move: float = 1e-4
@@ -148,6 +151,7 @@ class Tuning:
     self_thickness: float = 0.0
     self_passes: int = 3
     self_margin: float = 0.01
+    folded_below: float = 1e-3
 
 
 TUNING = Tuning()

@@ -104,7 +104,9 @@ def run(ctx: Context, sec: Section) -> None:
         f"{sum(d['rest'] for d in data)}/{len(data)}, sleeves and legs around their limbs "
         f"{sum(d['on_limbs'] is not False for d in data)}/{len(data)}, staying up {sum(d['stays_up'] for d in data)}/"
         f"{len(data)}; meeting every target: " + ", ".join(per_body)
-        + f"; self-crossing edges {sum(d['self_intersections'] for d in data)}; a shown frame more than 2 mm inside "
+        + f"; self-crossing edges {sum(d['self_intersections'] for d in data)} "
+        f"({sum(d['self_intersections'] for d in data if d['stays_up'])} on the drapes staying up); a shown frame "
+        f"more than 2 mm inside "
         f"{sum(d['frame_depth_mm'] > 2.0 for d in data)}/{len(data)} "
         f"(deepest {fmt(max(d['frame_depth_mm'] for d in data))} mm); hang stretch median "
         f"{fmt(100.0 * median([d['hang_stretch'] for d in data]))} %, largest "

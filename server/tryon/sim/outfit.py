@@ -252,14 +252,14 @@ def _reached_below(start: np.ndarray, springs: np.ndarray, below: np.ndarray) ->
 
 def gather(d: Drape, pressed: np.ndarray) -> None:
     """Cloth pressed between an outer layer and what is under it (``pressed`` (k,) bool, on a contact plane) may
-    shorten: the springs with both ends so squeezed lose their compression correction (``d.model.table``'s third
-    column; the others get back their packed one, ``d.model.compression``, unless still folded,
-    ``DrapeState.folded``). A loose shirt tucked into a waistband gathers into folds finer than the coarse mesh's
-    2-3 cm triangles can show; kept at their natural lengths its springs would stretch the band over it instead."""
+    shorten: the springs with both ends so squeezed lose their compression correction (``d.state.table``'s third
+    column; the others get back their packed one, ``d.model.table``'s, unless still folded, ``DrapeState.folded``).
+    A loose shirt tucked into a waistband gathers into folds finer than the coarse mesh's 2-3 cm triangles can
+    show; kept at their natural lengths its springs would stretch the band over it instead."""
     squeezed = pressed & d.state.has_plane
     both = squeezed[d.model.springs[:, 0]] & squeezed[d.model.springs[:, 1]]
     both[d.state.folded] = True
-    d.model.table[:, 2] = np.where(both, 0.0, d.model.compression)
+    d.state.table[:, 2] = np.where(both, 0.0, d.model.table[:, 2])
 
 
 def layer_order(categories: list[str], tuck: str = "out") -> list[int]:

@@ -63,8 +63,6 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     mass = np.ascontiguousarray(model.mass, dtype=np.float64)
     inv_mass = np.where(mass > 0, 1.0 / np.where(mass > 0, mass, 1.0), 0.0)
     ends, table = pack_springs(springs, rest, kind, limits, settings.compression_array())
-    if motion is not None:
-        table[:, 3] = tuning.unfold_per_pass
     # a bottom's waistband stretches less than its cloth (``band_limit``; its structural springs: the
     # band's hoop and height). Only the solver holds it so: the metrics judge each spring by its type's
     # limit, so a band too small for its waist shows springs over where it is stretched past the cloth's.
@@ -79,7 +77,10 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     h = float(settings.time_step) / n_sub
     # the fabric's elasticity (``constraints._spring_pass``): k h^2 / passes per substep, h the substep
     table[:, 4] = model.stiffness[order] * (h * h / per_sub)
-    compression = table[:, 2].copy()
+    own = table.copy()  # the drape's own (``DrapeState.table``); the model's is never written
+    table.flags.writeable = False
+    if motion is not None:
+        own[:, 3] = tuning.unfold_per_pass
     # cloth the alignment shortened (trouser legs made for a taller body, shortened to start above the feet:
     # ``legs.clear_feet``) lies folded finer than the coarse mesh shows: it pushes nothing until gravity or the
     # body draws it back to its length (``step``). Pushing back from the first step, the legs lengthened both
@@ -89,7 +90,7 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         folded = (np.flatnonzero(spring_lengths(x, springs) < rest * (1.0 - tuning.folded_below)) if initial is None
                   else np.empty(0, dtype=np.int64))
     folded = np.asarray(folded, dtype=np.int64)
-    table[folded, 2] = 0.0
+    own[folded, 2] = 0.0
 
     collider = BodyCollider(body, settings.collision_margin)
     placed_tops = piece_tops(x, piece)  # to tell at the end how far the garment slid down
@@ -110,7 +111,7 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         collider.set_growing(growing_parts(collider, parts, tuning.grow_reach))
         collider.set_scale(settings.grow_from)
     state = DrapeState.at(x, inv_mass, started)
-    state.folded = folded
+    state.table, state.folded = own, folded
     pinned_until, saved_inv_mass = 0, None
     if tangled and not grow_steps:
         collider.collide(x, state.x_prev, inv_mass, state.active, parts, settings.contact_offset, 0.0, 0.0,
@@ -130,8 +131,7 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         floor_y = min(floor_y, float(body.vertices[:, 1].min()) - settings.collision_margin
                       - settings.contact_offset)
     drape_model = DrapeModel(garment=model, settings=settings, tuning=tuning, piece=piece, springs=springs, rest=rest,
-                             kind=kind, mass=mass, limits=limits, ends=ends, table=table, compression=compression,
-                             blocks=blocks, openings=openings, placed_tops=placed_tops, floor_y=floor_y, n_sub=n_sub,
+                             kind=kind, mass=mass, limits=limits, ends=ends, table=table, blocks=blocks, openings=openings, placed_tops=placed_tops, floor_y=floor_y, n_sub=n_sub,
                              per_sub=per_sub, h=h, sized=sized)
     control = BodyControl(body=body, collider=collider, arms=arms, plan=plan, parts=parts, grow_steps=grow_steps,
                           startup=max(grow_steps, arms.steps), pinned_until=pinned_until,

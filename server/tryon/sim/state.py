@@ -39,9 +39,8 @@ class DrapeModel:
     tuning. piece (k,) int64: which separate piece of the file each point belongs to (an outfit's garments).
     springs (s, 2) int64, rest (s,) m, kind (s,) int64, mass (k,) kg, limits (3,) strain limits by kind, in
     block order; ends (s, 2) uint32 and table (s, 5): the springs packed for the passes (a waistband's at the
-    band limit; the compression column is zero for the springs still folded, ``DrapeState.folded``, and an
-    outfit's ``gather`` rewrites it for a tucked top's); compression (s,): that column as packed; blocks (3,)
-    int64 their blocks (``blocks.split_springs``: a large garment's passes run on two threads). openings: the
+    band limit; the drape's own copy, which the steps read, is ``DrapeState.table``), blocks (3,) int64 their
+    blocks (``blocks.split_springs``: a large garment's passes run on two threads). openings: the
     sleeves' and trouser legs' openings; placed_tops (pieces,) m: each piece's top at placement (how far it
     slid). floor_y m; n_sub substeps of h s with per_sub passes each.
     """
@@ -57,7 +56,6 @@ class DrapeModel:
     limits: np.ndarray
     ends: np.ndarray
     table: np.ndarray
-    compression: np.ndarray
     blocks: np.ndarray
     openings: list
     placed_tops: np.ndarray
@@ -127,8 +125,10 @@ class DrapeState:
     body as it was at each step (``settle``). shown_from: the first step of a fresh drape shown to a caller
     (``settle.showing``), 0 before it. self_contact: the pairs the cloth's contact with itself tests
     (``contact_pairs.SelfContact``), made at its first call when ``tuning.self_thickness`` asks for it.
-    folded (q,) int64: the springs the alignment left shorter than their natural length (``start``), whose
-    compression correction is off until the cloth is drawn back to that length (``step``).
+    table (s, 5): the springs packed as this drape's passes use them (``DrapeModel.table``, but the compression
+    column zero for the springs folded or gathered, the fourth a re-pose's cap on how fast a fold opens); folded
+    (q,) int64: the springs the alignment left shorter than their natural length (``start``), whose compression
+    correction is off until the cloth is drawn back to that length (``step``).
     """
 
     x: np.ndarray
@@ -167,6 +167,7 @@ class DrapeState:
     motion_depth: float = 0.0
     shown_from: int = 0
     self_contact: object | None = None
+    table: np.ndarray = field(default_factory=lambda: np.empty((0, 5)))
     folded: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
 
     @classmethod

@@ -72,9 +72,9 @@ def step(model: DrapeModel, state: DrapeState, control: BodyControl) -> bool:
     w_eff = np.where(st.has_plane, inv_mass * tu.contact_weight, inv_mass)
     contact_passes = tu.contact_passes if not changing else 0
     if contact_passes:
-        st.body_ends, st.body_table, st.body_blocks = contact_springs(model.ends, model.table, st.has_plane,
+        st.body_ends, st.body_table, st.body_blocks = contact_springs(model.ends, st.table, st.has_plane,
                                                                       model.blocks)
-    solve_listed(x, x_prev, w_eff, model.ends, model.table, model.per_sub, touching, st.plane_point,
+    solve_listed(x, x_prev, w_eff, model.ends, st.table, model.per_sub, touching, st.plane_point,
                  st.plane_normal, 0.0, 0.0, st.push, 1.0, model.blocks)
     if contact_passes:
         solve_listed(x, x_prev, w_eff, st.body_ends, st.body_table, contact_passes, touching, st.plane_point,
@@ -89,7 +89,7 @@ def step(model: DrapeModel, state: DrapeState, control: BodyControl) -> bool:
     movers = control.collider.movers(st, control.parts, s.contact_offset, tu.near, model.reach,
                                      hold_pinched=not changing, retest_planes=control.moving, hold_depth=hold_depth,
                                      two=model.two_threads)
-    finish_step(x, x_prev, inv_mass, w_eff, Springs(model.ends, model.table, model.blocks),
+    finish_step(x, x_prev, inv_mass, w_eff, Springs(model.ends, st.table, model.blocks),
                 Springs(st.body_ends, st.body_table, st.body_blocks),
                 Sweep(st.sweep_ends, st.sweep_lmax, st.sweep_blocks), planes, run, movers)
     if s.projection_steps and not changing:
@@ -140,7 +140,7 @@ def _sweep_springs(model: DrapeModel, st: DrapeState, refresh: bool, hanging: bo
     where the points are now), and of those the hanging ones (``hanging``: the body is complete)."""
     if refresh:
         order, st.ordered_blocks = block_order(top_down_order(st.x, model.springs), model.blocks)
-        st.ordered_ends, st.ordered_lmax = pack_sweep(model.ends, model.table, order)
+        st.ordered_ends, st.ordered_lmax = pack_sweep(model.ends, st.table, order)
     if hanging:
         hangs = hanging_pieces(model.piece, st.has_plane | (st.inv_mass == 0.0))
         st.sweep_ends, st.sweep_lmax, st.sweep_blocks = sweep_springs(st.ordered_ends, st.ordered_lmax,
@@ -203,10 +203,10 @@ def _held_back(st: DrapeState, collider: BodyCollider, parts: np.ndarray, frame_
 
 def _unfold(model: DrapeModel, st: DrapeState) -> None:
     """The folded springs (``st.folded``) drawn back to their natural length (within ``tuning.folded_below``)
-    resist compression again (their packed compression, ``model.compression``) and are no longer folded."""
+    resist compression again (``st.table`` gets back their packed compression) and are no longer folded."""
     folded = st.folded
     back = spring_lengths(st.x, model.springs[folded]) >= model.rest[folded] * (1.0 - model.tuning.folded_below)
-    model.table[folded[back], 2] = model.compression[folded[back]]
+    st.table[folded[back], 2] = model.table[folded[back], 2]
     st.folded = folded[~back]
 
 
@@ -217,7 +217,7 @@ def _project(model: DrapeModel, st: DrapeState, w_eff: np.ndarray) -> None:
     w = np.empty_like(w_eff)
     sticking(st.x, st.x_step, w_eff, st.has_plane, st.plane_normal, w)
     before = st.x.copy()
-    project_stretch(st.x, w, model.ends, model.table, st.has_plane, st.plane_normal, model.settings.projection_steps,
+    project_stretch(st.x, w, model.ends, st.table, st.has_plane, st.plane_normal, model.settings.projection_steps,
                     model.blocks)
     st.x_prev += st.x - before
     project_listed(st.x, st.x_prev, np.flatnonzero(st.has_plane), st.plane_point, st.plane_normal, 0.0, 0.0)

@@ -304,7 +304,7 @@ def test_an_outfit_is_the_same_whether_its_garments_step_at_once_or_in_turn(cata
         assert np.array_equal(a.vertices, b.vertices)
     assert runs[0].metrics["steps"] == runs[1].metrics["steps"]
     if machine_threads() > 1:
-        assert any(name.startswith("tryon-garment") for name in seen)  # the two-thread run did step at once
+        assert any(name.startswith("tryon-at-once") for name in seen)  # the two-thread run did step at once
 
 
 def test_a_file_that_is_already_an_outfit_is_not_layered_with_more(tmp_path):

@@ -62,10 +62,12 @@ def advise_person(person: Person, style: str, entries: list[GarmentMeta], models
     """The table row of one person and one style (``entries`` in size order, ``models`` by garment id): the
     recommended size (regular fit), each size's verdict and ease, the reason; and for each fit preference in
     ``also`` (slim, relaxed) its recommended size under that key, chosen among the same sizes' advice. The sizes' drapes run
-    here, one after another (default settings, the pose the API defaults to)."""
+    here (default settings, the pose the API defaults to), at once where the calling thread may use two threads
+    (``sim.blocks.at_once``; a Ray task has one), else one after another: the same verdicts either way."""
     from tryon.body.build import build_body
     from tryon.body.params import Measurements, Pose, check_measurements
     from tryon.fit.advice import Drape, advise_style, chart_size, recommendation
+    from tryon.sim.blocks import at_once
     from tryon.sim.run import drape
 
     measurements = Measurements(**person.measurements)
@@ -76,11 +78,8 @@ def advise_person(person: Person, style: str, entries: list[GarmentMeta], models
     body = build_body(measurements, Pose())
 
     def drape_sizes(indices: list[int]) -> dict[int, Drape]:
-        out = {}
-        for i in indices:
-            result = drape(body, models[entries[i].id])
-            out[i] = Drape(result.vertices, result.faces, result.metrics)
-        return out
+        results = at_once(lambda i: drape(body, models[entries[i].id]), indices)
+        return {i: Drape(r.vertices, r.faces, r.metrics) for i, r in zip(indices, results)}
 
     advice, recommended, reason, _ = advise_style(entries, measurements.as_dict(), body, drape_sizes,
                                                   lambda gid: models[gid].vertices)

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import functools
 import os
+from concurrent.futures import ThreadPoolExecutor
+from typing import Callable
 
 import numba
 import numpy as np
@@ -71,6 +73,30 @@ def split_springs(springs: np.ndarray, points: np.ndarray,
 def machine_threads() -> int:
     """Threads a parallel kernel may use on this machine (numba's, the cores unless NUMBA_NUM_THREADS)."""
     return int(numba.config.NUMBA_NUM_THREADS)
+
+
+# the pool of ``at_once``: three threads (an outfit's garments, a size advice's three sizes, step in lockstep or
+# side by side); made at the first call
+_AT_ONCE_WORKERS = 3
+_AT_ONCE: ThreadPoolExecutor | None = None
+
+
+def at_once(fn: Callable, items: list) -> list:
+    """``[fn(item) for item in items]``, the items at once (one thread each, each held to one numba thread) when
+    there are several and the calling thread may use two threads or more, else one after the other. ``fn`` must
+    touch only what belongs to its item (a drape: its model, state and control): then the results are the same
+    either way, as the kernels release the GIL and read the shared body without writing it."""
+    global _AT_ONCE
+    if len(items) < 2 or numba.get_num_threads() < 2:
+        return [fn(item) for item in items]
+    if _AT_ONCE is None:
+        _AT_ONCE = ThreadPoolExecutor(max_workers=_AT_ONCE_WORKERS, thread_name_prefix="tryon-at-once")
+
+    def alone(item):
+        use_threads(1)
+        return fn(item)
+
+    return list(_AT_ONCE.map(alone, items))
 
 
 def use_threads(n: int) -> int:

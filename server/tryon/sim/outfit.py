@@ -58,11 +58,9 @@ bottom's girth, and above the crotch in trousers or shorts).
 from __future__ import annotations
 
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
-import numba
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -71,7 +69,7 @@ from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
 from tryon.garment.split import split_pieces
 from tryon.geometry import stack_meshes
-from tryon.sim.blocks import use_threads
+from tryon.sim.blocks import at_once
 from tryon.sim.collision.cloth import (
     build_tri_grid, face_sides, outward_from_axes, overlap, push_layer, signed_face_normals,
 )
@@ -345,24 +343,10 @@ def off_shown(under: list[np.ndarray], faces: list[np.ndarray], body: Body) -> C
     return collide
 
 
-_GARMENT_THREADS: ThreadPoolExecutor | None = None
-
-
 def each_garment(fn: Callable, drapes: list[Drape]) -> list:
-    """``[fn(d) for d in drapes]``, the garments at once (one thread each, each held to one numba thread) when
-    there are several and the calling thread may use two threads or more, else one after the other. ``fn`` must
-    touch only its own drape (a step, a relaxation, a shown mesh): then the results are the same either way."""
-    global _GARMENT_THREADS
-    if len(drapes) < 2 or numba.get_num_threads() < 2:
-        return [fn(d) for d in drapes]
-    if _GARMENT_THREADS is None:
-        _GARMENT_THREADS = ThreadPoolExecutor(max_workers=MAX_GARMENTS, thread_name_prefix="tryon-garment")
-
-    def alone(d: Drape):
-        use_threads(1)
-        return fn(d)
-
-    return list(_GARMENT_THREADS.map(alone, drapes))
+    """``[fn(d) for d in drapes]``, the garments at once where the caller may use two threads
+    (``blocks.at_once``); ``fn`` touches only its own drape (a step, a relaxation, a shown mesh)."""
+    return at_once(fn, drapes)
 
 
 def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings = SimSettings(),

@@ -383,6 +383,33 @@ def test_legs_shortened_above_the_feet_lengthen_under_gravity_whatever_the_step(
     assert abs(rests[0][:, 1].max() - rests[1][:, 1].max()) < 0.005
 
 
+def test_a_garments_drapes_share_its_packed_springs_and_leave_them_as_they_were(catalogue, body):
+    """The springs packed for the passes are made once per garment model and settings (``sim.packed``) and shared
+    by its drapes; none writes them: its folded and gathered springs and a re-pose's cap on how fast a fold opens
+    go to the drape's own table."""
+    from tryon.body.params import pose_from
+    from tryon.sim.outfit import drape_outfit
+    from tryon.sim.packed import packed_springs
+    from tryon.sim.repose import repose
+    from tryon.sim.run import settle
+    from tryon.sim.start import start
+
+    trousers = _model(catalogue, "trousers-m.obj", "bottom")
+    shirt = _model(catalogue, "tshirt-m.obj", "top")
+    packed = packed_springs(trousers, SimSettings())
+    names = ("piece", "springs", "rest", "kind", "mass", "limits", "ends", "table", "blocks")
+    before = {name: getattr(packed, name).copy() for name in names}
+    d = start(body, trousers, SimSettings())
+    assert d.model.springs is packed.springs and d.model.table is packed.table and d.state.table is not packed.table
+    settle(d)
+    settle(repose(d, build_body(MEDIUM, pose_from("hands_on_hips"))))
+    drape_outfit(body, [shirt, trousers], tuck="in")
+    assert packed_springs(trousers, SimSettings()) is packed
+    assert all(np.array_equal(getattr(packed, name), before[name]) for name in names)
+    finer = packed_springs(trousers, SimSettings(time_step=0.01))
+    assert finer is not packed and finer.h == pytest.approx(packed.h / 2)
+
+
 def test_a_garment_too_small_for_the_body_says_where(catalogue):
     """The T-shirt S (95 cm under the arms, 106 cm at its 10 % limit) on a 112 cm chest cannot meet the
     strain target: the metrics name the chest as where it is too tight."""

@@ -16,15 +16,14 @@ import numpy as np
 
 from tryon.body.types import Body
 from tryon.garment.model import GarmentModel
-from tryon.garment.springs import STRUCTURAL
 from tryon.sim.align import align_sized
 from tryon.sim.arm_plan import ArmPlan, plan_arms
 from tryon.sim.arms import ArmSchedule
-from tryon.sim.blocks import split_springs
 from tryon.sim.collision.collider import BodyCollider, relevant_parts
-from tryon.sim.constraints import pack_springs, spring_lengths
+from tryon.sim.constraints import spring_lengths
 from tryon.sim.limbs import limb_openings
-from tryon.sim.pieces import piece_labels, piece_tops, waistband_mask
+from tryon.sim.packed import packed_springs
+from tryon.sim.pieces import piece_tops
 from tryon.sim.settings import REFERENCE_STEP, SimSettings
 from tryon.sim.state import BodyControl, Drape, DrapeModel, DrapeState
 from tryon.sim.tuning import TUNING, Tuning
@@ -42,43 +41,22 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     start folded (``DrapeState.folded``: a re-pose carries its drape's); None: those the alignment shortened,
     none from ``initial``."""
     started = time.perf_counter()
-    piece = piece_labels(model.coarse_faces, len(model.mass))  # a file's separate garments (an outfit's)
+    packed = packed_springs(model, settings)
     if initial is None:
-        x, shape = align_sized(body, model, piece=piece)
+        x, shape = align_sized(body, model, piece=packed.piece)
         if shape is not None:  # sized to this body (guessed units): its springs' natural lengths change too
             model = model.resized(shape)
+            packed = packed_springs(model, settings)
             sized = True
         # the arms start as thin as the body starts growing: a cuff must have room for them then
-        plan = plan_arms(body, x, model.meta.category, model.coarse_faces, model.coarse_loops, piece,
+        plan = plan_arms(body, x, model.meta.category, model.coarse_faces, model.coarse_loops, packed.piece,
                          start_scale=settings.grow_from if settings.grow_steps else 1.0)
     else:
         x = np.array(initial, dtype=np.float64)
         plan = ArmPlan(0.0, 0.0)
-    limits = settings.limits_array()
-    # a large garment's springs in two blocks that share no point (its passes then run on two threads)
-    order, blocks = split_springs(model.springs, model.coarse_vertices)
-    springs = np.ascontiguousarray(model.springs[order], dtype=np.int64)
-    rest = np.ascontiguousarray(model.rest[order], dtype=np.float64)
-    kind = np.ascontiguousarray(model.kind[order], dtype=np.int64)
-    mass = np.ascontiguousarray(model.mass, dtype=np.float64)
+    piece, springs, rest, table, mass = packed.piece, packed.springs, packed.rest, packed.table, packed.mass
     inv_mass = np.where(mass > 0, 1.0 / np.where(mass > 0, mass, 1.0), 0.0)
-    ends, table = pack_springs(springs, rest, kind, limits, settings.compression_array())
-    # a bottom's waistband stretches less than its cloth (``band_limit``; its structural springs: the
-    # band's hoop and height). Only the solver holds it so: the metrics judge each spring by its type's
-    # limit, so a band too small for its waist shows springs over where it is stretched past the cloth's.
-    band = waistband_mask(model.coarse_vertices, model.coarse_faces, model.meta.category, model.coarse_loops,
-                          piece)
-    band_springs = (kind == STRUCTURAL) & band[springs[:, 0]] & band[springs[:, 1]]
-    table[band_springs, 0] = rest[band_springs] * (1.0 + settings.band_limit)
-    # substeps ("small steps", Macklin et al. 2019): the passes are spread over substeps of the time step,
-    # which converges much further per pass than repeating passes on one large step
-    n_sub = max(1, min(settings.substeps, settings.passes))
-    per_sub = max(1, settings.passes // n_sub)
-    h = float(settings.time_step) / n_sub
-    # the fabric's elasticity (``constraints._spring_pass``): k h^2 / passes per substep, h the substep
-    table[:, 4] = model.stiffness[order] * (h * h / per_sub)
-    own = table.copy()  # the drape's own (``DrapeState.table``); the model's is never written
-    table.flags.writeable = False
+    own = table.copy()  # the drape's own (``DrapeState.table``); the packed one is shared and never written
     if motion is not None:
         own[:, 3] = tuning.unfold_per_pass
     # cloth the alignment shortened (trouser legs made for a taller body, shortened to start above the feet:
@@ -131,8 +109,9 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         floor_y = min(floor_y, float(body.vertices[:, 1].min()) - settings.collision_margin
                       - settings.contact_offset)
     drape_model = DrapeModel(garment=model, settings=settings, tuning=tuning, piece=piece, springs=springs, rest=rest,
-                             kind=kind, mass=mass, limits=limits, ends=ends, table=table, blocks=blocks, openings=openings, placed_tops=placed_tops, floor_y=floor_y, n_sub=n_sub,
-                             per_sub=per_sub, h=h, sized=sized)
+                             kind=packed.kind, mass=mass, limits=packed.limits, ends=packed.ends, table=table,
+                             blocks=packed.blocks, openings=openings, placed_tops=placed_tops, floor_y=floor_y,
+                             n_sub=packed.n_sub, per_sub=packed.per_sub, h=packed.h, sized=sized)
     control = BodyControl(body=body, collider=collider, arms=arms, plan=plan, parts=parts, grow_steps=grow_steps,
                           startup=max(grow_steps, arms.steps), pinned_until=pinned_until,
                           saved_inv_mass=saved_inv_mass, moving=motion is not None)

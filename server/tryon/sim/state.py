@@ -33,7 +33,8 @@ def _no_blocks() -> np.ndarray:
 
 @dataclass(frozen=True)
 class DrapeModel:
-    """What the steps read and never move: the garment, its springs packed for the passes, the time step.
+    """What the steps read and never move: the garment, its springs packed for the passes (shared with the
+    garment's other drapes: ``packed.packed_springs``), the time step.
 
     garment: the garment's model (resized to the body when its units were guessed: ``sized``); settings,
     tuning. piece (k,) int64: which separate piece of the file each point belongs to (an outfit's garments).

@@ -18,7 +18,8 @@ from tryon.body.build import build_body
 from tryon.body.params import Measurements, Pose
 from tryon.config import Settings
 from tryon.garment.catalogue import Catalogue
-from tryon.sim.outfit import drape_outfit, layer_order
+from tryon.sim.outfit import drape_outfit
+from tryon.sim.tuck import layer_order
 
 from test_cloth_collision import tube
 
@@ -66,7 +67,7 @@ def test_an_outer_layer_that_starts_inside_the_inner_one_ends_outside_it(catalog
     flare (hundreds of vertices on the wrong side); layered, it ends outside it, and neither is in the body."""
     from tryon.sim.align import align_sized
     from tryon.sim.collision.cloth import face_sides
-    from tryon.sim.outfit import layer_metrics, outward_from_body
+    from tryon.sim.layers import layer_metrics, outward_from_body
 
     _, catalogue, ids = catalogue_ids
     inner, outer = catalogue.model(ids["skirt"]), catalogue.model(ids["tshirt"])
@@ -87,7 +88,9 @@ def test_an_outer_layer_that_starts_inside_the_inner_one_ends_outside_it(catalog
 def test_tuck_is_judged_on_the_bands_surface(body, top_radius, out_ok, in_ok):
     """A tube 1 cm outside a band-like tube is over it (out), 1 cm inside is under it (in); a top that ends above
     the band has no say. The sides come from the body's axes, as in a drape."""
-    from tryon.sim.outfit import face_sides, outward_from_body, tuck_as_asked
+    from tryon.sim.collision.cloth import face_sides
+    from tryon.sim.layers import outward_from_body
+    from tryon.sim.tuck import tuck_as_asked
 
     centre = body.part_axes[body.parts.index("torso")].mean(axis=0) * [1.0, 0.0, 1.0]
     bottom, faces = tube(0.15, n_around=24, n_along=6, height=0.1, y0=0.9)
@@ -375,7 +378,7 @@ def test_an_inner_layer_on_the_body_does_not_give_way_to_the_outer_one():
     Pushed into the body instead, a waistband under a top's hem was pushed back out along the body's normal,
     up the hips' slope, a little every step: the A-line skirt M under the long-sleeve M on the small body climbed
     23 cm once the jersey was as stiff as its fabric."""
-    from tryon.sim.outfit import collide_layers
+    from tryon.sim.layers import collide_layers
 
     tri = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0]])
     faces = [np.array([[0, 1, 2]], dtype=np.int64)] * 2
@@ -399,11 +402,11 @@ def test_a_shirt_tucked_into_trousers_is_gathered_above_the_crotch(tmp_path):
     """The T-shirt M hangs below the crotch of 170 / 92 / 76 / 98 (tucked out); tucked into the trousers M its tail
     lay across the gap between the thighs and held the trousers' crotch seam under it: the trousers were "too
     tight at the left thigh, the right thigh, the waist, the right shin and the hips", shown at 2.35x. Gathered
-    inside the band (``outfit.tail_gathered``) it ends above the crotch and the trousers are not too tight; the
+    inside the band (``tuck.tail_gathered``) it ends above the crotch and the trousers are not too tight; the
     catalogue's T-shirt keeps its own lengths."""
     from tryon.bench.stress import catalogue_models
     from tryon.sim.landmarks import body_landmarks
-    from tryon.sim.outfit import TAIL_ABOVE_CROTCH
+    from tryon.sim.tuck import TAIL_ABOVE_CROTCH
 
     shopper = build_body(Measurements(height=170, chest=92, waist=76, hips=98), Pose())
     crotch = body_landmarks(shopper).crotch_y

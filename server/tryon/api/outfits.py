@@ -16,7 +16,8 @@ from tryon.api.schemas.tryon import TryOnRequest
 from tryon.garment.catalogue import Catalogue
 from tryon.garment.model import GarmentModel
 from tryon.geometry import stack_meshes
-from tryon.sim.outfit import layer_order, piece_categories
+from tryon.sim.outfit import piece_categories
+from tryon.sim.tuck import layer_order
 
 
 # Each entry's pieces (``file_pieces``) by id: an id stands for one file's content and preparation, so its pieces

@@ -213,7 +213,7 @@ def points_to_test(x, x_checked, has_plane, reused, rest_move, active):
 @njit(cache=True, nogil=True, fastmath=True)
 def take_stricter_planes(x, has_plane, plane_point, plane_normal, other_has, other_point, other_normal):
     """Where a point (x (k, 3) m) has a contact plane from another collider (``other_*``: a garment under it,
-    ``outfit.collide_layers``), keep of the two planes the one that asks more of it: the larger
+    ``layers.collide_layers``), keep of the two planes the one that asks more of it: the larger
     n . (q - x), how far the point must move along n to reach the plane's outer side. The other garment
     lies over the body, so over it that is its plane, and the step's substeps keep the point on the
     garment under it instead of on the body (where the next layer collision would push it out again: two

@@ -108,10 +108,8 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
         # pushing it back up, stretching its springs without end
         floor_y = min(floor_y, float(body.vertices[:, 1].min()) - settings.collision_margin
                       - settings.contact_offset)
-    drape_model = DrapeModel(garment=model, settings=settings, tuning=tuning, piece=piece, springs=springs, rest=rest,
-                             kind=packed.kind, mass=mass, limits=packed.limits, ends=packed.ends, table=table,
-                             blocks=packed.blocks, openings=openings, placed_tops=placed_tops, floor_y=floor_y,
-                             n_sub=packed.n_sub, per_sub=packed.per_sub, h=packed.h, sized=sized)
+    drape_model = DrapeModel(garment=model, settings=settings, tuning=tuning, packed=packed, openings=openings,
+                             placed_tops=placed_tops, floor_y=floor_y, sized=sized)
     control = BodyControl(body=body, collider=collider, arms=arms, plan=plan, parts=parts, grow_steps=grow_steps,
                           startup=max(grow_steps, arms.steps), pinned_until=pinned_until,
                           saved_inv_mass=saved_inv_mass, moving=motion is not None)

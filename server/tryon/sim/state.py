@@ -19,6 +19,7 @@ from tryon.garment.model import GarmentModel
 from tryon.sim.arm_plan import ArmPlan
 from tryon.sim.arms import ArmSchedule
 from tryon.sim.collision.collider import BodyCollider
+from tryon.sim.packed import PackedSprings
 from tryon.sim.settings import SimSettings
 from tryon.sim.tuning import Tuning
 
@@ -31,39 +32,30 @@ def _no_blocks() -> np.ndarray:
     return np.zeros(3, dtype=np.int64)
 
 
+def _packed(name: str) -> property:
+    """A ``DrapeModel`` property reading its packed springs' field ``name`` (``packed.PackedSprings``)."""
+    return property(lambda self: getattr(self.packed, name), doc=f"``packed.{name}``")
+
+
 @dataclass(frozen=True)
 class DrapeModel:
-    """What the steps read and never move: the garment, its springs packed for the passes (shared with the
-    garment's other drapes: ``packed.packed_springs``), the time step.
+    """What the steps read and never move: the garment, its springs packed for the passes, the time step.
 
     garment: the garment's model (resized to the body when its units were guessed: ``sized``); settings,
-    tuning. piece (k,) int64: which separate piece of the file each point belongs to (an outfit's garments).
-    springs (s, 2) int64, rest (s,) m, kind (s,) int64, mass (k,) kg, limits (3,) strain limits by kind, in
-    block order; ends (s, 2) uint32 and table (s, 5): the springs packed for the passes (a waistband's at the
-    band limit; the drape's own copy, which the steps read, is ``DrapeState.table``), blocks (3,) int64 their
-    blocks (``blocks.split_springs``: a large garment's passes run on two threads). openings: the
-    sleeves' and trouser legs' openings; placed_tops (pieces,) m: each piece's top at placement (how far it
-    slid). floor_y m; n_sub substeps of h s with per_sub passes each.
+    tuning. packed: the garment's springs packed for the passes (``packed.PackedSprings``, made once per garment
+    and settings and shared with its other drapes), whose fields this model reads as its own: piece, springs,
+    rest, kind, mass, limits, ends, table, blocks, n_sub, per_sub, h (the drape's own copy of the table, which the
+    steps read, is ``DrapeState.table``). openings: the sleeves' and trouser legs' openings; placed_tops (pieces,)
+    m: each piece's top at placement (how far it slid). floor_y m.
     """
 
     garment: GarmentModel
     settings: SimSettings
     tuning: Tuning
-    piece: np.ndarray
-    springs: np.ndarray
-    rest: np.ndarray
-    kind: np.ndarray
-    mass: np.ndarray
-    limits: np.ndarray
-    ends: np.ndarray
-    table: np.ndarray
-    blocks: np.ndarray
+    packed: PackedSprings
     openings: list
     placed_tops: np.ndarray
     floor_y: float
-    n_sub: int
-    per_sub: int
-    h: float
     sized: bool
 
     @property
@@ -76,6 +68,12 @@ class DrapeModel:
     def two_threads(self) -> bool:
         """Whether the springs run in two blocks (the points' kernels then run on two threads too)."""
         return bool(self.blocks[2])
+
+
+# the packed springs' fields, read through the model (``DrapeModel.packed``)
+for _field in ("piece", "springs", "rest", "kind", "mass", "limits", "ends", "table", "blocks", "n_sub", "per_sub",
+               "h"):
+    setattr(DrapeModel, _field, _packed(_field))
 
 
 @dataclass

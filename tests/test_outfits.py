@@ -239,22 +239,23 @@ def test_an_outfit_asked_for_over_rest_is_replayed_from_the_cache_over_the_strea
     assert np.abs(shown - rest).max() < 1e-4  # the same final state, in the same order
 
 
-def test_an_outfits_shown_meshes_are_untangled_without_going_through_each_other(catalogue_ids, body):
-    """The T-shirt M tucked into the trousers: their shown meshes cross their own folds in 4 and 35 edges when
+def test_an_outfits_shown_meshes_are_untangled_without_going_through_each_other(tmp_path, body):
+    """The T-shirt M tucked into the shorts M: their shown meshes cross their own folds in 18 and 103 edges when
     not untangled; untangled as they are built, each round followed by the push off the layer under it, in
-    0 and 0 here (at most half asserted: the folds move with the platform's rounding), with no more of either
-    layer through the other and nothing in the body. The simulated meshes are the same either way."""
+    0 and 1 here (at most half asserted: the folds move with the platform's rounding; the T-shirt tucked into the
+    trousers, used before, crossed in 39 edges here and 18 in a fresh clone's run), with no more of either layer
+    through the other and nothing in the body. The simulated meshes are the same either way."""
     from dataclasses import replace
 
+    from tryon.bench.stress import catalogue_models
     from tryon.sim.tuning import TUNING
 
-    _, catalogue, ids = catalogue_ids
-    models = [catalogue.model(ids["tshirt"]), catalogue.model(ids["trousers"])]
+    models = catalogue_models(data_dir=tmp_path, names=["tshirt-m.obj", "shorts-m.obj"])
     untangled = drape_outfit(body, models, tuck="in")
     tangled = drape_outfit(body, models, tuck="in", tuning=replace(TUNING, untangle_step=0.0))
     before = [r.metrics["self_crossings"] for r in tangled.results]
     after = [r.metrics["self_crossings"] for r in untangled.results]
-    assert sum(before) > 20 and sum(after) <= sum(before) // 2, (before, after)
+    assert sum(before) > 40 and sum(after) <= sum(before) // 2, (before, after)
     assert (untangled.metrics["layer_penetrating_vertices"]
             <= max(2, tangled.metrics["layer_penetrating_vertices"]))
     assert all(r.metrics["penetrating_vertices"] == 0 for r in untangled.results)

@@ -243,8 +243,9 @@ def test_an_outfits_shown_meshes_are_untangled_without_going_through_each_other(
     """The T-shirt M tucked into the shorts M: their shown meshes cross their own folds in 18 and 103 edges when
     not untangled; untangled as they are built, each round followed by the push off the layer under it, in
     0 and 1 here (at most half asserted: the folds move with the platform's rounding; the T-shirt tucked into the
-    trousers, used before, crossed in 39 edges here and 18 in a fresh clone's run), with no more of either layer
-    through the other and nothing in the body. The simulated meshes are the same either way."""
+    trousers, used before, crossed in 39 edges with OpenBLAS told its core type, OPENBLAS_CORETYPE=Haswell, and 18
+    without), with no more of either layer through the other and nothing in the body. The simulated meshes are the
+    same either way."""
     from dataclasses import replace
 
     from tryon.bench.stress import catalogue_models

@@ -386,7 +386,10 @@ def test_legs_shortened_above_the_feet_lengthen_under_gravity_whatever_the_step(
 def test_a_garments_drapes_share_its_packed_springs_and_leave_them_as_they_were(catalogue, body):
     """The springs packed for the passes are made once per garment model and settings (``sim.packed``) and shared
     by its drapes; none writes them: its folded and gathered springs and a re-pose's cap on how fast a fold opens
-    go to the drape's own table."""
+    go to the drape's own table; the cache holds a model only weakly."""
+    import gc
+    import weakref
+
     from tryon.body.params import pose_from
     from tryon.sim.outfit import drape_outfit
     from tryon.sim.packed import packed_springs
@@ -408,6 +411,12 @@ def test_a_garments_drapes_share_its_packed_springs_and_leave_them_as_they_were(
     assert all(np.array_equal(getattr(packed, name), before[name]) for name in names)
     finer = packed_springs(trousers, SimSettings(time_step=0.01))
     assert finer is not packed and finer.h == pytest.approx(packed.h / 2)
+    other = replace(trousers, meta=trousers.meta)  # another model object: packed on its own, not kept alive
+    assert packed_springs(other, SimSettings()) is not packed
+    gone = weakref.ref(other)
+    del other
+    gc.collect()
+    assert gone() is None
 
 
 def test_a_garment_too_small_for_the_body_says_where(catalogue):

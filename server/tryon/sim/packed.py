@@ -12,6 +12,7 @@ its bottom is a new model, packed for that drape.
 from __future__ import annotations
 
 import threading
+import weakref
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -24,8 +25,9 @@ from tryon.sim.constraints import pack_springs
 from tryon.sim.pieces import piece_labels, waistband_mask
 from tryon.sim.settings import SimSettings
 
-# models packed and kept (each entry holds its model, so its id is not reused while it is kept): the catalogue's
-# 30 garments and the service's uploads
+# models packed and kept: the catalogue's 30 garments and the service's uploads. An entry holds its model weakly
+# (the catalogue decides which models stay in memory) and is found only while that model lives: a new model given
+# a dead one's id is packed anew
 KEPT = 64
 
 
@@ -51,7 +53,7 @@ class PackedSprings:
     h: float
 
 
-_KEPT: OrderedDict[tuple, tuple[GarmentModel, PackedSprings]] = OrderedDict()
+_KEPT: OrderedDict[tuple, tuple[weakref.ref, PackedSprings]] = OrderedDict()
 _LOCK = threading.Lock()
 
 
@@ -61,12 +63,12 @@ def packed_springs(model: GarmentModel, settings: SimSettings) -> PackedSprings:
            settings.substeps, settings.passes)
     with _LOCK:
         hit = _KEPT.get(key)
-        if hit is not None and hit[0] is model:
+        if hit is not None and hit[0]() is model:
             _KEPT.move_to_end(key)
             return hit[1]
     packed = _pack(model, settings)
     with _LOCK:
-        _KEPT[key] = (model, packed)
+        _KEPT[key] = (weakref.ref(model), packed)
         while len(_KEPT) > KEPT:
             _KEPT.popitem(last=False)
     return packed

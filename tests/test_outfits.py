@@ -278,7 +278,7 @@ def test_a_tshirt_under_a_long_sleeve_comes_to_rest(catalogue_ids, body):
 
 def test_an_outfit_is_the_same_whether_its_garments_step_at_once_or_in_turn(catalogue_ids, body):
     """Where the caller may use two threads the garments step (and relax, and build their shown meshes) at once,
-    one thread each (``outfit.each_garment``); one thread steps them in turn. Each touches only its own drape,
+    one thread each (``blocks.at_once``); one thread steps them in turn. Each touches only its own drape,
     so the outfits are the same to the bit."""
     import threading
 
@@ -288,7 +288,7 @@ def test_an_outfit_is_the_same_whether_its_garments_step_at_once_or_in_turn(cata
     _, catalogue, ids = catalogue_ids
     models = [catalogue.model(ids["tshirt"]), catalogue.model(ids["skirt"])]
     seen = set()
-    each = outfit.each_garment
+    each = outfit.at_once
 
     def spy(fn, drapes):  # notes which threads ran the garments' work
         def noted(d):
@@ -298,12 +298,12 @@ def test_an_outfit_is_the_same_whether_its_garments_step_at_once_or_in_turn(cata
 
     runs = []
     try:
-        outfit.each_garment = spy
+        outfit.at_once = spy
         for threads in (1, machine_threads()):
             use_threads(threads)
             runs.append(drape_outfit(body, models, tuck="out"))
     finally:
-        outfit.each_garment = each
+        outfit.at_once = each
         use_threads(machine_threads())
     for a, b in zip(runs[0].results, runs[1].results):
         assert np.array_equal(a.vertices, b.vertices)

@@ -39,7 +39,7 @@ def run(ctx: Context, sec: Section) -> None:
     def outfit(body_name: str, body, files: list[str], tuck: str, single: dict) -> dict:
         """One outfit of ``files`` (innermost first) draped and measured."""
         models = [prepared(ctx, entries[f])[0] for f in files]
-        use_threads(1)  # the garments in turn, as on a busy pool (the same outfit: ``outfit.each_garment``)
+        use_threads(1)  # the garments in turn, as on a busy pool (the same outfit: ``blocks.at_once``)
         t = time.perf_counter()
         drape_outfit(body, models, settings, tuck)
         wall_one = time.perf_counter() - t

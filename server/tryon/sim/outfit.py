@@ -43,7 +43,6 @@ from tryon.sim.pieces import piece_kinds, piece_labels, waistband_mask
 from tryon.sim.relax import collide_all, relax, relaxation_passes, relaxation_round
 from tryon.sim.settings import SimSettings
 from tryon.sim.start import start
-from tryon.sim.state import Drape
 from tryon.sim.step import step_drape
 from tryon.sim.tuck import gather, layer_order, tail_gathered, tuck_as_asked, tuck_in
 from tryon.sim.tuning import TUNING, Tuning
@@ -93,12 +92,6 @@ class OutfitResult:
         return np.concatenate([r.strain for r in self.results])
 
 
-def each_garment(fn: Callable, drapes: list[Drape]) -> list:
-    """``[fn(d) for d in drapes]``, the garments at once where the caller may use two threads
-    (``blocks.at_once``); ``fn`` touches only its own drape (a step, a relaxation, a shown mesh)."""
-    return at_once(fn, drapes)
-
-
 def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings = SimSettings(),
                  tuck: str = "out", tuning: Tuning = TUNING,
                  on_frame: OutfitFrameCallback | None = None) -> OutfitResult:
@@ -132,7 +125,7 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
     asleep = np.zeros(len(drapes), dtype=np.bool_)
     stopped, n = False, 0
     for n in range(1, settings.max_steps + 1):
-        each_garment(step_drape, [d for d, sleeping in zip(drapes, asleep) if not sleeping])
+        at_once(step_drape, [d for d, sleeping in zip(drapes, asleep) if not sleeping])
         if n > layered_from and len(drapes) > 1:
             before = [d.state.x.copy() for d in drapes]
             pressed = [np.zeros(len(d.state.x), dtype=np.bool_) for d in drapes]
@@ -158,7 +151,7 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
             break
     for d in drapes:  # each relaxes on its own body, not on the loop's last layer planes
         d.state.layer_has[:] = False
-    relaxations = each_garment(relax, drapes)
+    relaxations = at_once(relax, drapes)
     if len(drapes) > 1:
         passes = [relaxation_passes(d) for d in drapes]
         for _ in range(FINAL_LAYER_ROUNDS):

@@ -262,29 +262,29 @@ class SelfContact:
         self.points = np.zeros((0, 2), dtype=np.int64)
         self.edge_pairs = np.zeros((0, 2), dtype=np.int64)
 
-    def update(self, x: np.ndarray, x0: np.ndarray, from_start: bool = True) -> None:
+    def update(self, x: np.ndarray, x0: np.ndarray, from_start: bool = True) -> bool:
         """Keep the list right for the paths x0 -> x (n, 3) m (the straight path of a point stays within the larger
         of its two ends' distances from where it was listed; ``from_start`` False: x0 was checked already, only x
         has moved since): nothing if no point strayed, the strayed points' pairs (and those of the points crossed
-        through the mesh) if few did, else the whole list."""
+        through the mesh) if few did, else the whole list. Returns whether the list changed."""
         if self.positions is None:
             self.build(x, x0)
-            return
+            return True
         if self.whole:
             far = _largest_spread(x - self.positions)
             if from_start:
                 far = max(far, _largest_spread(x0 - self.positions))
             if far <= self.allow:
-                return
+                return False
         moved = ((x - self.positions) ** 2).sum(axis=1) > self.allow ** 2
         if from_start:
             moved |= ((x0 - self.positions) ** 2).sum(axis=1) > self.allow ** 2
         moved |= self.tangled
         if not moved.any():
-            return
+            return False
         if moved.mean() > PARTIAL_SHARE:
             self.build(x, x0)
-            return
+            return True
         kept_points, kept_edges = self._without(self.points, self.edge_pairs, moved)
         points, edge_pairs = _pairs_of_moved(x, x0, self.faces, self.edges, moved, self.margin + self.allow)
         self.tangled = np.zeros(len(x), dtype=np.bool_)
@@ -292,6 +292,7 @@ class SelfContact:
         self._keep(np.concatenate([kept_points, points]), np.concatenate([kept_edges, edge_pairs]))
         self.positions[moved] = x[moved]
         self.whole = False
+        return True
 
     def build(self, x: np.ndarray, x0: np.ndarray) -> None:
         """The whole list from the paths x0 -> x (n, 3) m."""

@@ -132,28 +132,38 @@ def _push_edges(p1, p2, q1, q2, x, x_prev, w, nx, ny, nz, depth, s, t):
 
 
 @njit(cache=True, nogil=True)
-def _contact_pass(x, x_prev, x0, w, faces, edges, points, edge_pairs, thickness, crossed):
+def _contact_pass(x, x_prev, x0, w, faces, edges, points, edge_pairs, thickness, crossed, touched, touching):
     """One Gauss-Seidel pass over the listed (point, triangle) ``points`` (p, 2) and ``edge_pairs`` (q, 2) int64;
     returns how many it pushed. With ``crossed`` (n,) bool given non-empty, nothing is pushed: the points of
     every pair that crossed within the step are marked there and counted. Serial: points are shared between
-    pairs."""
+    pairs.
+
+    ``touched`` (n,) bool, if not empty: only pairs with a point marked there are tested (the points the previous
+    pass pushed or counted: a pair none of whose points moved since it was tested and found apart is apart still).
+    ``touching`` (n,) bool: every point of a pair this pass pushes or counts is marked in it."""
     pushed = 0
     marking = len(crossed) > 0
+    some = len(touched) > 0
     for k in range(points.shape[0]):
         i, f = points[k, 0], points[k, 1]
-        if paths_apart(x, x0, i, i, i, faces[f, 0], faces[f, 1], faces[f, 2], thickness) or \
-                far_from_triangle(i, f, x, x0, faces, thickness):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        if some and not (touched[i] or touched[a] or touched[b] or touched[c]):
+            continue
+        if paths_apart(x, x0, i, i, i, a, b, c, thickness) or far_from_triangle(i, f, x, x0, faces, thickness):
             continue
         nx, ny, nz, depth, u, v, through = _contact(i, f, x, x0, faces, thickness)
         if marking:
             if through:
-                crossed[i] = crossed[faces[f, 0]] = crossed[faces[f, 1]] = crossed[faces[f, 2]] = True
+                crossed[i] = crossed[a] = crossed[b] = crossed[c] = True
                 pushed += 1
         elif depth > 0.0 and (_push(i, f, x, x_prev, w, faces, nx, ny, nz, depth, u, v) or through):
             pushed += 1  # a crossed pair that cannot move (held) counts: the check after the passes takes it
+            touching[i] = touching[a] = touching[b] = touching[c] = True
     for k in range(edge_pairs.shape[0]):
         p1, p2 = edges[edge_pairs[k, 0], 0], edges[edge_pairs[k, 0], 1]
         q1, q2 = edges[edge_pairs[k, 1], 0], edges[edge_pairs[k, 1], 1]
+        if some and not (touched[p1] or touched[p2] or touched[q1] or touched[q2]):
+            continue
         if paths_apart(x, x0, p1, p2, p2, q1, q2, q2, thickness) or far_from_edge(p1, p2, q1, q2, x, x0, thickness):
             continue
         nx, ny, nz, depth, s, t, through = _edge_contact(p1, p2, q1, q2, x, x0, thickness)
@@ -163,6 +173,7 @@ def _contact_pass(x, x_prev, x0, w, faces, edges, points, edge_pairs, thickness,
                 pushed += 1
         elif depth > 0.0 and (_push_edges(p1, p2, q1, q2, x, x_prev, w, nx, ny, nz, depth, s, t) or through):
             pushed += 1
+            touching[p1] = touching[p2] = touching[q1] = touching[q2] = True
     return pushed
 
 
@@ -176,18 +187,23 @@ def keep_sides(contacts: SelfContact, x: np.ndarray, x_prev: np.ndarray, x0: np.
     total = 0
     no_marks = np.zeros(0, dtype=np.bool_)
     crossed = np.zeros(len(x), dtype=np.bool_)
+    touched, touching = np.zeros(0, dtype=np.bool_), np.zeros(len(x), dtype=np.bool_)
     contacts.update(x, x0)
     for _ in range(passes):
         pushed = _contact_pass(x, x_prev, x0, w, contacts.faces, contacts.edges, contacts.points,
-                               contacts.edge_pairs, float(thickness), no_marks)
+                               contacts.edge_pairs, float(thickness), no_marks, touched, touching)
         total += pushed
         if pushed == 0:
             return total
-    contacts.update(x, x0, from_start=False)  # the passes may have moved a point out of the list's reach
+        touched, touching = touching, (touched if len(touched) else np.zeros(len(x), dtype=np.bool_))
+        touching[:] = False
+    if contacts.update(x, x0, from_start=False):  # the passes may have moved a point out of the list's reach
+        touched = no_marks  # new pairs: every pair is tested
     for _ in range(ROLLBACK_ROUNDS):
         if not _contact_pass(x, x_prev, x0, w, contacts.faces, contacts.edges, contacts.points, contacts.edge_pairs,
-                             float(thickness), crossed):
+                             float(thickness), crossed, touched, touching):
             return total
+        touched = no_marks  # after a roll back, every pair
         x[crossed] = x0[crossed]
         x_prev[crossed] = x0[crossed]
         crossed[:] = False

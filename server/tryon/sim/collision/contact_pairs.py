@@ -1,7 +1,7 @@
-"""The pairs of a mesh near enough to touch itself within a step (issue 53 item 1's broad phase): a uniform grid of
-the triangles' swept boxes (``swept_grid``), the (point, triangle) and (edge, edge) pairs whose paths come within
-a reach of each other, and ``SelfContact``, which keeps them while no point has moved far enough to bring a pair
-not on the list within a thickness.
+"""The pairs of a mesh near enough to touch itself within a step (issue 53 item 1's broad phase): ``SelfContact``
+lists the (point, triangle) and (edge, edge) pairs whose paths come within a reach of each other, between the
+patches of the mesh that are not flat together (``patches.listed_pairs``), and keeps them while no point has moved
+far enough to bring a pair not on the list within a thickness.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from numba import njit
 
 from tryon.garment.topology import faces_on_edges
 from tryon.sim.collision.ccd import far_from_edge, far_from_triangle, paths_apart
-from tryon.sim.collision.cloth import TriGrid, fill_ranges, grid_frame, tris_in_cells
 from tryon.sim.collision.crossings import crosses
+from tryon.sim.collision.patches import listed_pairs, make_patches
 
 
 @njit(cache=True, nogil=True)
@@ -42,77 +42,6 @@ def _boxes_apart(box_a, a, box_b, b, pad):
         if box_a[a, ax] > box_b[b, 3 + ax] + pad or box_b[b, ax] > box_a[a, 3 + ax] + pad:
             return True
     return False
-
-
-@njit(cache=True, nogil=True)
-def _cells_of(box, row, lo, cell, shape, r):
-    """Fill r (6,) int64 with the inclusive cell ranges (ix0, ix1, iy0, iy1, iz0, iz1) of box ``row`` of ``box``
-    (``_boxes``) in the grid (corner ``lo`` (3,) m, cells ``cell`` m, ``shape`` (3,) int64)."""
-    for ax in range(3):
-        r[2 * ax] = max(0, min(shape[ax] - 1, int(math.floor((box[row, ax] - lo[ax]) / cell))))
-        r[2 * ax + 1] = max(0, min(shape[ax] - 1, int(math.floor((box[row, 3 + ax] - lo[ax]) / cell))))
-
-
-@njit(cache=True, nogil=True)
-def _edge_pairs(x, x0, edges, faces, face_edges, lo, cell, shape, cell_start, cell_tris, reach, seen, seen_edges,
-                out):
-    """The pairs of edges (e, k), e < k, sharing no end, whose paths from x0 to x come within ``reach`` m of each
-    other (``far_from_edge``), into ``out`` (c, 2) int64 as far as it holds; returns how many there are.
-    ``seen`` (f,) and ``seen_edges`` (e,) int64 work space. A triangle whose box is out of reach, or none of whose
-    edges is above e, is passed over with its three edges."""
-    count = 0
-    edge_box = _boxes(x, x0, edges)
-    tri_box = _boxes(x, x0, faces)
-    r = np.empty(6, dtype=np.int64)
-    near = np.empty(faces.shape[0], dtype=np.int64)
-    for e in range(edges.shape[0]):
-        p1, p2 = edges[e, 0], edges[e, 1]
-        _cells_of(edge_box, e, lo, cell, shape, r)
-        for m in range(tris_in_cells(r, shape, cell_start, cell_tris, seen, e, near)):
-            f = near[m]
-            if max(face_edges[f, 0], max(face_edges[f, 1], face_edges[f, 2])) <= e or \
-                    _boxes_apart(edge_box, e, tri_box, f, reach):
-                continue
-            for k3 in range(3):
-                k = face_edges[f, k3]
-                if k <= e or seen_edges[k] == e:
-                    continue  # each pair once, from its lower edge
-                seen_edges[k] = e
-                q1, q2 = edges[k, 0], edges[k, 1]
-                if q1 == p1 or q1 == p2 or q2 == p1 or q2 == p2:
-                    continue
-                if _boxes_apart(edge_box, e, edge_box, k, reach) or far_from_edge(p1, p2, q1, q2, x, x0, reach):
-                    continue
-                if count < out.shape[0]:
-                    out[count, 0] = e
-                    out[count, 1] = k
-                count += 1
-    return count
-
-
-@njit(cache=True, nogil=True)
-def _point_pairs(x, x0, faces, lo, cell, shape, cell_start, cell_tris, reach, seen, out):
-    """The (point, triangle) pairs, the point not a corner, whose paths from x0 to x come within ``reach`` m of
-    each other (``far_from_triangle``), into ``out`` (c, 2) int64 as far as it holds; returns how many there are.
-    ``seen`` (f,) int64 work space."""
-    count = 0
-    point_box = _boxes(x, x0, np.arange(x.shape[0]).reshape(-1, 1))
-    r = np.empty(6, dtype=np.int64)
-    near = np.empty(faces.shape[0], dtype=np.int64)
-    for i in range(x.shape[0]):
-        _cells_of(point_box, i, lo, cell, shape, r)
-        for m in range(tris_in_cells(r, shape, cell_start, cell_tris, seen, i, near)):
-            f = near[m]
-            if faces[f, 0] == i or faces[f, 1] == i or faces[f, 2] == i:
-                continue
-            if paths_apart(x, x0, i, i, i, faces[f, 0], faces[f, 1], faces[f, 2], reach) or \
-                    far_from_triangle(i, f, x, x0, faces, reach):
-                continue
-            if count < out.shape[0]:
-                out[count, 0] = i
-                out[count, 1] = f
-            count += 1
-    return count
 
 
 @njit(cache=True, nogil=True)
@@ -204,61 +133,38 @@ def _crossed_in_pairs(x, edges, faces, edge_pairs, edge_tris, tangled):
     return count
 
 
-@njit(cache=True, nogil=True)
-def _swept_cells(x, x0, faces, lo, cell, shape, pad):
-    """(f, 6) int64: each triangle's inclusive cell ranges (ix0, ix1, iy0, iy1, iz0, iz1) of the box of its corners
-    at x0 and at x, grown by ``pad`` m."""
-    out = np.empty((faces.shape[0], 6), dtype=np.int64)
-    for f in range(faces.shape[0]):
-        for a in range(3):
-            mn = np.inf
-            mx = -np.inf
-            for k in range(3):
-                v = faces[f, k]
-                mn = min(mn, min(x[v, a], x0[v, a]))
-                mx = max(mx, max(x[v, a], x0[v, a]))
-            out[f, 2 * a] = max(0, min(shape[a] - 1, int((mn - pad - lo[a]) / cell)))
-            out[f, 2 * a + 1] = max(0, min(shape[a] - 1, int((mx + pad - lo[a]) / cell)))
-    return out
-
-
-def swept_grid(x: np.ndarray, x0: np.ndarray, faces: np.ndarray, cell: float, pad: float) -> TriGrid:
-    """A ``TriGrid`` of the triangles ``faces`` (f, 3) int64 by the boxes they sweep from x0 (n, 3) m to x (n, 3) m,
-    grown by ``pad`` m: a point whose path's box lies in a cell finds there every triangle it can meet."""
-    lo, size, shape = grid_frame(np.minimum(x.min(axis=0), x0.min(axis=0)), np.maximum(x.max(axis=0), x0.max(axis=0)),
-                                 cell, pad)
-    start, tris = fill_ranges(_swept_cells(x, x0, faces, lo, size, shape, float(pad)), shape)
-    return TriGrid(lo, size, shape, start, tris)
-
-
 # Share of a mesh's points past their allowance up to which only their pairs are listed again (``_pairs_of_moved``,
-# every element against them); past it the whole list is made again on the grid. A re-list of 1-4 points (a T-shirt
-# M's swinging hem at rest) costs ~0.1 ms this way, a whole list 3-4 ms.
+# every element against them); past it the whole list is made again by patches. A re-list of 1-4 points (a T-shirt
+# M's swinging hem at rest) costs ~0.1 ms this way, a whole list 1-2 ms.
 PARTIAL_SHARE = 0.02
 
 
 class SelfContact:
     """The pairs of a garment's simulated mesh near enough to touch within a step: every (point, triangle) and
     (edge, edge) pair whose paths came within ``margin`` m of each other as listed (``update``; ``positions``: where
-    each point was when its pairs were listed). A pair not on it was at least ``margin`` apart, so its points may
-    move up to allow = (margin - thickness) / 2 from there, in the passes' pushes and the steps after, before their
-    pairs must be listed again. While the whole list was made at once, that is counted once the mesh's mean move is
-    taken away (a pair's distance does not change as the cloth moves as a whole); when a few points have strayed,
-    only their pairs are listed again, within margin + allow (a point not listed again may stray 2 allow from where
-    it is then: margin + allow - 3 allow = thickness), and from then on each point's own move counts.
+    each point was when its pairs were listed), but those within a piece of the mesh flat when listed
+    (``patches``: a flat piece cannot fold onto itself; a point moving the allowance below tilts a 3 cm triangle
+    by 20 degrees at most, so a piece flat within 60 degrees stays short of folding). A pair not on it was at
+    least ``margin`` apart, so its points may move up to allow = (margin - thickness) / 2 from there, in the
+    passes' pushes and the steps after, before their pairs must be listed again. While the whole list was made at
+    once, that is counted once the mesh's mean move is taken away (a pair's distance does not change as the cloth
+    moves as a whole); when a few points have strayed, only their pairs are listed again, within margin + allow (a
+    point not listed again may stray 2 allow from where it is then: margin + allow - 3 allow = thickness), and from
+    then on each point's own move counts.
 
     faces (f, 3) int64, edges (e, 2) int64 and face_edges (f, 3) int64 (``topology.face_edge_ids``): the mesh,
     kept with the drape; thickness, margin m."""
 
     def __init__(self, faces: np.ndarray, edges: np.ndarray, face_edges: np.ndarray, thickness: float,
-                 margin: float, cell: float = 0.03):
+                 margin: float):
         self.faces, self.edges, self.face_edges = faces, edges, face_edges
-        self.thickness, self.margin, self.cell = float(thickness), float(margin), float(cell)
+        self.thickness, self.margin = float(thickness), float(margin)
         self.allow = 0.5 * (self.margin - self.thickness)
         self.positions = None
         self.whole = False  # the list was made at once, every point's position taken together
         self.tangled = np.zeros(0, dtype=np.bool_)
         self.edge_tris = faces_on_edges(face_edges, len(edges))  # the (at most two) triangles on each edge, -1: none
+        self.patches = make_patches(faces, int(faces.max()) + 1, self.edge_tris, face_edges)
         self.points = np.zeros((0, 2), dtype=np.int64)
         self.edge_pairs = np.zeros((0, 2), dtype=np.int64)
 
@@ -296,11 +202,7 @@ class SelfContact:
 
     def build(self, x: np.ndarray, x0: np.ndarray) -> None:
         """The whole list from the paths x0 -> x (n, 3) m."""
-        grid = swept_grid(x, x0, self.faces, self.cell, self.margin)
-        args = (grid.lo, grid.cell, grid.shape, grid.cell_start, grid.cell_tris, self.margin)
-        points = _collect(_point_pairs, (x, x0, self.faces, *args), len(self.faces))
-        edge_pairs = _collect(_edge_pairs, (x, x0, self.edges, self.faces, self.face_edges, *args,
-                                            np.full(len(self.faces), -1, dtype=np.int64)), len(self.edges))
+        points, edge_pairs = listed_pairs(x, x0, self.faces, self.edges, self.patches, self.margin)
         self.tangled = np.zeros(len(x), dtype=np.bool_)
         _crossed_in_pairs(x0, self.edges, self.faces, edge_pairs, self.edge_tris, self.tangled)
         self._keep(points, edge_pairs)
@@ -328,12 +230,3 @@ def _largest_spread(moves: np.ndarray) -> float:
     """m: the largest distance of one of the ``moves`` (n, 3) m from their mean."""
     return float(np.sqrt(((moves - moves.mean(axis=0)) ** 2).sum(axis=1).max()))
 
-
-def _collect(kernel, args, n_seen: int) -> np.ndarray:
-    """(c, 2) int64: what a pair-collecting ``kernel(*args, seen, out)`` finds, however many."""
-    out = np.empty((8 * n_seen, 2), dtype=np.int64)
-    n = kernel(*args, np.full(n_seen, -1, dtype=np.int64), out)
-    if n > len(out):
-        out = np.empty((n, 2), dtype=np.int64)
-        kernel(*args, np.full(n_seen, -1, dtype=np.int64), out)
-    return out[:n]

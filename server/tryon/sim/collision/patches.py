@@ -1,0 +1,318 @@
+"""The broad phase of a mesh's contact with itself by patches and their normal cones (issue 53 item 1): the mesh's
+triangles are grown once into patches of about ``PATCH_FACES`` triangles, and every list of the pairs near enough
+to touch (``SelfContact.build``) looks only between patches whose swept boxes come within the reach, and within a
+patch (or two that meet at a point) only where it is not flat: a connected piece of surface whose normals all lie
+within ``FLAT_ANGLE`` of one direction is a height field over the plane across it and cannot fold onto itself
+(Volino and Magnenat-Thalmann 1994, the curvature criterion; Provot 1997). Cloth lying smoothly on a body, most of
+a garment, lists nothing; the near neighbours along the surface (most of the pairs a grid of boxes finds) are not
+looked at there.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from tryon.sim.collision.ccd import far_from_edge, far_from_triangle
+
+# triangles a patch grows to: the coarse meshes' ~3 cm triangles make patches of about 10 cm across, flat on a
+# torso and bent round a sleeve
+PATCH_FACES = 6
+# rad: the largest angle between a flat patch's triangle normals (at the step's start and end) and their mean;
+# under 90 degrees the patch is a height field, the margin keeps a triangle tilting within a step inside it
+FLAT_ANGLE = math.radians(60.0)
+RINGS = 2
+
+
+@dataclass(frozen=True)
+class Patches:
+    """A mesh's triangles in patches: ``face_start`` (c + 1,) and ``face_ids`` (f,) int64 list each patch's
+    triangles, ``point_start``/``point_ids`` the points it owns (each point one patch, one of its triangles'),
+    ``edge_start``/``edge_ids`` the edges it owns (each edge the patch of its first triangle); ``adjacent``
+    (c, c) bool: the patches that share a point."""
+
+    face_start: np.ndarray
+    face_ids: np.ndarray
+    point_start: np.ndarray
+    point_ids: np.ndarray
+    edge_start: np.ndarray
+    edge_ids: np.ndarray
+    adjacent: np.ndarray
+
+
+@njit(cache=True, nogil=True)
+def _grow(face_nbrs, size):
+    """(f,) int64: each triangle's patch, grown breadth-first over shared edges (``face_nbrs`` (f, 3) int64, -1 at
+    a border) from the lowest triangle not yet in one, until it has ``size`` triangles or no neighbour left."""
+    n = face_nbrs.shape[0]
+    patch = np.full(n, -1, dtype=np.int64)
+    queue = np.empty(n, dtype=np.int64)
+    count = 0
+    for seed in range(n):
+        if patch[seed] >= 0:
+            continue
+        patch[seed] = count
+        queue[0] = seed
+        head, tail = 0, 1
+        while head < tail and tail < size:
+            f = queue[head]
+            head += 1
+            for k in range(3):
+                g = face_nbrs[f, k]
+                if g >= 0 and patch[g] < 0 and tail < size:
+                    patch[g] = count
+                    queue[tail] = g
+                    tail += 1
+        count += 1
+    return patch
+
+
+@njit(cache=True, nogil=True)
+def _adjacent(faces, patch, n_patches, n_points):
+    """(c, c) bool: patches with a point in common."""
+    out = np.zeros((n_patches, n_patches), dtype=np.bool_)
+    star_start = np.zeros(n_points + 1, dtype=np.int64)
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            star_start[faces[f, k] + 1] += 1
+    for v in range(n_points):
+        star_start[v + 1] += star_start[v]
+    fill = star_start[:-1].copy()
+    star = np.empty(star_start[-1], dtype=np.int64)
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            v = faces[f, k]
+            star[fill[v]] = patch[f]
+            fill[v] += 1
+    for v in range(n_points):
+        for s in range(star_start[v], star_start[v + 1]):
+            for t in range(star_start[v], star_start[v + 1]):
+                out[star[s], star[t]] = True  # the patches round point v, pairwise
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _ring_further(near):
+    """(c, c) bool: the patches ``near`` (c, c) bool marks, and those near one of them."""
+    out = near.copy()
+    for p in range(near.shape[0]):
+        for r in range(near.shape[0]):
+            if near[p, r]:
+                for q in range(near.shape[0]):
+                    if near[r, q]:
+                        out[p, q] = True
+    return out
+
+
+def _ranges(owner: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(start (n + 1,), ids) int64: the items of each owner 0..n-1 (``owner`` (m,) int64), in index order."""
+    ids = np.argsort(owner, kind="stable").astype(np.int64)
+    start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(owner, minlength=n), out=start[1:])
+    return start, ids
+
+
+def make_patches(faces: np.ndarray, n_points: int, edge_tris: np.ndarray, face_edges: np.ndarray,
+                 size: int = PATCH_FACES) -> Patches:
+    """The ``Patches`` of the mesh ``faces`` (f, 3) int64 of ``n_points`` points, with its edges' triangles
+    ``edge_tris`` (e, 2) int64 (-1: none) and the triangles' edges ``face_edges`` (f, 3) int64."""
+    other = np.where(edge_tris[face_edges, 0] == np.arange(len(faces))[:, None], edge_tris[face_edges, 1],
+                     edge_tris[face_edges, 0])
+    patch = _grow(np.ascontiguousarray(other, dtype=np.int64), int(size))
+    n = int(patch.max()) + 1 if len(patch) else 0
+    point_owner = np.zeros(n_points, dtype=np.int64)
+    point_owner[faces[::-1].ravel()] = np.repeat(patch[::-1], 3)  # the first triangle's patch wins
+    used = np.zeros(n_points, dtype=np.bool_)
+    used[faces.ravel()] = True
+    point_start, point_ids = _ranges(np.where(used, point_owner, n), n + 1)
+    face_start, face_ids = _ranges(patch, n)
+    edge_start, edge_ids = _ranges(patch[edge_tris[:, 0]], n)
+    adjacent = _adjacent(faces, patch, n, n_points)
+    for _ in range(RINGS - 1):
+        adjacent = _ring_further(adjacent)
+    return Patches(face_start, face_ids, point_start[:-1].copy(), point_ids, edge_start, edge_ids, adjacent)
+
+
+@njit(cache=True, nogil=True)
+def _face_normals(x, faces):
+    """(f, 3): each triangle's winding unit normal at x (n, 3) m (zero for a degenerate one)."""
+    out = np.zeros((faces.shape[0], 3))
+    for f in range(faces.shape[0]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        ux, uy, uz = x[b, 0] - x[a, 0], x[b, 1] - x[a, 1], x[b, 2] - x[a, 2]
+        vx, vy, vz = x[c, 0] - x[a, 0], x[c, 1] - x[a, 1], x[c, 2] - x[a, 2]
+        nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if ln > 1e-14:
+            out[f, 0], out[f, 1], out[f, 2] = nx / ln, ny / ln, nz / ln
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _flat(p, q, face_start, face_ids, n1, n0, cos_flat):
+    """Whether patches p and q (p == q: one) are flat together: every triangle's normal at the end (n1 (f, 3)) and at
+    the start (n0) of the step within acos(cos_flat) of their mean; a degenerate triangle is not."""
+    mx, my, mz = 0.0, 0.0, 0.0
+    for r in (p, q):
+        for k in range(face_start[r], face_start[r + 1]):
+            f = face_ids[k]
+            mx += n1[f, 0] + n0[f, 0]
+            my += n1[f, 1] + n0[f, 1]
+            mz += n1[f, 2] + n0[f, 2]
+        if p == q:
+            break
+    ln = math.sqrt(mx * mx + my * my + mz * mz)
+    if ln < 1e-12:
+        return False
+    mx, my, mz = mx / ln, my / ln, mz / ln
+    for r in (p, q):
+        for k in range(face_start[r], face_start[r + 1]):
+            f = face_ids[k]
+            if n1[f, 0] * mx + n1[f, 1] * my + n1[f, 2] * mz < cos_flat or \
+                    n0[f, 0] * mx + n0[f, 1] * my + n0[f, 2] * mz < cos_flat:
+                return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _box(x, x0, v, box):
+    """Grow ``box`` (6,) by point v's path from x0 to x."""
+    for ax in range(3):
+        box[ax] = min(box[ax], min(x[v, ax], x0[v, ax]))
+        box[3 + ax] = max(box[3 + ax], max(x[v, ax], x0[v, ax]))
+
+
+@njit(cache=True, nogil=True)
+def _apart(box, a, b, pad):
+    """Whether rows a and b of ``box`` (m, 6) lie more than ``pad`` m apart on an axis."""
+    for ax in range(3):
+        if box[a, ax] > box[b, 3 + ax] + pad or box[b, ax] > box[a, 3 + ax] + pad:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _within(ids, lo, hi, box, patch_box, patch, reach, out):
+    """How many of ``ids[lo:hi]`` have a ``box`` row within ``reach`` m of row ``patch`` of ``patch_box``: written
+    to ``out``."""
+    n = 0
+    for s in range(lo, hi):
+        r = ids[s]
+        far = False
+        for ax in range(3):
+            if box[r, ax] > patch_box[patch, 3 + ax] + reach or patch_box[patch, ax] > box[r, 3 + ax] + reach:
+                far = True
+                break
+        if not far:
+            out[n] = r
+            n += 1
+    return n
+
+
+@njit(cache=True, nogil=True)
+def _point_face(x, x0, faces, i, f, reach, point_box, face_box, points, count):
+    """Append (i, f) to ``points`` (as far as it holds; returns the new count) if point i is no corner of triangle
+    f and their paths come within ``reach`` m (boxes, then ``far_from_triangle``)."""
+    if i == faces[f, 0] or i == faces[f, 1] or i == faces[f, 2]:
+        return count
+    for ax in range(3):
+        if point_box[i, ax] > face_box[f, 3 + ax] + reach or face_box[f, ax] > point_box[i, 3 + ax] + reach:
+            return count
+    if far_from_triangle(i, f, x, x0, faces, reach):
+        return count
+    if count < points.shape[0]:
+        points[count, 0] = i
+        points[count, 1] = f
+    return count + 1
+
+
+@njit(cache=True, nogil=True)
+def _edge_edge(x, x0, edges, e, k, reach, edge_box, pairs, count):
+    """Append (min, max) of edges e and k to ``pairs`` (as far as it holds; returns the new count) if they share
+    no end and their paths come within ``reach`` m (boxes, then ``far_from_edge``)."""
+    p1, p2, q1, q2 = edges[e, 0], edges[e, 1], edges[k, 0], edges[k, 1]
+    if q1 == p1 or q1 == p2 or q2 == p1 or q2 == p2 or _apart(edge_box, e, k, reach) or \
+            far_from_edge(p1, p2, q1, q2, x, x0, reach):
+        return count
+    if count < pairs.shape[0]:
+        pairs[count, 0] = min(e, k)
+        pairs[count, 1] = max(e, k)
+    return count + 1
+
+
+@njit(cache=True, nogil=True)
+def near_pairs(x, x0, faces, edges, face_start, face_ids, point_start, point_ids, edge_start, edge_ids, adjacent,
+               reach, cos_flat, points, pairs):
+    """The (point, triangle) and (edge, edge) pairs whose paths from x0 to x (n, 3) m come within ``reach`` m, in
+    every pair of patches (``Patches``' arrays) whose boxes do and that are not flat together (``_flat``: one
+    patch, or two that share a point), into ``points`` (p, 2) and ``pairs`` (q, 2) int64 as far as they hold;
+    returns how many of each there are. Each pair once: a point and an edge belong to one patch."""
+    n_patches = face_start.shape[0] - 1
+    n1, n0 = _face_normals(x, faces), _face_normals(x0, faces)
+    patch_box = np.empty((n_patches, 6))
+    for p in range(n_patches):
+        patch_box[p, :3], patch_box[p, 3:] = np.inf, -np.inf
+        for k in range(face_start[p], face_start[p + 1]):
+            for c in range(3):
+                _box(x, x0, faces[face_ids[k], c], patch_box[p])
+    point_box = np.empty((x.shape[0], 6))
+    for i in range(x.shape[0]):
+        point_box[i, :3], point_box[i, 3:] = np.inf, -np.inf
+        _box(x, x0, i, point_box[i])
+    face_box = np.empty((faces.shape[0], 6))
+    for f in range(faces.shape[0]):
+        face_box[f, :3], face_box[f, 3:] = np.inf, -np.inf
+        for c in range(3):
+            _box(x, x0, faces[f, c], face_box[f])
+    edge_box = np.empty((edges.shape[0], 6))
+    for e in range(edges.shape[0]):
+        edge_box[e, :3], edge_box[e, 3:] = np.inf, -np.inf
+        _box(x, x0, edges[e, 0], edge_box[e])
+        _box(x, x0, edges[e, 1], edge_box[e])
+    near_a = np.empty(max(x.shape[0], max(faces.shape[0], edges.shape[0])), dtype=np.int64)
+    near_b = np.empty_like(near_a)
+    n_points, n_pairs = 0, 0
+    order = np.argsort(patch_box[:, 1])  # sweep and prune along y: the patches whose heights overlap
+    for u in range(n_patches):
+        p = order[u]
+        for w in range(u, n_patches):
+            q = order[w]
+            if patch_box[q, 1] > patch_box[p, 4] + reach:
+                break
+            if _apart(patch_box, p, q, reach) or ((p == q or adjacent[p, q]) and
+                                                   _flat(p, q, face_start, face_ids, n1, n0, cos_flat)):
+                continue
+            for a, b in ((p, q), (q, p)):  # a's points near b's box against b's triangles near a's box
+                m = _within(point_ids, point_start[a], point_start[a + 1], point_box, patch_box, b, reach, near_a)
+                k = _within(face_ids, face_start[b], face_start[b + 1], face_box, patch_box, a, reach, near_b)
+                for s in range(m):
+                    for t in range(k):
+                        n_points = _point_face(x, x0, faces, near_a[s], near_b[t], reach, point_box, face_box,
+                                               points, n_points)
+                if p == q:
+                    break
+            m = _within(edge_ids, edge_start[p], edge_start[p + 1], edge_box, patch_box, q, reach, near_a)
+            k = _within(edge_ids, edge_start[q], edge_start[q + 1], edge_box, patch_box, p, reach, near_b)
+            for s in range(m):
+                for t in range(s + 1 if p == q else 0, k):
+                    n_pairs = _edge_edge(x, x0, edges, near_a[s], near_b[t], reach, edge_box, pairs, n_pairs)
+    return n_points, n_pairs
+
+
+def listed_pairs(x: np.ndarray, x0: np.ndarray, faces: np.ndarray, edges: np.ndarray, patches: Patches,
+                 reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """(points (p, 2), edge pairs (q, 2)) int64: ``near_pairs`` of the mesh ``faces`` (f, 3), ``edges`` (e, 2) in
+    its ``patches``, for the paths x0 -> x (n, 3) m, however many."""
+    args = (x, x0, faces, edges, patches.face_start, patches.face_ids, patches.point_start, patches.point_ids,
+            patches.edge_start, patches.edge_ids, patches.adjacent, float(reach), math.cos(FLAT_ANGLE))
+    points, pairs = np.empty((4 * len(faces), 2), dtype=np.int64), np.empty((4 * len(edges), 2), dtype=np.int64)
+    n_points, n_pairs = near_pairs(*args, points, pairs)
+    if n_points > len(points) or n_pairs > len(pairs):
+        points, pairs = np.empty((n_points, 2), dtype=np.int64), np.empty((n_pairs, 2), dtype=np.int64)
+        near_pairs(*args, points, pairs)
+    points, pairs = points[:n_points], pairs[:n_pairs]
+    # in the order of their points (Gauss-Seidel passes go through them so; the patches' order is the growth's)
+    return points[np.lexsort((points[:, 1], points[:, 0]))], pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]

@@ -45,7 +45,7 @@ def listed(x, x0, faces, edges, patched, cos_flat=None):
     else:  # nothing flat: every pair of patches within reach searched
         points, pairs = np.empty((50000, 2), dtype=np.int64), np.empty((50000, 2), dtype=np.int64)
         n, m = patches.near_pairs(x, x0, faces, edges, patched.face_start, patched.face_ids, patched.point_start,
-                                  patched.point_ids, patched.edge_start, patched.edge_ids, patched.adjacent, REACH,
+                                  patched.point_ids, patched.edge_start, patched.edge_ids, patched.near, REACH,
                                   cos_flat, points, pairs)
         points, pairs = points[:n], pairs[:m]
     return set(map(tuple, points.tolist())), set(map(tuple, pairs.tolist()))
@@ -59,7 +59,7 @@ def test_every_triangle_is_in_one_patch_and_every_point_and_edge_owned_once():
     assert sorted(patched.edge_ids.tolist()) == list(range(len(edges)))
     sizes = np.diff(patched.face_start)
     assert sizes.max() == patches.PATCH_FACES and np.median(sizes) == patches.PATCH_FACES
-    assert np.all(np.diag(patched.adjacent)) and np.array_equal(patched.adjacent, patched.adjacent.T)
+    assert np.all(np.diag(patched.near)) and np.array_equal(patched.near, patched.near.T)
 
 
 def test_with_nothing_flat_the_patches_find_what_a_search_of_every_pair_finds():

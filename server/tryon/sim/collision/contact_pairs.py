@@ -177,15 +177,15 @@ class SelfContact:
             self.build(x, x0)
             return True
         if self.whole:
-            far = _largest_spread(x - self.positions)
+            far = _largest_spread(x, self.positions)
             if from_start:
-                far = max(far, _largest_spread(x0 - self.positions))
+                far = max(far, _largest_spread(x0, self.positions))
             if far <= self.allow:
                 return False
-        moved = ((x - self.positions) ** 2).sum(axis=1) > self.allow ** 2
+        moved = self.tangled.copy()
+        _strayed(x, self.positions, self.allow, moved)
         if from_start:
-            moved |= ((x0 - self.positions) ** 2).sum(axis=1) > self.allow ** 2
-        moved |= self.tangled
+            _strayed(x0, self.positions, self.allow, moved)
         if not moved.any():
             return False
         if moved.mean() > PARTIAL_SHARE:
@@ -226,7 +226,28 @@ class SelfContact:
         return points, edge_pairs[~marked[self.edges[edge_pairs]].reshape(-1, 4).any(axis=1)]
 
 
-def _largest_spread(moves: np.ndarray) -> float:
-    """m: the largest distance of one of the ``moves`` (n, 3) m from their mean."""
-    return float(np.sqrt(((moves - moves.mean(axis=0)) ** 2).sum(axis=1).max()))
+@njit(cache=True, nogil=True)
+def _largest_spread(x, positions):
+    """m: the largest distance of one of the moves x - positions ((n, 3) m each) from their mean."""
+    n = x.shape[0]
+    mx, my, mz = 0.0, 0.0, 0.0
+    for i in range(n):
+        mx += x[i, 0] - positions[i, 0]
+        my += x[i, 1] - positions[i, 1]
+        mz += x[i, 2] - positions[i, 2]
+    mx, my, mz = mx / n, my / n, mz / n
+    far = 0.0
+    for i in range(n):
+        dx, dy, dz = x[i, 0] - positions[i, 0] - mx, x[i, 1] - positions[i, 1] - my, x[i, 2] - positions[i, 2] - mz
+        far = max(far, dx * dx + dy * dy + dz * dz)
+    return math.sqrt(far)
+
+
+@njit(cache=True, nogil=True)
+def _strayed(x, positions, allow, out):
+    """Mark in ``out`` (n,) bool the points of x (n, 3) m further than ``allow`` m from ``positions``."""
+    for i in range(x.shape[0]):
+        dx, dy, dz = x[i, 0] - positions[i, 0], x[i, 1] - positions[i, 1], x[i, 2] - positions[i, 2]
+        if dx * dx + dy * dy + dz * dz > allow * allow:
+            out[i] = True
 

@@ -1,7 +1,7 @@
 """The broad phase of a mesh's contact with itself by patches and their normal cones (issue 53 item 1): the mesh's
 triangles are grown once into patches of about ``PATCH_FACES`` triangles, and every list of the pairs near enough
 to touch (``SelfContact.build``) looks only between patches whose swept boxes come within the reach, and within a
-patch (or two that meet at a point) only where it is not flat: a connected piece of surface whose normals all lie
+patch (or two a few patches apart, ``RINGS``) only where it is not flat: a piece of surface whose normals all lie
 within ``FLAT_ANGLE`` of one direction is a height field over the plane across it and cannot fold onto itself
 (Volino and Magnenat-Thalmann 1994, the curvature criterion; Provot 1997). Cloth lying smoothly on a body, most of
 a garment, lists nothing; the near neighbours along the surface (most of the pairs a grid of boxes finds) are not
@@ -18,21 +18,27 @@ from numba import njit
 
 from tryon.sim.collision.ccd import far_from_edge, far_from_triangle
 
-# triangles a patch grows to: the coarse meshes' ~3 cm triangles make patches of about 10 cm across, flat on a
-# torso and bent round a sleeve
-PATCH_FACES = 6
-# rad: the largest angle between a flat patch's triangle normals (at the step's start and end) and their mean;
-# under 90 degrees the patch is a height field, the margin keeps a triangle tilting within a step inside it
+# triangles a patch grows to: on the coarse meshes' ~3 cm triangles a patch is about 4 cm across. Patches of
+# 4, 6 or 8 triangles (with ``RINGS`` 2 or 3) cost about the same (a drape with self-contact on 1.33-1.42x its
+# time without, the medians over seven catalogue garments on the chart's M body, one thread)
+PATCH_FACES = 4
+# rad: the largest angle between the normals of patches flat together (at the step's start and end) and their
+# mean; under 90 degrees they are a height field over the plane across the mean, and 30 degrees are left for the
+# tilt of a triangle whose corners move the lists' allowance before the pairs are listed again
 FLAT_ANGLE = math.radians(60.0)
-RINGS = 2
+# patches this many steps apart in the patch graph (sharing a point: one) are looked at as one piece of cloth,
+# left out where flat together: on a mesh of 3 cm triangles the boxes of patches two and three steps apart
+# still overlap, and their pairs are the cloth's neighbours along its surface. A piece between them folded
+# back into a Z is looked at against each of them.
+RINGS = 3
 
 
 @dataclass(frozen=True)
 class Patches:
     """A mesh's triangles in patches: ``face_start`` (c + 1,) and ``face_ids`` (f,) int64 list each patch's
     triangles, ``point_start``/``point_ids`` the points it owns (each point one patch, one of its triangles'),
-    ``edge_start``/``edge_ids`` the edges it owns (each edge the patch of its first triangle); ``adjacent``
-    (c, c) bool: the patches that share a point."""
+    ``edge_start``/``edge_ids`` the edges it owns (each edge the patch of its first triangle); ``near`` (c, c)
+    bool: the patches at most ``RINGS`` steps apart (a step: sharing a point)."""
 
     face_start: np.ndarray
     face_ids: np.ndarray
@@ -40,7 +46,7 @@ class Patches:
     point_ids: np.ndarray
     edge_start: np.ndarray
     edge_ids: np.ndarray
-    adjacent: np.ndarray
+    near: np.ndarray
 
 
 @njit(cache=True, nogil=True)
@@ -130,10 +136,10 @@ def make_patches(faces: np.ndarray, n_points: int, edge_tris: np.ndarray, face_e
     point_start, point_ids = _ranges(np.where(used, point_owner, n), n + 1)
     face_start, face_ids = _ranges(patch, n)
     edge_start, edge_ids = _ranges(patch[edge_tris[:, 0]], n)
-    adjacent = _adjacent(faces, patch, n, n_points)
+    near = _adjacent(faces, patch, n, n_points)
     for _ in range(RINGS - 1):
-        adjacent = _ring_further(adjacent)
-    return Patches(face_start, face_ids, point_start[:-1].copy(), point_ids, edge_start, edge_ids, adjacent)
+        near = _ring_further(near)
+    return Patches(face_start, face_ids, point_start[:-1].copy(), point_ids, edge_start, edge_ids, near)
 
 
 @njit(cache=True, nogil=True)
@@ -244,11 +250,11 @@ def _edge_edge(x, x0, edges, e, k, reach, edge_box, pairs, count):
 
 
 @njit(cache=True, nogil=True)
-def near_pairs(x, x0, faces, edges, face_start, face_ids, point_start, point_ids, edge_start, edge_ids, adjacent,
+def near_pairs(x, x0, faces, edges, face_start, face_ids, point_start, point_ids, edge_start, edge_ids, near,
                reach, cos_flat, points, pairs):
     """The (point, triangle) and (edge, edge) pairs whose paths from x0 to x (n, 3) m come within ``reach`` m, in
     every pair of patches (``Patches``' arrays) whose boxes do and that are not flat together (``_flat``: one
-    patch, or two that share a point), into ``points`` (p, 2) and ``pairs`` (q, 2) int64 as far as they hold;
+    patch, or two ``near`` each other), into ``points`` (p, 2) and ``pairs`` (q, 2) int64 as far as they hold;
     returns how many of each there are. Each pair once: a point and an edge belong to one patch."""
     n_patches = face_start.shape[0] - 1
     n1, n0 = _face_normals(x, faces), _face_normals(x0, faces)
@@ -282,7 +288,7 @@ def near_pairs(x, x0, faces, edges, face_start, face_ids, point_start, point_ids
             q = order[w]
             if patch_box[q, 1] > patch_box[p, 4] + reach:
                 break
-            if _apart(patch_box, p, q, reach) or ((p == q or adjacent[p, q]) and
+            if _apart(patch_box, p, q, reach) or ((p == q or near[p, q]) and
                                                    _flat(p, q, face_start, face_ids, n1, n0, cos_flat)):
                 continue
             for a, b in ((p, q), (q, p)):  # a's points near b's box against b's triangles near a's box
@@ -307,7 +313,7 @@ def listed_pairs(x: np.ndarray, x0: np.ndarray, faces: np.ndarray, edges: np.nda
     """(points (p, 2), edge pairs (q, 2)) int64: ``near_pairs`` of the mesh ``faces`` (f, 3), ``edges`` (e, 2) in
     its ``patches``, for the paths x0 -> x (n, 3) m, however many."""
     args = (x, x0, faces, edges, patches.face_start, patches.face_ids, patches.point_start, patches.point_ids,
-            patches.edge_start, patches.edge_ids, patches.adjacent, float(reach), math.cos(FLAT_ANGLE))
+            patches.edge_start, patches.edge_ids, patches.near, float(reach), math.cos(FLAT_ANGLE))
     points, pairs = np.empty((4 * len(faces), 2), dtype=np.int64), np.empty((4 * len(edges), 2), dtype=np.int64)
     n_points, n_pairs = near_pairs(*args, points, pairs)
     if n_points > len(points) or n_pairs > len(pairs):

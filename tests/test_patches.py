@@ -7,7 +7,7 @@ import numpy as np
 
 from tryon.garment.topology import face_edge_ids, faces_on_edges
 from tryon.sim.collision import patches
-from tryon.sim.collision.contact_pairs import _pairs_of_moved
+from tryon.sim.collision.contact_pairs import SelfContact, _pairs_of_moved
 from test_untangle import grid_sheet
 
 REACH = 0.013  # m: the lists' reach at a 3 mm thickness (``test_self_contact.contacts_for``)
@@ -41,12 +41,12 @@ def brute_force(x, x0, faces, edges):
 
 def listed(x, x0, faces, edges, patched, cos_flat=None):
     if cos_flat is None:
-        points, pairs = patches.listed_pairs(x, x0, faces, edges, patched, REACH)
+        points, pairs, _ = patches.listed_pairs(x, x0, faces, edges, patched, REACH)
     else:  # nothing flat: every pair of patches within reach searched
         points, pairs = np.empty((50000, 2), dtype=np.int64), np.empty((50000, 2), dtype=np.int64)
-        n, m = patches.near_pairs(x, x0, faces, edges, patched.face_start, patched.face_ids, patched.point_start,
-                                  patched.point_ids, patched.edge_start, patched.edge_ids, patched.near, REACH,
-                                  cos_flat, points, pairs)
+        n, m, _ = patches.near_pairs(x, x0, faces, edges, patched.face_start, patched.face_ids,
+                                     patched.point_start, patched.point_ids, patched.edge_start, patched.edge_ids,
+                                     patched.near, REACH, cos_flat, points, pairs, np.empty((50000, 2), np.int64))
         points, pairs = points[:n], pairs[:m]
     return set(map(tuple, points.tolist())), set(map(tuple, pairs.tolist()))
 
@@ -94,3 +94,20 @@ def test_a_flat_sheet_lists_nothing_and_a_folded_one_every_pair_across_its_fold(
     assert len(across_edges) > 1000 and across_edges <= pairs
     within = {(i, f) for i, f in all_points if (lower[faces[f]] == lower[i]).all() and away[faces[f]].all()}
     assert len(within) > 1000 and not within & points  # the layers' own near neighbours: left out
+
+
+def test_a_list_is_made_again_when_a_piece_it_left_out_as_flat_bends():
+    # a sheet of 3 mm triangles, pairs listed within 5 mm (thickness 1 mm, each point allowed 2 mm): all of it
+    # left out while flat; pleated by 1.8 mm up and down row by row (under the allowance), its triangles tilt 50
+    # degrees, past the flat angle, and the list is made again
+    x, faces = grid_sheet(21, 0.06, lambda gx, gy: 0.0 * gx)
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    edges, face_edges = face_edge_ids(faces)
+    contacts = SelfContact(faces, edges, face_edges, 0.001, 0.005)
+    contacts.update(x, x)
+    assert len(contacts.points) == 0 and len(contacts.edge_pairs) == 0 and len(contacts.flats) > 0
+    assert not contacts.update(x + 0.001, x + 0.001)  # moved as a whole: kept
+    pleated = x.copy()
+    pleated[:, 2] = np.where(np.round(x[:, 0] / 0.003) % 2 == 0, 0.0018, -0.0018)
+    assert contacts.update(pleated, pleated)
+    assert len(contacts.points) > 0

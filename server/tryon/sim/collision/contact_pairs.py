@@ -14,7 +14,7 @@ from numba import njit
 from tryon.garment.topology import faces_on_edges
 from tryon.sim.collision.ccd import far_from_edge, far_from_triangle, paths_apart
 from tryon.sim.collision.crossings import crosses
-from tryon.sim.collision.patches import listed_pairs, make_patches
+from tryon.sim.collision.patches import kept_flat, listed_pairs, make_patches
 
 
 @njit(cache=True, nogil=True)
@@ -143,14 +143,13 @@ class SelfContact:
     """The pairs of a garment's simulated mesh near enough to touch within a step: every (point, triangle) and
     (edge, edge) pair whose paths came within ``margin`` m of each other as listed (``update``; ``positions``: where
     each point was when its pairs were listed), but those within a piece of the mesh flat when listed
-    (``patches``: a flat piece cannot fold onto itself; a point moving the allowance below tilts a 3 cm triangle
-    by 20 degrees at most, so a piece flat within 60 degrees stays short of folding). A pair not on it was at
-    least ``margin`` apart, so its points may move up to allow = (margin - thickness) / 2 from there, in the
-    passes' pushes and the steps after, before their pairs must be listed again. While the whole list was made at
-    once, that is counted once the mesh's mean move is taken away (a pair's distance does not change as the cloth
-    moves as a whole); when a few points have strayed, only their pairs are listed again, within margin + allow (a
-    point not listed again may stray 2 allow from where it is then: margin + allow - 3 allow = thickness), and from
-    then on each point's own move counts.
+    (``patches``: a flat piece cannot fold onto itself; the list is kept only while those pieces are still flat,
+    ``flats``). A pair not on it was at least ``margin`` apart, so its points may move up to allow = (margin -
+    thickness) / 2 from there, in the passes' pushes and the steps after, before their pairs must be listed again.
+    While the whole list was made at once, that is counted once the mesh's mean move is taken away (a pair's
+    distance does not change as the cloth moves as a whole); when a few points have strayed, only their pairs are
+    listed again, within margin + allow (a point not listed again may stray 2 allow from where it is then: margin
+    + allow - 3 allow = thickness), and from then on each point's own move counts.
 
     faces (f, 3) int64, edges (e, 2) int64 and face_edges (f, 3) int64 (``topology.face_edge_ids``): the mesh,
     kept with the drape; thickness, margin m."""
@@ -167,6 +166,7 @@ class SelfContact:
         self.patches = make_patches(faces, int(faces.max()) + 1, self.edge_tris, face_edges)
         self.points = np.zeros((0, 2), dtype=np.int64)
         self.edge_pairs = np.zeros((0, 2), dtype=np.int64)
+        self.flats = np.zeros((0, 2), dtype=np.int64)  # the pairs of patches the list left out as flat together
 
     def update(self, x: np.ndarray, x0: np.ndarray, from_start: bool = True) -> bool:
         """Keep the list right for the paths x0 -> x (n, 3) m (the straight path of a point stays within the larger
@@ -175,6 +175,9 @@ class SelfContact:
         through the mesh) if few did, else the whole list. Returns whether the list changed."""
         if self.positions is None:
             self.build(x, x0)
+            return True
+        if not kept_flat(x, x0, self.faces, self.patches, self.flats):
+            self.build(x, x0)  # a piece of cloth left out as flat has bent: its pairs are needed
             return True
         if self.whole:
             far = _largest_spread(x, self.positions)
@@ -202,7 +205,7 @@ class SelfContact:
 
     def build(self, x: np.ndarray, x0: np.ndarray) -> None:
         """The whole list from the paths x0 -> x (n, 3) m."""
-        points, edge_pairs = listed_pairs(x, x0, self.faces, self.edges, self.patches, self.margin)
+        points, edge_pairs, self.flats = listed_pairs(x, x0, self.faces, self.edges, self.patches, self.margin)
         self.tangled = np.zeros(len(x), dtype=np.bool_)
         _crossed_in_pairs(x0, self.edges, self.faces, edge_pairs, self.edge_tris, self.tangled)
         self._keep(points, edge_pairs)

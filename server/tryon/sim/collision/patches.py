@@ -19,13 +19,13 @@ from numba import njit
 from tryon.sim.collision.ccd import far_from_edge, far_from_triangle
 
 # triangles a patch grows to: on the coarse meshes' ~3 cm triangles a patch is about 4 cm across. Patches of
-# 4, 6 or 8 triangles (with ``RINGS`` 2 or 3) cost about the same (a drape with self-contact on 1.33-1.42x its
-# time without, the medians over seven catalogue garments on the chart's M body, one thread)
+# 4, 6 or 8 triangles (with ``RINGS`` 2 or 3) cost about the same
 PATCH_FACES = 4
 # rad: the largest angle between the normals of patches flat together (at the step's start and end) and their
-# mean; under 90 degrees they are a height field over the plane across the mean, and 30 degrees are left for the
-# tilt of a triangle whose corners move the lists' allowance before the pairs are listed again
-FLAT_ANGLE = math.radians(60.0)
+# mean. Under 90 degrees a smooth piece is a height field over the plane across the mean, but the coarse meshes'
+# creases are not smooth: at 60 degrees 20 of the small body's trousers M's 34 steps ended with crossings the
+# step did not begin with (239 in all; none at 45 or 30 degrees, or with nothing left out)
+FLAT_ANGLE = math.radians(45.0)
 # patches this many steps apart in the patch graph (sharing a point: one) are looked at as one piece of cloth,
 # left out where flat together: on a mesh of 3 cm triangles the boxes of patches two and three steps apart
 # still overlap, and their pairs are the cloth's neighbours along its surface. A piece between them folded
@@ -251,11 +251,12 @@ def _edge_edge(x, x0, edges, e, k, reach, edge_box, pairs, count):
 
 @njit(cache=True, nogil=True)
 def near_pairs(x, x0, faces, edges, face_start, face_ids, point_start, point_ids, edge_start, edge_ids, near,
-               reach, cos_flat, points, pairs):
+               reach, cos_flat, points, pairs, flats):
     """The (point, triangle) and (edge, edge) pairs whose paths from x0 to x (n, 3) m come within ``reach`` m, in
     every pair of patches (``Patches``' arrays) whose boxes do and that are not flat together (``_flat``: one
-    patch, or two ``near`` each other), into ``points`` (p, 2) and ``pairs`` (q, 2) int64 as far as they hold;
-    returns how many of each there are. Each pair once: a point and an edge belong to one patch."""
+    patch, or two ``near`` each other), into ``points`` (p, 2) and ``pairs`` (q, 2) int64 as far as they hold,
+    and the pairs of patches left out as flat together into ``flats`` (r, 2) int64; returns how many of each
+    there are. Each pair once: a point and an edge belong to one patch."""
     n_patches = face_start.shape[0] - 1
     n1, n0 = _face_normals(x, faces), _face_normals(x0, faces)
     patch_box = np.empty((n_patches, 6))
@@ -280,7 +281,7 @@ def near_pairs(x, x0, faces, edges, face_start, face_ids, point_start, point_ids
         _box(x, x0, edges[e, 1], edge_box[e])
     near_a = np.empty(max(x.shape[0], max(faces.shape[0], edges.shape[0])), dtype=np.int64)
     near_b = np.empty_like(near_a)
-    n_points, n_pairs = 0, 0
+    n_points, n_pairs, n_flats = 0, 0, 0
     order = np.argsort(patch_box[:, 1])  # sweep and prune along y: the patches whose heights overlap
     for u in range(n_patches):
         p = order[u]
@@ -288,8 +289,12 @@ def near_pairs(x, x0, faces, edges, face_start, face_ids, point_start, point_ids
             q = order[w]
             if patch_box[q, 1] > patch_box[p, 4] + reach:
                 break
-            if _apart(patch_box, p, q, reach) or ((p == q or near[p, q]) and
-                                                   _flat(p, q, face_start, face_ids, n1, n0, cos_flat)):
+            if _apart(patch_box, p, q, reach):
+                continue
+            if (p == q or near[p, q]) and _flat(p, q, face_start, face_ids, n1, n0, cos_flat):
+                if n_flats < flats.shape[0]:
+                    flats[n_flats, 0], flats[n_flats, 1] = p, q
+                n_flats += 1
                 continue
             for a, b in ((p, q), (q, p)):  # a's points near b's box against b's triangles near a's box
                 m = _within(point_ids, point_start[a], point_start[a + 1], point_box, patch_box, b, reach, near_a)
@@ -305,20 +310,40 @@ def near_pairs(x, x0, faces, edges, face_start, face_ids, point_start, point_ids
             for s in range(m):
                 for t in range(s + 1 if p == q else 0, k):
                     n_pairs = _edge_edge(x, x0, edges, near_a[s], near_b[t], reach, edge_box, pairs, n_pairs)
-    return n_points, n_pairs
+    return n_points, n_pairs, n_flats
+
+
+@njit(cache=True, nogil=True)
+def still_flat(x, x0, faces, face_start, face_ids, flats, cos_flat):
+    """Whether every pair of patches ``flats`` (r, 2) int64 is still flat together (``_flat``) for the paths x0 ->
+    x (n, 3) m: a list that left their pairs out may be kept only while they are."""
+    if flats.shape[0] == 0:
+        return True
+    n1, n0 = _face_normals(x, faces), _face_normals(x0, faces)
+    for k in range(flats.shape[0]):
+        if not _flat(flats[k, 0], flats[k, 1], face_start, face_ids, n1, n0, cos_flat):
+            return False
+    return True
 
 
 def listed_pairs(x: np.ndarray, x0: np.ndarray, faces: np.ndarray, edges: np.ndarray, patches: Patches,
-                 reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """(points (p, 2), edge pairs (q, 2)) int64: ``near_pairs`` of the mesh ``faces`` (f, 3), ``edges`` (e, 2) in
-    its ``patches``, for the paths x0 -> x (n, 3) m, however many."""
+                 reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(points (p, 2), edge pairs (q, 2), flat patch pairs (r, 2)) int64: ``near_pairs`` of the mesh ``faces``
+    (f, 3), ``edges`` (e, 2) in its ``patches``, for the paths x0 -> x (n, 3) m, however many."""
     args = (x, x0, faces, edges, patches.face_start, patches.face_ids, patches.point_start, patches.point_ids,
             patches.edge_start, patches.edge_ids, patches.near, float(reach), math.cos(FLAT_ANGLE))
-    points, pairs = np.empty((4 * len(faces), 2), dtype=np.int64), np.empty((4 * len(edges), 2), dtype=np.int64)
-    n_points, n_pairs = near_pairs(*args, points, pairs)
-    if n_points > len(points) or n_pairs > len(pairs):
-        points, pairs = np.empty((n_points, 2), dtype=np.int64), np.empty((n_pairs, 2), dtype=np.int64)
-        near_pairs(*args, points, pairs)
-    points, pairs = points[:n_points], pairs[:n_pairs]
+    sizes = (4 * len(faces), 4 * len(edges), 8 * (len(patches.face_start) - 1))
+    while True:
+        out = tuple(np.empty((n, 2), dtype=np.int64) for n in sizes)
+        counts = near_pairs(*args, *out)
+        if all(c <= n for c, n in zip(counts, sizes)):
+            break
+        sizes = counts
+    points, pairs, flats = (a[:c] for a, c in zip(out, counts))
     # in the order of their points (Gauss-Seidel passes go through them so; the patches' order is the growth's)
-    return points[np.lexsort((points[:, 1], points[:, 0]))], pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+    return points[np.lexsort((points[:, 1], points[:, 0]))], pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))], flats
+
+
+def kept_flat(x: np.ndarray, x0: np.ndarray, faces: np.ndarray, patches: Patches, flats: np.ndarray) -> bool:
+    """``still_flat`` for the pairs of ``patches`` a list left out (``listed_pairs``' third)."""
+    return bool(still_flat(x, x0, faces, patches.face_start, patches.face_ids, flats, math.cos(FLAT_ANGLE)))

@@ -194,11 +194,16 @@ def keep_sides(contacts: SelfContact, x: np.ndarray, x_prev: np.ndarray, x0: np.
                                contacts.edge_pairs, float(thickness), no_marks, touched, touching)
         total += pushed
         if pushed == 0:
-            return total
+            break
         touched, touching = touching, (touched if len(touched) else np.zeros(len(x), dtype=np.bool_))
         touching[:] = False
-    if contacts.update(x, x0, from_start=False):  # the passes may have moved a point out of the list's reach
+    if total == 0:
+        return total
+    # the passes may have moved a point out of the list's reach, or bent a piece it left out as flat
+    if contacts.update(x, x0, from_start=False):
         touched = no_marks  # new pairs: every pair is tested
+    elif pushed == 0:
+        return total
     for _ in range(ROLLBACK_ROUNDS):
         if not _contact_pass(x, x_prev, x0, w, contacts.faces, contacts.edges, contacts.points, contacts.edge_pairs,
                              float(thickness), crossed, touched, touching):

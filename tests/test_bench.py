@@ -17,7 +17,7 @@ import pytest
 from tryon.cli import main
 
 SECTIONS = {"table1", "table2", "table3", "fit", "poses", "outfits", "live", "motion", "pareto", "simplify", "peers", "stability",
-            "scaling", "scale", "sizes"}
+            "scaling", "scale", "sizes", "selfcontact"}
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
@@ -339,3 +339,15 @@ def test_outfits_section_drapes_a_top_over_a_bottom(bench):
     out = rows[0]
     assert out["layer_penetrating"] == 0 and out["tuck_as_asked"] is True  # the top's hem over the band
     assert out["shown_strain"] <= 0.16  # what the page draws is within the cloth's limits (issue 51's 16 %)
+
+
+def test_self_contact_section_times_a_drape_with_and_without(bench):
+    """Quick mode: the T-shirt M on the medium body, its time to rest with the cloth's contact with itself off and
+    on, alternated; the ratio is of the two medians, and the drape with it on is as clean as without."""
+    _, _, report = bench
+    rows = _section(report, "selfcontact")["data"]["rows"]
+    assert [r["garment"] for r in rows] == ["T-shirt M"]
+    r = rows[0]
+    assert r["off_s"] > 0 and r["on_s"] > 0 and r["ratio"] == pytest.approx(r["on_s"] / r["off_s"])
+    assert r["off_steps"] > 0 and r["on_steps"] > 0
+    assert r["on_crossings"] <= r["off_crossings"]

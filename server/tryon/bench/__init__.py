@@ -6,7 +6,7 @@ the re-pose (``motion``), outfits of a top over a bottom (``outfits``), run time
 default settings (``pareto``), the paper's simplification against quadric edge collapse
 (``simplify_compare``), peer engines (``peers``: Taichi, Newton), the stability stress summary
 (``stability``), and scaling (``scaling``), fit-table throughput on Ray (``scale``), size advice against the
-chart on people of a CSV (``sizes``). Each runs isolated: a failure is reported with its reason and the others
+chart on people of a CSV (``sizes``), the cost of the cloth's contact with itself (``self_contact``). Each runs isolated: a failure is reported with its reason and the others
 still run.
 ``report`` writes bench.json, bench.md and the PNG plots.
 """
@@ -24,7 +24,8 @@ from tryon.bench.report import now, write_report
 def sections():
     """(name, title, function) of every section, in report order."""
     from tryon.bench import (
-        fit, live, motion, outfits, pareto, peers, poses, scale, scaling, simplify_compare, sizes, stability, tables,
+        fit, live, motion, outfits, pareto, peers, poses, scale, scaling, self_contact, simplify_compare, sizes,
+        stability, tables,
     )
 
     return [
@@ -39,6 +40,7 @@ def sections():
         ("sizes", "Size advice against the chart", sizes.run),
         ("pareto", "Run time against error", pareto.run),
         ("simplify", "Simplification compared", simplify_compare.run),
+        ("selfcontact", "Self-contact's cost", self_contact.run),
         ("peers", "Peer engines", peers.run),
         ("stability", "Stability stress", stability.run),
         ("scaling", "Scaling", scaling.run),

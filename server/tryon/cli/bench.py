@@ -22,7 +22,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--stress", action="store_true", help="run the long stability stress test")
     p.add_argument("--out", type=Path, default=Path("bench-results"), help="output directory (default bench-results/)")
     p.add_argument("--only", nargs="+", metavar="SECTION", default=None,
-                   help="run only these sections (table1 table2 table3 fit poses outfits live motion sizes pareto simplify peers stability scaling scale)")
+                   help="run only these sections (table1 table2 table3 fit poses outfits live motion sizes pareto simplify selfcontact peers stability scaling scale)")
     p.add_argument("--page", type=Path, default=None, metavar="MD",
                    help="also write the figures page (e.g. docs/benchmarks.md, its plots beside it in bench/)")
     p.add_argument("--from", dest="from_json", type=Path, default=None, metavar="BENCH_JSON",

@@ -108,10 +108,10 @@ class Tuning:
     self_thickness: m, the cloth's thickness for its contact with itself (``collision/self_contact.py``): each
         point-triangle and edge-edge pair of the simulated mesh that passed through each other within a step goes
         back to its side, and one nearer than this is pushed apart to it; 0 = none. Off by default: at 1 mm it
-        takes the fit bench's crossings 1,269 -> 692 (on the garments not too tight 812 -> 186: the shorts L-XXL's
-        legs none) with every fit and poses target as without it, but costs 2.0-2.8x a drape's time to rest
-        (3 mm: 2.4-3.8x, and springs left over where an arm pinches a sleeve), and on outfits the layers' pushes
-        cross a garment through itself outside it (crossings 1,864 -> 5,782); ``docs/limits.md``.
+        takes the fit bench's crossings 12,754 -> 8,886 (the fallen trousers crumpled on the floor still crossed)
+        with every fit and poses target as without it, but costs 1.19-2.41x a drape's time to rest (median 1.67,
+        ``tryon bench --only selfcontact``), lets body through 1 -> 8 shown vertices, and on outfits the layers'
+        pushes cross a garment through itself outside it (layer-penetrating vertices 0 -> 66); ``docs/limits.md``.
     self_passes: at most this many Gauss-Seidel passes of it at a step's end (fewer once one pushes nothing).
     self_margin: m, how much further than ``self_thickness`` apart the pairs it lists may be
         (``contact_pairs.SelfContact``): a point may stray half of it before its pairs are listed again. 2 cm or

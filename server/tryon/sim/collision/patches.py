@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from tryon.geometry import face_normals
 from tryon.sim.collision.ccd import far_from_edge, far_from_triangle
 
 # triangles a patch grows to: on the coarse meshes' ~3 cm triangles a patch is about 4 cm across. Patches of
@@ -145,15 +146,8 @@ def make_patches(faces: np.ndarray, n_points: int, edge_tris: np.ndarray, face_e
 @njit(cache=True, nogil=True)
 def _face_normals(x, faces):
     """(f, 3): each triangle's winding unit normal at x (n, 3) m (zero for a degenerate one)."""
-    out = np.zeros((faces.shape[0], 3))
-    for f in range(faces.shape[0]):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        ux, uy, uz = x[b, 0] - x[a, 0], x[b, 1] - x[a, 1], x[b, 2] - x[a, 2]
-        vx, vy, vz = x[c, 0] - x[a, 0], x[c, 1] - x[a, 1], x[c, 2] - x[a, 2]
-        nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
-        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
-        if ln > 1e-14:
-            out[f, 0], out[f, 1], out[f, 2] = nx / ln, ny / ln, nz / ln
+    out = np.empty((faces.shape[0], 3))
+    face_normals(x, faces, out)
     return out
 
 

@@ -102,15 +102,22 @@ def _adjacent(faces, patch, n_patches, n_points):
 
 
 @njit(cache=True, nogil=True)
-def _ring_further(near):
-    """(c, c) bool: the patches ``near`` (c, c) bool marks, and those near one of them."""
+def _ring_further(near, step):
+    """(c, c) bool: the patches ``near`` (c, c) bool marks, and those one ``step`` (c, c) bool from one of them
+    (through each patch's list of its step-neighbours: the cost follows the neighbours, not c^3)."""
+    n = near.shape[0]
+    start = np.zeros(n + 1, dtype=np.int64)
+    for r in range(n):
+        start[r + 1] = start[r] + np.count_nonzero(step[r])
+    ids = np.empty(start[n], dtype=np.int64)
+    for r in range(n):
+        ids[start[r]:start[r + 1]] = np.flatnonzero(step[r])
     out = near.copy()
-    for p in range(near.shape[0]):
-        for r in range(near.shape[0]):
+    for p in range(n):
+        for r in range(n):
             if near[p, r]:
-                for q in range(near.shape[0]):
-                    if near[r, q]:
-                        out[p, q] = True
+                for k in range(start[r], start[r + 1]):
+                    out[p, ids[k]] = True
     return out
 
 
@@ -130,16 +137,16 @@ def make_patches(faces: np.ndarray, n_points: int, edge_tris: np.ndarray, face_e
                      edge_tris[face_edges, 0])
     patch = _grow(np.ascontiguousarray(other, dtype=np.int64), int(size))
     n = int(patch.max()) + 1 if len(patch) else 0
-    point_owner = np.zeros(n_points, dtype=np.int64)
-    point_owner[faces[::-1].ravel()] = np.repeat(patch[::-1], 3)  # the first triangle's patch wins
-    used = np.zeros(n_points, dtype=np.bool_)
-    used[faces.ravel()] = True
-    point_start, point_ids = _ranges(np.where(used, point_owner, n), n + 1)
+    first = np.full(n_points, len(faces), dtype=np.int64)  # each point's first triangle (none: len(faces))
+    np.minimum.at(first, faces.ravel(), np.repeat(np.arange(len(faces), dtype=np.int64), 3))
+    used = first < len(faces)
+    point_start, point_ids = _ranges(np.where(used, patch[np.minimum(first, len(faces) - 1)], n), n + 1)
     face_start, face_ids = _ranges(patch, n)
     edge_start, edge_ids = _ranges(patch[edge_tris[:, 0]], n)
-    near = _adjacent(faces, patch, n, n_points)
+    step = _adjacent(faces, patch, n, n_points)
+    near = step
     for _ in range(RINGS - 1):
-        near = _ring_further(near)
+        near = _ring_further(near, step)
     return Patches(face_start, face_ids, point_start[:-1].copy(), point_ids, edge_start, edge_ids, near)
 
 

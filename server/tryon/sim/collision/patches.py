@@ -333,7 +333,8 @@ def listed_pairs(x: np.ndarray, x0: np.ndarray, faces: np.ndarray, edges: np.nda
     (f, 3), ``edges`` (e, 2) in its ``patches``, for the paths x0 -> x (n, 3) m, however many."""
     args = (x, x0, faces, edges, patches.face_start, patches.face_ids, patches.point_start, patches.point_ids,
             patches.edge_start, patches.edge_ids, patches.near, float(reach), math.cos(FLAT_ANGLE))
-    sizes = (4 * len(faces), 4 * len(edges), 8 * (len(patches.face_start) - 1))
+    # room for as many flat pairs as there are near pairs of patches (each is met once): no second search
+    sizes = (4 * len(faces), 4 * len(edges), int(np.count_nonzero(patches.near)))
     while True:
         out = tuple(np.empty((n, 2), dtype=np.int64) for n in sizes)
         counts = near_pairs(*args, *out)

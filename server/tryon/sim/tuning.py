@@ -109,7 +109,7 @@ class Tuning:
         point-triangle and edge-edge pair of the simulated mesh that passed through each other within a step goes
         back to its side, and one nearer than this is pushed apart to it; 0 = none. Off by default: at 1 mm it
         takes the fit bench's crossings 12,754 -> 8,886 (the fallen trousers crumpled on the floor still crossed)
-        with every fit and poses target as without it, but costs 1.19-2.37x a drape's time to rest (median 1.69,
+        with every fit and poses target as without it, but costs 1.19-2.29x a drape's time to rest (median 1.49,
         ``tryon bench --only selfcontact``), lets body through 1 -> 8 shown vertices, and on outfits the layers'
         pushes cross a garment through itself outside it (layer-penetrating vertices 0 -> 66); ``docs/limits.md``.
     self_passes: at most this many Gauss-Seidel passes of it at a step's end (fewer once one pushes nothing).

@@ -14,34 +14,7 @@ from numba import njit
 from tryon.garment.topology import faces_on_edges
 from tryon.sim.collision.ccd import far_from_edge, far_from_triangle, paths_apart
 from tryon.sim.collision.crossings import crosses
-from tryon.sim.collision.patches import kept_flat, listed_pairs, make_patches
-
-
-@njit(cache=True, nogil=True)
-def _boxes(x, x0, ids):
-    """(m, 6) m: the box (lo x, lo y, lo z, hi x, hi y, hi z) of each row of points ``ids`` (m, k) int64 over their
-    paths from x0 to x."""
-    out = np.empty((ids.shape[0], 6))
-    for r in range(ids.shape[0]):
-        for ax in range(3):
-            lo = np.inf
-            hi = -np.inf
-            for k in range(ids.shape[1]):
-                v = ids[r, k]
-                lo = min(lo, min(x[v, ax], x0[v, ax]))
-                hi = max(hi, max(x[v, ax], x0[v, ax]))
-            out[r, ax] = lo
-            out[r, 3 + ax] = hi
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _boxes_apart(box_a, a, box_b, b, pad):
-    """Whether box a of ``box_a`` and box b of ``box_b`` (``_boxes``) lie more than ``pad`` m apart on an axis."""
-    for ax in range(3):
-        if box_a[a, ax] > box_b[b, 3 + ax] + pad or box_b[b, ax] > box_a[a, 3 + ax] + pad:
-            return True
-    return False
+from tryon.sim.collision.patches import boxes_apart, kept_flat, listed_pairs, make_patches, path_boxes
 
 
 @njit(cache=True, nogil=True)
@@ -73,9 +46,9 @@ def _pairs_of_moved(x, x0, faces, edges, moved, reach):
     ones (no grid): for the few points a list kept at rest needs again (a hem still swinging), that is cheaper
     than the grid of every triangle."""
     n_f, n_e = faces.shape[0], edges.shape[0]
-    point_box = _boxes(x, x0, np.arange(x.shape[0]).reshape(-1, 1))
-    tri_box = _boxes(x, x0, faces)
-    edge_box = _boxes(x, x0, edges)
+    point_box = path_boxes(x, x0, np.arange(x.shape[0]).reshape(-1, 1))
+    tri_box = path_boxes(x, x0, faces)
+    edge_box = path_boxes(x, x0, edges)
     tri_moved = np.zeros(n_f, dtype=np.bool_)
     for f in range(n_f):
         tri_moved[f] = moved[faces[f, 0]] or moved[faces[f, 1]] or moved[faces[f, 2]]
@@ -83,11 +56,11 @@ def _pairs_of_moved(x, x0, faces, edges, moved, reach):
     count = 0
     for i in np.flatnonzero(moved):  # a moved point against every triangle
         for f in range(n_f):
-            if not _boxes_apart(point_box, i, tri_box, f, reach):
+            if not boxes_apart(point_box, i, tri_box, f, reach):
                 count, points = _add_point_pair(x, x0, faces, reach, i, f, points, count)
     for f in np.flatnonzero(tri_moved):  # a triangle with a moved corner against every point that did not move
         for i in range(x.shape[0]):
-            if not moved[i] and not _boxes_apart(point_box, i, tri_box, f, reach):
+            if not moved[i] and not boxes_apart(point_box, i, tri_box, f, reach):
                 count, points = _add_point_pair(x, x0, faces, reach, i, f, points, count)
     edge_moved = np.zeros(n_e, dtype=np.bool_)
     for e in range(n_e):
@@ -102,7 +75,7 @@ def _pairs_of_moved(x, x0, faces, edges, moved, reach):
             if k == e or (edge_moved[k] and k < e):
                 continue  # two moved edges once, from the lower
             q1, q2 = edges[k, 0], edges[k, 1]
-            if q1 == p1 or q1 == p2 or q2 == p1 or q2 == p2 or _boxes_apart(edge_box, e, edge_box, k, reach) or \
+            if q1 == p1 or q1 == p2 or q2 == p1 or q2 == p2 or boxes_apart(edge_box, e, edge_box, k, reach) or \
                     far_from_edge(p1, p2, q1, q2, x, x0, reach):
                 continue
             n_pairs, pairs = _append(pairs, n_pairs, min(e, k), max(e, k))

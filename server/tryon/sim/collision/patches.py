@@ -185,18 +185,28 @@ def _flat(p, q, face_start, face_ids, n1, n0, cos_flat):
 
 
 @njit(cache=True, nogil=True)
-def _box(x, x0, v, box):
-    """Grow ``box`` (6,) by point v's path from x0 to x."""
-    for ax in range(3):
-        box[ax] = min(box[ax], min(x[v, ax], x0[v, ax]))
-        box[3 + ax] = max(box[3 + ax], max(x[v, ax], x0[v, ax]))
+def path_boxes(x, x0, ids):
+    """(m, 6) m: the box (lo x, lo y, lo z, hi x, hi y, hi z) of each row of points ``ids`` (m, k) int64 over their
+    paths from x0 to x."""
+    out = np.empty((ids.shape[0], 6))
+    for r in range(ids.shape[0]):
+        for ax in range(3):
+            lo = np.inf
+            hi = -np.inf
+            for k in range(ids.shape[1]):
+                v = ids[r, k]
+                lo = min(lo, min(x[v, ax], x0[v, ax]))
+                hi = max(hi, max(x[v, ax], x0[v, ax]))
+            out[r, ax] = lo
+            out[r, 3 + ax] = hi
+    return out
 
 
 @njit(cache=True, nogil=True)
-def _apart(box, a, b, pad):
-    """Whether rows a and b of ``box`` (m, 6) lie more than ``pad`` m apart on an axis."""
+def boxes_apart(box_a, a, box_b, b, pad):
+    """Whether box a of ``box_a`` and box b of ``box_b`` (``path_boxes``) lie more than ``pad`` m apart on an axis."""
     for ax in range(3):
-        if box[a, ax] > box[b, 3 + ax] + pad or box[b, ax] > box[a, 3 + ax] + pad:
+        if box_a[a, ax] > box_b[b, 3 + ax] + pad or box_b[b, ax] > box_a[a, 3 + ax] + pad:
             return True
     return False
 
@@ -208,12 +218,7 @@ def _within(ids, lo, hi, box, patch_box, patch, reach, out):
     n = 0
     for s in range(lo, hi):
         r = ids[s]
-        far = False
-        for ax in range(3):
-            if box[r, ax] > patch_box[patch, 3 + ax] + reach or patch_box[patch, ax] > box[r, 3 + ax] + reach:
-                far = True
-                break
-        if not far:
+        if not boxes_apart(box, r, patch_box, patch, reach):
             out[n] = r
             n += 1
     return n
@@ -223,12 +228,8 @@ def _within(ids, lo, hi, box, patch_box, patch, reach, out):
 def _point_face(x, x0, faces, i, f, reach, point_box, face_box, points, count):
     """Append (i, f) to ``points`` (as far as it holds; returns the new count) if point i is no corner of triangle
     f and their paths come within ``reach`` m (boxes, then ``far_from_triangle``)."""
-    if i == faces[f, 0] or i == faces[f, 1] or i == faces[f, 2]:
-        return count
-    for ax in range(3):
-        if point_box[i, ax] > face_box[f, 3 + ax] + reach or face_box[f, ax] > point_box[i, 3 + ax] + reach:
-            return count
-    if far_from_triangle(i, f, x, x0, faces, reach):
+    if i == faces[f, 0] or i == faces[f, 1] or i == faces[f, 2] or boxes_apart(point_box, i, face_box, f, reach) or \
+            far_from_triangle(i, f, x, x0, faces, reach):
         return count
     if count < points.shape[0]:
         points[count, 0] = i
@@ -241,7 +242,7 @@ def _edge_edge(x, x0, edges, e, k, reach, edge_box, pairs, count):
     """Append (min, max) of edges e and k to ``pairs`` (as far as it holds; returns the new count) if they share
     no end and their paths come within ``reach`` m (boxes, then ``far_from_edge``)."""
     p1, p2, q1, q2 = edges[e, 0], edges[e, 1], edges[k, 0], edges[k, 1]
-    if q1 == p1 or q1 == p2 or q2 == p1 or q2 == p2 or _apart(edge_box, e, k, reach) or \
+    if q1 == p1 or q1 == p2 or q2 == p1 or q2 == p2 or boxes_apart(edge_box, e, edge_box, k, reach) or \
             far_from_edge(p1, p2, q1, q2, x, x0, reach):
         return count
     if count < pairs.shape[0]:
@@ -260,26 +261,16 @@ def near_pairs(x, x0, faces, edges, face_start, face_ids, point_start, point_ids
     there are. Each pair once: a point and an edge belong to one patch."""
     n_patches = face_start.shape[0] - 1
     n1, n0 = _face_normals(x, faces), _face_normals(x0, faces)
-    patch_box = np.empty((n_patches, 6))
+    point_box = path_boxes(x, x0, np.arange(x.shape[0]).reshape(-1, 1))
+    face_box = path_boxes(x, x0, faces)
+    edge_box = path_boxes(x, x0, edges)
+    patch_box = np.empty((n_patches, 6))  # each patch's: its triangles' boxes together
     for p in range(n_patches):
         patch_box[p, :3], patch_box[p, 3:] = np.inf, -np.inf
         for k in range(face_start[p], face_start[p + 1]):
-            for c in range(3):
-                _box(x, x0, faces[face_ids[k], c], patch_box[p])
-    point_box = np.empty((x.shape[0], 6))
-    for i in range(x.shape[0]):
-        point_box[i, :3], point_box[i, 3:] = np.inf, -np.inf
-        _box(x, x0, i, point_box[i])
-    face_box = np.empty((faces.shape[0], 6))
-    for f in range(faces.shape[0]):
-        face_box[f, :3], face_box[f, 3:] = np.inf, -np.inf
-        for c in range(3):
-            _box(x, x0, faces[f, c], face_box[f])
-    edge_box = np.empty((edges.shape[0], 6))
-    for e in range(edges.shape[0]):
-        edge_box[e, :3], edge_box[e, 3:] = np.inf, -np.inf
-        _box(x, x0, edges[e, 0], edge_box[e])
-        _box(x, x0, edges[e, 1], edge_box[e])
+            for ax in range(3):
+                patch_box[p, ax] = min(patch_box[p, ax], face_box[face_ids[k], ax])
+                patch_box[p, 3 + ax] = max(patch_box[p, 3 + ax], face_box[face_ids[k], 3 + ax])
     near_a = np.empty(max(x.shape[0], max(faces.shape[0], edges.shape[0])), dtype=np.int64)
     near_b = np.empty_like(near_a)
     n_points, n_pairs, n_flats = 0, 0, 0
@@ -290,7 +281,7 @@ def near_pairs(x, x0, faces, edges, face_start, face_ids, point_start, point_ids
             q = order[w]
             if patch_box[q, 1] > patch_box[p, 4] + reach:
                 break
-            if _apart(patch_box, p, q, reach):
+            if boxes_apart(patch_box, p, patch_box, q, reach):
                 continue
             if (p == q or near[p, q]) and _flat(p, q, face_start, face_ids, n1, n0, cos_flat):
                 if n_flats < flats.shape[0]:

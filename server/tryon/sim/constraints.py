@@ -24,6 +24,12 @@ def spring_lengths(x, springs):
     return out
 
 
+def folded_at(x: np.ndarray, springs: np.ndarray, rest: np.ndarray, below: float) -> np.ndarray:
+    """(s,) bool: the ``springs`` (s, 2) int64 of x (n, 3) m shorter than (1 - ``below``) x their natural length
+    ``rest`` (s,) m: cloth folded finer than the mesh shows (``Tuning.folded_below``)."""
+    return spring_lengths(x, springs) < rest * (1.0 - below)
+
+
 @njit(cache=True, nogil=True, fastmath=True)
 def spring_strain(x, springs, rest):
     """Strain l / l0 - 1 per spring, (s,) float64."""

@@ -20,7 +20,7 @@ from tryon.sim.align import align_sized
 from tryon.sim.arm_plan import ArmPlan, plan_arms
 from tryon.sim.arms import ArmSchedule
 from tryon.sim.collision.collider import BodyCollider, relevant_parts
-from tryon.sim.constraints import spring_lengths
+from tryon.sim.constraints import folded_at
 from tryon.sim.limbs import limb_openings
 from tryon.sim.packed import packed_springs
 from tryon.sim.pieces import piece_tops
@@ -65,7 +65,7 @@ def start(body: Body, model: GarmentModel, settings: SimSettings = SimSettings()
     # ways while the body grew with gravity off, lifting the waist 2 cm at the default step and 7.7 cm at a 4x
     # finer one: where the drape came to rest depended on the step.
     if folded is None:
-        folded = (np.flatnonzero(spring_lengths(x, springs) < rest * (1.0 - tuning.folded_below)) if initial is None
+        folded = (np.flatnonzero(folded_at(x, springs, rest, tuning.folded_below)) if initial is None
                   else np.empty(0, dtype=np.int64))
     folded = np.asarray(folded, dtype=np.int64)
     own[folded, 2] = 0.0

@@ -18,7 +18,7 @@ from tryon.sim.collision.contacts import (
 from tryon.sim.collision.self_contact import keep_drape_sides
 from tryon.sim.collision.untangle import untangle
 from tryon.sim.constraints import (
-    cap_stretch, contact_springs, pack_sweep, solve_listed, spring_lengths, sweep_springs, top_down_order,
+    cap_stretch, contact_springs, folded_at, pack_sweep, solve_listed, sweep_springs, top_down_order,
 )
 from tryon.sim.integrate import kinetic_energy_per_kg, verlet_step
 from tryon.sim.pieces import hanging_pieces
@@ -205,7 +205,7 @@ def _unfold(model: DrapeModel, st: DrapeState) -> None:
     """The folded springs (``st.folded``) drawn back to their natural length (within ``tuning.folded_below``)
     resist compression again (``st.table`` gets back their packed compression) and are no longer folded."""
     folded = st.folded
-    back = spring_lengths(st.x, model.springs[folded]) >= model.rest[folded] * (1.0 - model.tuning.folded_below)
+    back = ~folded_at(st.x, model.springs[folded], model.rest[folded], model.tuning.folded_below)
     st.table[folded[back], 2] = model.table[folded[back], 2]
     st.folded = folded[~back]
 

@@ -1,7 +1,7 @@
 """A garment's springs packed for the passes, made once per garment model and settings and shared by its drapes.
 
-What ``start`` used to build for every drape and depends only on the garment and the settings, not on the
-body: the file's pieces, the springs in block order (``blocks.split_springs``), their packed table (strain
+What a drape's ``start`` needs that depends only on the garment and the settings, not on the body: the file's
+pieces, the springs in block order (``blocks.split_springs``), their packed table (strain
 limits, a bottom's waistband at the band limit, the fabric's stiffness for the substep) and the substeps. No
 drape writes them (the table is read-only: a drape changes its own copy, ``DrapeState.table``; the others go
 to the kernels, which would compile again for read-only arrays), so the drapes of one garment (an advice's,

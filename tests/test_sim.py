@@ -264,3 +264,19 @@ def test_a_point_pinched_between_touching_parts_is_held_where_it_came_from():
     assert not np.allclose(pushed[0], start[0])  # without holding: pushed from one thigh into the other
     for x in (held, pushed):  # the point beside one thigh only: out along the radius either way
         assert np.hypot(x[1, 0], x[1, 2]) == pytest.approx(0.0845, abs=0.001) and abs(x[1, 2]) < 0.001
+
+
+def test_the_rest_test_reads_the_force_left_over_two_steps():
+    """``step._balance``: a point creeping at a drag-limited speed is neither at rest nor balanced (its force is
+    what the drag takes); one flipping between two places every step goes nowhere and is balanced; one still
+    is both."""
+    from tryon.sim.step import _balance
+
+    dt, drag = 0.02, 20.0
+    still = np.zeros((4, 1, 3))
+    creeping = np.tile([0.0, -1e-4, 0.0], (4, 1, 1))  # 0.1 mm a step: 5 mm/s
+    flipping = np.array([[[0.0, 0.01, 0.0]], [[0.0, -0.01, 0.0]], [[0.0, 0.01, 0.0]], [[0.0, -0.01, 0.0]]])
+    assert _balance(still, dt, drag, 1.0) == (0.0, 0.0)
+    speed, force = _balance(creeping, dt, drag, 1.0)
+    assert speed == pytest.approx(0.005) and force == pytest.approx(drag * 0.005)
+    assert _balance(flipping, dt, drag, 1.0) == pytest.approx((0.0, 0.0))

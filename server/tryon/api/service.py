@@ -148,6 +148,9 @@ def result_json(result: TryOnResult | OutfitResult, cached_answer_s: float | Non
     m = result.metrics
     metrics = {
         **run_metrics(m, cached_answer_s),
+        "balanced": bool(m["balanced"]),
+        "rest_speed_mm_s": None if m["rest_speed_mm_s"] is None else round(float(m["rest_speed_mm_s"]), 3),
+        "unbalanced_force": None if m["unbalanced_force"] is None else round(float(m["unbalanced_force"]), 4),
         "penetrating_vertices": int(m["penetrating_vertices"]),
         "max_penetration_mm": round(float(m["max_penetration_mm"]), 3),
         "body_through_vertices": int(m["body_through_vertices"]),

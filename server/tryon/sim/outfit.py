@@ -125,9 +125,11 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
     asleep = np.zeros(len(drapes), dtype=np.bool_)
     stopped, n = False, 0
     for n in range(1, settings.max_steps + 1):
-        at_once(step_drape, [d for d, sleeping in zip(drapes, asleep) if not sleeping])
+        stepping = np.flatnonzero(~asleep)
+        at_once(step_drape, [drapes[k] for k in stepping])
+        if n > layered_from:  # a garment at rest (``step._at_rest``) is not stepped again; the layers still push it
+            asleep[stepping] = [drapes[k].state.rest_reached for k in stepping]
         if n > layered_from and len(drapes) > 1:
-            before = [d.state.x.copy() for d in drapes]
             pressed = [np.zeros(len(d.state.x), dtype=np.bool_) for d in drapes]
             for d in drapes:
                 d.state.layer_has[:] = False
@@ -137,12 +139,6 @@ def drape_outfit(body: Body, models: list[GarmentModel], settings: SimSettings =
                            both_ways=True, on_body=[d.state.has_plane for d in drapes])
             for k, d in enumerate(drapes):
                 gather(d, pressed[k])
-                # pushed: awake (the push's move counts in its next step's rest test)
-                if asleep[k] and np.abs(d.state.x - before[k]).max() > tuning.rest_move:
-                    asleep[k] = False
-        for k, d in enumerate(drapes):
-            if n > layered_from and d.state.rest_run >= settings.steps_of(settings.rest_steps):
-                asleep[k] = True
         # the start-up is not shown (``run.settle``)
         if on_frame is not None and n > layered_from and on_frame(n, [d.state.x for d in drapes]) is False:
             stopped = True
@@ -248,8 +244,8 @@ def drape_pieces(body: Body, model: GarmentModel, categories: list[str], setting
 
 def merged_metrics(parts: list[dict]) -> dict:
     """One garment's metrics from its pieces' (``finish.result``'s keys): counts summed, the worst of maxima
-    kept, lists joined, flags all-true (``stays_up``, ``relaxed``, ``openings_on_limbs`` where any piece has
-    openings) or any-true (``sized_to_body``, ``grown``)."""
+    kept, lists joined, flags all-true (``stays_up``, ``relaxed``, ``balanced``, ``openings_on_limbs`` where any
+    piece has openings) or any-true (``sized_to_body``, ``grown``)."""
     first = parts[0]
     out = dict(first)
     for key in ("penetrating_vertices", "body_through_vertices", "last_step_contacts"):
@@ -270,6 +266,10 @@ def merged_metrics(parts: list[dict]) -> dict:
     out["limb_openings"] = [o for p in parts for o in p["limb_openings"]]
     out["openings_on_limbs"] = all(o["ok"] for o in out["limb_openings"]) if out["limb_openings"] else None
     out["stays_up"] = all(p["stays_up"] for p in parts)
+    out["balanced"] = all(p["balanced"] for p in parts)
+    for key in ("rest_speed_mm_s", "unbalanced_force"):
+        figures = [p[key] for p in parts]
+        out[key] = None if None in figures else max(figures)
     out["relaxed"] = all(p["relaxed"] for p in parts)
     out["sized_to_body"] = any(p["sized_to_body"] for p in parts)
     out["grown"] = any(p["grown"] for p in parts)

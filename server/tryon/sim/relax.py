@@ -66,7 +66,7 @@ def relax(d: Drape) -> Relaxation:
             if crossings < fewest_crossings:
                 fewest_crossings, best_untangle = crossings, rounds
             untangling = (crossings > 0 and rounds - best_untangle < tu.min_polish_rounds
-                          and rounds < tu.polish_stall_rounds)
+                          and rounds < tu.stall_rounds)
         if rounds >= tu.min_polish_rounds:
             # judged after the final collision the result gets (between two collision tests a point may
             # slide past its contact plane, over a sharp edge, and be pushed back out, stretching springs)
@@ -74,9 +74,9 @@ def relax(d: Drape) -> Relaxation:
             n_over = int(np.count_nonzero(spring_lengths(x, m.springs) > target))
             if n_over == 0:
                 break
-            if n_over <= tu.polish_progress * fewest_over:
+            if n_over <= tu.stall_progress * fewest_over:
                 fewest_over, best_round = n_over, rounds
-            elif rounds - best_round >= tu.polish_stall_rounds:
+            elif rounds - best_round >= tu.stall_rounds:
                 break  # no progress: a garment too small for the body there (its springs stay over)
     else:  # out of rounds: the last positions still get their final collision
         collide_all(d)
@@ -110,11 +110,11 @@ def relax(d: Drape) -> Relaxation:
 def relaxation_passes(d: Drape) -> tuple[Springs, Substeps]:
     """The springs and substeps of a relaxation round of ``d``: only the over-long springs act (no compression
     pushes cloth off the body; with l0 = 0 too a compressed spring is not even visited, so the passes skip the
-    buckled cloth on the body); gravity and friction off, light drag (``tuning.relax_drag``)."""
+    buckled cloth on the body); gravity and friction off, light drag (``tuning.settle_drag``)."""
     m = d.model
     stretch_only = m.table.copy()
     stretch_only[:, 1:] = 0.0
-    run = Substeps(float(m.h), int(m.n_sub), int(m.per_sub), 0, 0.0, float(m.tuning.relax_drag),
+    run = Substeps(float(m.h), int(m.n_sub), int(m.per_sub), 0, 0.0, float(m.tuning.settle_drag),
                    float(m.settings.max_speed), 0.0, 0.0, False, False, float(m.floor_y))
     return Springs(m.ends, stretch_only, m.blocks), run
 
@@ -129,7 +129,7 @@ def relaxation_round(d: Drape, springs: Springs, run: Substeps, untangle: bool =
     s, tu = m.settings, m.tuning
     x, x_prev, inv_mass = st.x, st.x_prev, st.inv_mass
     x_start = x.copy() if tu.self_thickness else x
-    verlet_step(x, x_prev, inv_mass, m.h, 0.0, tu.relax_drag, s.max_speed)
+    verlet_step(x, x_prev, inv_mass, m.h, 0.0, tu.settle_drag, s.max_speed)
     st.active[:] = True
     # a point pinched between two parts (pushed out of each into the other) does not flip between them: it is
     # held where the round began or, if that is deeper than the collision's reach, put where the pushes leave

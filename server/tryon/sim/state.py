@@ -110,7 +110,7 @@ class DrapeState:
     substep's passes (for friction); active (k,) bool: the points the step's collision tests; reused (k,) bool:
     contacts that only re-projected onto their plane; x_checked (k, 3) m: where each point was last tested;
     x_step (k, 3) m: positions at the end of the last step; held (k,) bool: held in a pinch between two parts
-    this step; moves (2, k, 3) m: each point's move in the last step and in the one before; movers (k,) bool:
+    this step; moves (4, k, 3) m: each point's move in the last four steps, the last first; movers (k,) bool:
     work space of the within-step test (``collision.movers``); layer_has (k,) bool, layer_point (k, 3) m,
     layer_normal (k, 3): contact planes on a garment under this one (an outfit's layer collision), taken where
     stricter than the body's.
@@ -118,8 +118,13 @@ class DrapeState:
     ends on the body), ordered_ends, ordered_lmax (every spring from the top down, refreshed every
     ``tuning.order_refresh`` steps) and sweep_ends, sweep_lmax (the hanging springs the top-down sweep visits),
     each with its blocks (body_blocks, ordered_blocks, sweep_blocks).
-    step: steps done; rest_run: consecutive steps under the rest energy; rest_reached; energy J/kg: the last
-    step's kinetic energy per kilogram; collided: how many points the last collision moved. started:
+    step: steps done; energy J/kg: the last step's kinetic energy per kilogram; settling: the drape's motion is
+    over (``settings.rest_energy``) and it settles under heavy drag; speed m/s, force N/kg: in the settle, the 99th
+    percentiles of its points' speed and of the force on them not balanced, over the last two steps; balanced:
+    both under their tolerances at this step (``settings.rest_speed``, ``rest_force``); settle_best, settle_best_at:
+    the lowest of the larger of the two over its tolerance so far and the step it came (the settle's stall test);
+    rest_reached: balanced once, or the settle stalled (``step._at_rest``). collided: how many points the last
+    collision moved. started:
     ``time.perf_counter()`` at the start. motion_depth m: a re-posed drape's deepest coarse point inside the
     body as it was at each step (``settle``). shown_from: the first step of a fresh drape shown to a caller
     (``settle.showing``), 0 before it. self_contact: the pairs the cloth's contact with itself tests
@@ -158,9 +163,14 @@ class DrapeState:
     sweep_lmax: np.ndarray = field(default_factory=lambda: np.empty(0))
     sweep_blocks: np.ndarray = field(default_factory=_no_blocks)
     step: int = 0
-    rest_run: int = 0
-    rest_reached: bool = False
     energy: float = 0.0
+    settling: bool = False
+    speed: float = float("inf")
+    force: float = float("inf")
+    balanced: bool = False
+    settle_best: float = float("inf")
+    settle_best_at: int = 0
+    rest_reached: bool = False
     collided: int = 0
     started: float = 0.0
     motion_depth: float = 0.0
@@ -177,7 +187,7 @@ class DrapeState:
                    has_plane=np.zeros(k, dtype=np.bool_), plane_point=np.zeros((k, 3)), plane_normal=np.zeros((k, 3)),
                    push=np.zeros(k), active=np.ones(k, dtype=np.bool_), reused=np.zeros(k, dtype=np.bool_),
                    x_checked=x.copy(), x_step=x.copy(), held=np.zeros(k, dtype=np.bool_),
-                   moves=np.zeros((2, k, 3)),
+                   moves=np.zeros((4, k, 3)),
                    movers=np.zeros(k, dtype=np.bool_), layer_has=np.zeros(k, dtype=np.bool_),
                    layer_point=np.zeros((k, 3)), layer_normal=np.zeros((k, 3)), started=started)
 

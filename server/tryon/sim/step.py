@@ -29,8 +29,9 @@ from tryon.sim.substeps import Planes, Springs, Substeps, Sweep, finish_step
 
 def step(model: DrapeModel, state: DrapeState, control: BodyControl) -> bool:
     """Advance ``state`` by one time step of ``model`` on the body as ``control`` has it at that step (grown,
-    the arms turned, moved); True once the garment is at rest (``settings.rest_energy`` for
-    ``settings.rest_steps`` steps, after the start-up and ``settings.min_steps``). Reads ``model``; writes
+    the arms turned, moved); True once the garment is at rest: its motion over (``settings.rest_energy``, after the
+    start-up and ``settings.min_steps``) and then, settled under heavy drag, its forces balanced (``_at_rest``).
+    Reads ``model``; writes
     ``state`` and the control's collider (its schedule applied). Raises FloatingPointError if the simulation
     diverged."""
     s, st, tu = model.settings, state, model.tuning
@@ -45,7 +46,8 @@ def step(model: DrapeModel, state: DrapeState, control: BodyControl) -> bool:
     mu_s, mu_k = s.friction_static, s.friction_kinetic
     # the first substep's prediction, collision and passes here; its tail and the other substeps in one
     # kernel (``finish_step``)
-    verlet_step(x, x_prev, inv_mass, model.h, gravity, s.air_drag, s.max_speed)
+    drag = tu.settle_drag if st.settling else s.air_drag
+    verlet_step(x, x_prev, inv_mass, model.h, gravity, drag, s.max_speed)
     # a re-posed drape does not leave a pinched point deeper in the body than the collision's reach within a
     # step (``collide_points``' hold_depth); a drape from scratch holds it wherever it is
     hold_depth = model.reach if control.moving else 1e9
@@ -84,7 +86,7 @@ def step(model: DrapeModel, state: DrapeState, control: BodyControl) -> bool:
     # the top-down sweep is for cloth hanging under gravity; without gravity (growth) its upward bias would
     # make a tight garment climb off the body (sweep: not changing)
     run = Substeps(float(model.h), int(model.n_sub), int(model.per_sub), int(contact_passes), float(gravity),
-                   float(s.air_drag), float(s.max_speed), float(mu_s), float(mu_k), not changing,
+                   float(drag), float(s.max_speed), float(mu_s), float(mu_k), not changing,
                    bool(tu.sweep_every_substep), float(model.floor_y))
     movers = control.collider.movers(st, control.parts, s.contact_offset, tu.near, model.reach,
                                      hold_pinched=not changing, retest_planes=control.moving, hold_depth=hold_depth,
@@ -224,24 +226,54 @@ def _project(model: DrapeModel, st: DrapeState, w_eff: np.ndarray) -> None:
 
 
 def _at_rest(model: DrapeModel, st: DrapeState, startup: int) -> bool:
-    """Update the rest test after a step: at rest = the garment's own motion over the last two steps
-    (positions, not the solver's internal velocities, which the strain limits and contact planes keep
-    resetting). Over two steps, because a point caught between the collision and its springs can flip
-    between two places every step, going nowhere (three such points at the armpit of the DiffCloth dress on
-    the large body, 2-3 cm a step, kept it from rest for 400 steps). Not within the body's ``startup`` steps."""
+    """Update the rest test after a step; True once the garment has come to rest. Two phases, both on the points'
+    own motion over the last two steps (positions, not the solver's internal velocities, which the strain limits
+    and contact planes keep resetting; over two steps, because a point caught between the collision and its
+    springs can flip between two places every step, going nowhere: three such points at the armpit of the DiffCloth
+    dress on the large body, 2-3 cm a step, kept it from rest for 400 steps):
+    - the motion: until the mean kinetic energy per kilogram is under ``settings.rest_energy`` (not within the
+      body's ``startup`` steps nor before ``settings.min_steps``); then the settle begins (``st.settling``: the
+      steps' drag is ``tuning.settle_drag``);
+    - the settle: until the 99th percentiles of the points' speed and of the force on them not balanced
+      (``_balance``) are under ``settings.rest_speed`` and ``settings.rest_force``, or no longer come down
+      (``tuning.stall_rounds``, ``stall_progress``): then it ends unbalanced."""
     s = model.settings
     dt = float(s.time_step)
-    st.moves[1] = st.moves[0]
+    st.moves[1:] = st.moves[:-1]
     np.subtract(st.x, st.x_step, out=st.moves[0])
     # x_step - moves[1]: where each point was two steps before (at the first step: where it started)
     st.energy = kinetic_energy_per_kg(st.x, st.x_step - st.moves[1], model.mass, 2 * dt if st.step > 1 else dt)
     st.x_step[:] = st.x
     if not np.isfinite(st.energy):
         raise FloatingPointError(f"simulation diverged at step {st.step}")
-    if st.step > startup and st.step >= s.steps_of(s.min_steps) and st.energy < s.rest_energy:
-        st.rest_run += 1
-        if st.rest_run >= s.steps_of(s.rest_steps):
-            st.rest_reached = True
-    else:
-        st.rest_run = 0
+    if not st.settling and st.step > startup and st.step >= s.steps_of(s.min_steps) and st.energy < s.rest_energy:
+        st.settling = True
+    elif st.settling and st.step >= 4:
+        tu = model.tuning
+        st.speed, st.force = _balance(st.moves, dt, tu.settle_drag, BALANCE_SHARE)
+        st.balanced = st.speed < s.rest_speed and st.force < s.rest_force
+        off = max(st.speed / s.rest_speed, st.force / s.rest_force)
+        if off <= tu.stall_progress * st.settle_best:
+            st.settle_best, st.settle_best_at = off, st.step
+        stalled = st.step - st.settle_best_at >= s.steps_of(tu.stall_rounds)
+        st.rest_reached |= st.balanced or stalled
     return st.rest_reached
+
+
+# The share of a drape's points whose motion and balance its rest test reads (``_at_rest``): all but the odd
+# point the collision and its springs hold in a cycle (one of two steps is balanced on average).
+BALANCE_SHARE = 0.99
+
+
+def _balance(moves: np.ndarray, dt: float, drag: float, share: float) -> tuple[float, float]:
+    """(speed m/s, force N/kg): the ``share`` quantiles over the points of their speed over the last two steps
+    and of the force on them that is not balanced, from their moves (4, k, 3) m in the last four steps (the last
+    first), ``dt`` s each, under air ``drag`` 1/s. The force per kilogram is the two-step acceleration plus what
+    the drag takes (a = f - drag v): a point creeping at a drag-limited speed is not balanced."""
+    recent = moves[0] + moves[1]
+    before = moves[2] + moves[3]
+    velocity = recent / (2.0 * dt)
+    force = (recent - before) / (2.0 * dt) ** 2 + drag * velocity
+    speed = np.sqrt(np.einsum("ij,ij->i", velocity, velocity))
+    unbalanced = np.sqrt(np.einsum("ij,ij->i", force, force))
+    return float(np.quantile(speed, share)), float(np.quantile(unbalanced, share))

@@ -32,18 +32,27 @@ class Tuning:
         mesh pushed out round the toes stretched 0.32-1.8 on the 158 cm body's trousers S, L and XXL). Cloth
         that starts in a part not grown is pushed out to its nearest surface (outward, for a leg wrapped round
         a calf or a hem in an instep).
-    min_polish_rounds, max_polish_rounds, polish_stall_rounds, polish_progress: the relaxation after the
-        loop runs at least MIN rounds (one step's substeps each), then until every spring meets the strain
-        target (``metrics.allowed_length``), at most MAX, and gives up when the count of springs over the
-        target has not fallen to PROGRESS x its lowest in STALL rounds (a garment too small for the body
-        there: its springs stay over whatever the rounds). A band that must stretch a little to sit on a
-        large body climbs slowly: the L skirt and shorts on the large body need 81 and 193 rounds; with at
-        most 300 and the stall rule they meet the target, and the drapes that cannot (S / M garments on the
-        large body) stop after 33-67 rounds.
-    relax_drag: 1/s, air drag in the relaxation: light, so the motion the constraints start keeps going (a
-        waistband climbs back up to where it fits in 10-40 rounds instead of hundreds of passes without
-        momentum), yet a cloth pulled up off a table by the springs at its rim comes to a stop (0 and 10/s
-        left bumps of 2 mm and 1.7 cm on the table test at 0.05 s; 20/s: 0.2 mm).
+    min_polish_rounds, max_polish_rounds: the relaxation after the loop runs at least MIN rounds (one step's
+        substeps each), then until every spring meets the strain target (``metrics.allowed_length``), at most
+        MAX, or until it stalls (below). A band that must stretch a little to sit on a large body climbs slowly:
+        the L skirt and shorts on the large body need 81 and 193 rounds; with at most 300 and the stall rule they
+        meet the target, and the drapes that cannot (S / M garments on the large body) stop after 33-67 rounds.
+    stall_rounds, stall_progress: a search that has not brought its figure down to PROGRESS x its lowest in
+        STALL rounds gives up. The relaxation's figure is the count of springs over the target (a garment too
+        small for the body there: its springs stay over whatever the rounds); the settle's the larger of its
+        speed and force over their tolerances (``SimSettings.rest_speed``, ``rest_force``; STALL counted in
+        steps of ``REFERENCE_STEP``): points caught between the collision and their springs in a cycle longer
+        than two steps never balance (the medium body's trousers XL fallen round its feet: 16 of 1,511 points
+        at 0.5 cm/s, held there for 300 steps). Such a drape ends unbalanced (metrics ``balanced``).
+    settle_drag: 1/s, air drag once the drape's motion is over (``SimSettings.rest_energy``): in its settle, until
+        its forces balance (``rest_speed``, ``rest_force``), and in the relaxation after it. Heavy next to the
+        fall's (``SimSettings.air_drag``, 1/s): a hem's swing (a 30 cm pendulum, 5.7 rad/s, critically damped at
+        11/s) dies in a few steps instead of ringing for a hundred (the T-shirt M stepped on past its mean-energy
+        rest at 1/s still moved up to 0.4 mm a step 100 steps later), and on the 90 catalogue drapes the settle
+        took fewer steps at 12-25/s than at 6/s. Light enough that the motion the constraints start keeps
+        going in the relaxation (a waistband climbs back up to where it fits in 10-40 rounds instead of
+        hundreds of passes without momentum), yet a cloth pulled up off a table by the springs at its rim comes
+        to a stop (0 and 10/s left bumps of 2 mm and 1.7 cm on the table test at 0.05 s; 20/s: 0.2 mm).
     relax_move_quantile, relax_max_move: m. The relaxation is kept for each piece of the file that it moved
         less than ``relax_max_move`` at the ``relax_move_quantile`` of the piece's coarse points. A garment
         far too small for its body has no nearby place where its springs meet the target, and without
@@ -127,9 +136,9 @@ class Tuning:
     grow_reach: float = 2.5
     min_polish_rounds: int = 3
     max_polish_rounds: int = 300
-    polish_stall_rounds: int = 30
-    polish_progress: float = 0.9
-    relax_drag: float = 20.0
+    stall_rounds: int = 30
+    stall_progress: float = 0.9
+    settle_drag: float = 20.0
     relax_move_quantile: float = 0.9
     relax_max_move: float = 0.15
     order_refresh: int = 20

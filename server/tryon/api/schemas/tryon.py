@@ -137,6 +137,15 @@ class TryOnMetricsOut(BaseModel):
     cached: bool = Field(False, description="true if this answer is an earlier identical request's result (REST "
                                             "or WebSocket), served from the result cache without simulating")
     rest_reached: bool = Field(description="whether the garment came to rest before the step limit")
+    balanced: bool = Field(description="whether it ended at rest within the stated tolerances: 99 % of its "
+                                       f"simulated points slower than {_DEFAULT.rest_speed * 1000:g} mm/s and the "
+                                       f"forces on them balanced to {_DEFAULT.rest_force:g} N/kg; false when a few "
+                                       "points kept moving in a cycle, or the run stopped before")
+    rest_speed_mm_s: float | None = Field(description="the 99th percentile of its simulated points' speed over the "
+                                                      "last two steps, mm/s; null if it never settled")
+    unbalanced_force: float | None = Field(description="the 99th percentile of the force on its simulated points "
+                                                       "that is not balanced, over the last two steps, N/kg; null "
+                                                       "if it never settled")
     penetrating_vertices: int = Field(description="garment vertices inside the body by more than 2 mm")
     max_penetration_mm: float = Field(description="deepest garment vertex inside the body, mm")
     motion_max_penetration_mm: float | None = Field(

@@ -110,7 +110,7 @@ def relax(d: Drape) -> Relaxation:
 def relaxation_passes(d: Drape) -> tuple[Springs, Substeps]:
     """The springs and substeps of a relaxation round of ``d``: only the over-long springs act (no compression
     pushes cloth off the body; with l0 = 0 too a compressed spring is not even visited, so the passes skip the
-    buckled cloth on the body); gravity and friction off, light drag (``tuning.settle_drag``)."""
+    buckled cloth on the body); gravity and friction off, the settle's drag (``tuning.settle_drag``)."""
     m = d.model
     stretch_only = m.table.copy()
     stretch_only[:, 1:] = 0.0

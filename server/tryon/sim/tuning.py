@@ -48,8 +48,9 @@ class Tuning:
         its forces balance (``rest_speed``, ``rest_force``), and in the relaxation after it. Heavy next to the
         fall's (``SimSettings.air_drag``, 1/s): a hem's swing (a 30 cm pendulum, 5.7 rad/s, critically damped at
         11/s) dies in a few steps instead of ringing for a hundred (the T-shirt M stepped on past its mean-energy
-        rest at 1/s still moved up to 0.4 mm a step 100 steps later), and on the 90 catalogue drapes the settle
-        took fewer steps at 12-25/s than at 6/s. Light enough that the motion the constraints start keeps
+        rest at 1/s still moved up to 0.4 mm a step 100 steps later); on nine catalogue drapes slow to settle,
+        12/s and 25/s took about as many steps in all, 6/s 6-9 % more (a stiffer drag slows a creep as much
+        as it stops a swing). Light enough that the motion the constraints start keeps
         going in the relaxation (a waistband climbs back up to where it fits in 10-40 rounds instead of
         hundreds of passes without momentum), yet a cloth pulled up off a table by the springs at its rim comes
         to a stop (0 and 10/s left bumps of 2 mm and 1.7 cm on the table test at 0.05 s; 20/s: 0.2 mm).

@@ -31,9 +31,8 @@ def step(model: DrapeModel, state: DrapeState, control: BodyControl) -> bool:
     """Advance ``state`` by one time step of ``model`` on the body as ``control`` has it at that step (grown,
     the arms turned, moved); True once the garment is at rest: its motion over (``settings.rest_energy``, after the
     start-up and ``settings.min_steps``) and then, settled under heavy drag, its forces balanced (``_at_rest``).
-    Reads ``model``; writes
-    ``state`` and the control's collider (its schedule applied). Raises FloatingPointError if the simulation
-    diverged."""
+    Reads ``model``; writes ``state`` and the control's collider (its schedule applied). Raises FloatingPointError
+    if the simulation diverged."""
     s, st, tu = model.settings, state, model.tuning
     x, x_prev, inv_mass = st.x, st.x_prev, st.inv_mass
     st.step += 1
